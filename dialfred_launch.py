@@ -1,0 +1,267 @@
+#!/usr/bin/env python3
+"""DialFRED launcher: starts the node graph as separate processes and runs scripted jobs on it.
+
+There is no `ros2 launch` here, so this script does its job: it resolves each node executable the
+way `ros2 run <pkg> node` does (ament index prefix + lib/<pkg>/node), starts it, waits until its
+services answer, runs a job, and shuts everything down on exit or Ctrl-C. A node that dies is
+reported with its exit code and the last lines it printed.
+
+    python dialfred_launch.py demo [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/demo]
+    python dialfred_launch.py nodes              # start the graph and keep it up until Ctrl-C
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+REPO = Path(__file__).resolve().parent
+
+
+def resolve_executable(package: str, executable: str = 'node') -> Path:
+    """<prefix>/lib/<package>/<executable> of an installed package, as `ros2 run` finds it."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+    try:
+        prefix = get_package_prefix(package)
+    except PackageNotFoundError:
+        raise FileNotFoundError(f'package {package!r} is not in the ament index '
+                                f'(AMENT_PREFIX_PATH={os.environ.get("AMENT_PREFIX_PATH", "")!r}); '
+                                'run ./dialfred setup') from None
+    path = Path(prefix) / 'lib' / package / executable
+    if not os.access(path, os.X_OK):
+        raise FileNotFoundError(f'{path} is missing or not executable')
+    return path
+
+
+class NodeDied(RuntimeError):
+    pass
+
+
+@dataclass
+class NodeProcess:
+    """One node executable running as a child process, its output kept for error reports."""
+
+    package: str
+    parameters: dict = field(default_factory=dict)
+    executable: str = 'node'
+    proc: Optional[subprocess.Popen] = None
+    tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=40))
+
+    def start(self) -> None:
+        cmd = [str(resolve_executable(self.package, self.executable))]
+        if self.parameters:
+            cmd += ['--ros-args'] + [a for k, v in self.parameters.items() for a in ('-p', f'{k}:={v}')]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     start_new_session=True)
+        threading.Thread(target=self._drain, daemon=True).start()
+
+    def _drain(self) -> None:
+        for line in self.proc.stdout:
+            self.tail.append(line.rstrip())
+            if os.environ.get('DIALFRED_VERBOSE'):
+                print(f'[{self.package}] {line.rstrip()}', file=sys.stderr)
+
+    def check(self) -> None:
+        if self.proc is not None and self.proc.poll() is not None:
+            out = '\n    '.join(list(self.tail)[-15:]) or '(no output)'
+            raise NodeDied(f'{self.package} node died with exit code {self.proc.returncode}; last output:\n    {out}')
+
+    def stop(self, timeout: float = 5.0) -> Optional[int]:
+        if self.proc is None or self.proc.poll() is not None:
+            return None if self.proc is None else self.proc.returncode
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+            try:
+                os.killpg(self.proc.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                return self.proc.wait(wait)
+            except subprocess.TimeoutExpired:
+                continue
+        return self.proc.poll()
+
+
+class Graph:
+    """The running node graph plus a client node in this process to talk to it."""
+
+    def __init__(self, nodes: list[NodeProcess]):
+        self.nodes = nodes
+        self.client_node = None
+        self.executor = None
+
+    def __enter__(self) -> 'Graph':
+        import rclpy
+        for n in self.nodes:
+            n.start()
+        rclpy.init()
+        self.client_node = rclpy.create_node('dialfred_launcher')
+        from dialfred_sim.ros_util import make_executor
+        self.executor = make_executor()
+        self.executor.add_node(self.client_node)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import rclpy
+        if self.executor is not None:
+            self.executor.shutdown()
+        if self.client_node is not None:
+            self.client_node.destroy_node()
+        rclpy.try_shutdown()
+        for n in self.nodes:
+            code = n.stop()
+            if code not in (None, 0, -signal.SIGINT, 130):
+                print(f'{n.package} node exited with code {code}', file=sys.stderr)
+
+    def check(self) -> None:
+        for n in self.nodes:
+            n.check()
+
+    def client(self, srv_type, name: str, timeout: float = 30.0):
+        """A client for service `name`, once it is available; NodeDied if a node dies meanwhile."""
+        cli = self.client_node.create_client(srv_type, name)
+        deadline = time.monotonic() + timeout
+        while not cli.wait_for_service(timeout_sec=0.1):
+            self.check()
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'service {name} not available after {timeout:.0f} s')
+        return cli
+
+    def call(self, cli, request, timeout: float = 30.0):
+        """Call a service and wait for the reply, watching the nodes for crashes."""
+        future = cli.call_async(request)
+        deadline = time.monotonic() + timeout
+        while not future.done():
+            self.executor.spin_until_future_complete(future, timeout_sec=0.5)
+            self.check()
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'no reply from {cli.srv_name} after {timeout:.0f} s')
+        return future.result()
+
+
+def sim_node(resolution: int = 128, **params) -> NodeProcess:
+    return NodeProcess('dialfred_sim', {'resolution': resolution, **params})
+
+
+# ---------------------------------------------------------------------------------------- jobs
+
+def image_array(msg):
+    import numpy as np
+    dtype = {'rgb8': np.uint8, '32FC1': np.float32, '32SC1': np.int32}[msg.encoding]
+    arr = np.frombuffer(bytes(msg.data), dtype=dtype)
+    channels = 3 if msg.encoding == 'rgb8' else 1
+    return arr.reshape(msg.height, msg.width, channels) if channels > 1 else arr.reshape(msg.height, msg.width)
+
+
+def run_demo(args) -> int:
+    """Start the simulator node, play a scripted exploring episode through ROS, save its frames."""
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import SimReset, SimStep
+
+    from dialfred_sim.scripted import ExplorerPolicy
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with Graph([sim_node(args.resolution)]) as graph:
+        t0 = time.monotonic()
+        reset_cli = graph.client(SimReset, '/sim/reset')
+        step_cli = graph.client(SimStep, '/sim/step')
+        print(f'graph ready in {time.monotonic() - t0:.1f} s')
+        reply = graph.call(reset_cli, SimReset.Request(scene=args.scene, seed=args.seed))
+        if not reply.ok:
+            print(f'reset failed: {reply.error}', file=sys.stderr)
+            return 1
+        obs = reply.observation
+        policy = ExplorerPolicy(seed=args.seed)
+        frames = []
+        print(f'{reply.task.scene}, seed {args.seed}')
+        print(f'{"step":>4}  {"action":<10} {"target px":<10} {"ok":<3} {"held":<16} error')
+        for step in range(args.steps):
+            rgb = image_array(obs.rgb)
+            frames.append(rgb)
+            decision = policy.act(rgb=rgb, depth=image_array(obs.depth), segmentation=image_array(obs.segmentation),
+                                  instances=dict(zip(obs.instance_ids, obs.instance_object_ids)),
+                                  held=obs.held_object, last_success=obs.last_action_success)
+            req = SimStep.Request(action=Action(action=decision.action, x=decision.pixel[0], y=decision.pixel[1]))
+            reply = graph.call(step_cli, req)
+            if not reply.ok:
+                print(f'step rejected: {reply.error}', file=sys.stderr)
+                return 1
+            obs = reply.observation
+            px = f'{decision.pixel[0]},{decision.pixel[1]}' if decision.pixel[0] >= 0 else ''
+            print(f'{step + 1:>4}  {decision.action:<10} {px:<10} {"y" if obs.last_action_success else "n":<3} '
+                  f'{obs.held_object or "-":<16} {obs.last_action_error}')
+            if obs.done:
+                break
+        frames.append(image_array(obs.rgb))
+    paths = save_frames(frames, out)
+    print(f'saved {len(frames)} frames and {paths["gif"]} (contact sheet {paths["sheet"]})')
+    return 0
+
+
+def save_frames(frames, out: Path) -> dict:
+    from PIL import Image
+    for k, f in enumerate(frames):
+        Image.fromarray(f).save(out / f'frame_{k:03d}.png')
+    imgs = [Image.fromarray(f).resize((256, 256), Image.NEAREST) for f in frames]
+    gif = out / 'episode.gif'
+    imgs[0].save(gif, save_all=True, append_images=imgs[1:], duration=250, loop=0)
+    cols = 8
+    rows = (len(frames) + cols - 1) // cols
+    h, w = frames[0].shape[:2]
+    sheet = Image.new('RGB', (cols * w, rows * h), (255, 255, 255))
+    for k, f in enumerate(frames):
+        sheet.paste(Image.fromarray(f), ((k % cols) * w, (k // cols) * h))
+    sheet.save(out / 'contact_sheet.png')
+    return {'gif': gif, 'sheet': out / 'contact_sheet.png'}
+
+
+def run_nodes(args) -> int:
+    """Start the graph and keep it up until Ctrl-C, reporting any node that dies."""
+    from dialfred_msgs.srv import SimReset
+    with Graph([sim_node(args.resolution)]) as graph:
+        graph.client(SimReset, '/sim/reset')
+        print('graph up: /sim/reset, /sim/step, /sim/observation. Ctrl-C to stop.')
+        while True:
+            graph.check()
+            time.sleep(0.5)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest='command', required=True)
+    demo = sub.add_parser('demo', help='scripted episode through the simulator node; saves frames')
+    demo.add_argument('--scene', default='FloorPlan1')
+    demo.add_argument('--seed', type=int, default=0)
+    demo.add_argument('--steps', type=int, default=40)
+    demo.add_argument('--resolution', type=int, default=128)
+    demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
+    nodes = sub.add_parser('nodes', help='start the node graph and keep it running')
+    nodes.add_argument('--resolution', type=int, default=128)
+    args = parser.parse_args(argv)
+    # Ctrl-C and SIGTERM both unwind through the Graph context, which stops every child.
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        return {'demo': run_demo, 'nodes': run_nodes}[args.command](args)
+    except KeyboardInterrupt:
+        print('interrupted; nodes stopped', file=sys.stderr)
+        return 130
+    except (NodeDied, TimeoutError, FileNotFoundError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

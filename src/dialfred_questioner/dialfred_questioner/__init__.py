@@ -1,0 +1,1 @@
+"""DialFRED questioner: decides when and what to ask the oracle; filled by a later issue (the questioner model)."""

@@ -1,0 +1,161 @@
+"""The Gymnasium environment over the household world: `reset(seed=, options=)` and `step()`.
+
+Observations are first-person RGB, depth (metres), instance segmentation (pybullet body ids; the
+table of ids is in `info['instances']`) and the agent pose. Actions are ALFRED's 13 low-level actions
+with a target pixel for interactions. An episode ends at Stop or after `max_failures` failed actions
+(terminated), or after `max_steps` steps (truncated), the limits of the DialFRED paper.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from pybullet_utils import bullet_client
+import pybullet
+
+from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
+from .world.rooms import all_scenes, room_layout, scene_number
+from .world.scene import FAR, HORIZON_MAX, HORIZON_MIN, World
+
+DEFAULT_RESOLUTION = 128   # see docs/benchmarks.md: 4x the frame rate of 300x300 on this CPU
+
+
+class DialfredEnv(gym.Env):
+    """A household room, an agent with ALFRED's actions, and ground truth for tasks and the oracle.
+
+    Args:
+        resolution: frame width and height in pixels.
+        scene: floor plan to use ('FloorPlan7'); None draws one of the 120 from the reset seed.
+        max_steps, max_failures: episode limits.
+        dirty_probability: chance that a cleanable object starts dirty.
+    """
+
+    metadata = {'render_modes': ['rgb_array'], 'render_fps': 5}
+
+    def __init__(self, resolution: int = DEFAULT_RESOLUTION, scene: Optional[str] = None,
+                 max_steps: int = 1000, max_failures: int = 10, dirty_probability: float = 0.25,
+                 render_mode: Optional[str] = 'rgb_array'):
+        if not isinstance(resolution, (int, np.integer)) or not 16 <= resolution <= 1024:
+            raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')
+        if scene is not None:
+            scene_number(scene)   # raises ValueError for an unknown scene
+        self.resolution = int(resolution)
+        self.scene = scene
+        self.max_steps, self.max_failures = max_steps, max_failures
+        self.dirty_probability = dirty_probability
+        self.render_mode = render_mode
+        self.client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
+        self.world = World(self.client, self.resolution, self.resolution)
+        r = self.resolution
+        self.observation_space = spaces.Dict({
+            'rgb': spaces.Box(0, 255, (r, r, 3), np.uint8),
+            'depth': spaces.Box(0.0, FAR, (r, r), np.float32),
+            'segmentation': spaces.Box(-1, 2 ** 24, (r, r), np.int32),
+            'pose': spaces.Box(np.array([0.0, 0.0, 0.0, HORIZON_MIN], np.float32),
+                               np.array([20.0, 20.0, 360.0, HORIZON_MAX], np.float32), dtype=np.float32),
+        })
+        self.action_space = spaces.Dict({'action': spaces.Discrete(len(Action)),
+                                         'pixel': spaces.MultiDiscrete([r, r])})
+        self._frame: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None
+        self.steps = 0
+        self.failures = 0
+        self.done = True
+        self.last_result = ActionResult(True)
+
+    # ------------------------------------------------------------------ Gymnasium API
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict[str, Any]] = None):
+        """Start an episode. options: {'scene': 'FloorPlanN'} picks the floor plan."""
+        super().reset(seed=seed)
+        options = options or {}
+        scene = options.get('scene') or self.scene
+        if scene is None:
+            scenes = all_scenes()
+            scene = scenes[int(self.np_random.integers(len(scenes)))]
+        layout = room_layout(scene)       # ValueError for an unknown scene, before anything changes
+        self.world.build(layout, self.np_random, options.get('dirty_probability', self.dirty_probability))
+        self.steps, self.failures, self.done = 0, 0, False
+        self.last_result = ActionResult(True)
+        self._frame = self.world.render()
+        return self._observation(), self._info()
+
+    def step(self, action):
+        """Act. `action`: {'action': index or name, 'pixel': (x, y)}, or an index / name alone.
+
+        Raises ValueError for a malformed action (nothing changes) and RuntimeError after the episode
+        ended or before reset.
+        """
+        if self._frame is None:
+            raise RuntimeError('step() before reset()')
+        if self.done:
+            raise RuntimeError('the episode is over; call reset()')
+        act, pixel = self._parse(action)
+        _, depth, seg = self._frame
+        result = execute(self.world, act, pixel, depth, seg)
+        self.steps += 1
+        self.last_result = result
+        if not result.success:
+            self.failures += 1
+        self._frame = self.world.render()
+        terminated = act == Action.Stop or self.failures >= self.max_failures
+        truncated = not terminated and self.steps >= self.max_steps
+        self.done = terminated or truncated
+        return self._observation(), 0.0, terminated, truncated, self._info()
+
+    def render(self):
+        return None if self._frame is None else self._frame[0]
+
+    def close(self):
+        if self.client is not None:
+            try:
+                self.client.disconnect()
+            except pybullet.error:
+                pass
+            self.client = None
+
+    # ------------------------------------------------------------------ helpers
+
+    def _parse(self, action) -> tuple[Action, tuple[int, int]]:
+        pixel: Any = (-1, -1)
+        if isinstance(action, dict):
+            if 'action' not in action:
+                raise ValueError("action dict needs an 'action' key")
+            name, pixel = action['action'], action.get('pixel', (-1, -1))
+        else:
+            name = action
+        act = parse_action(name)
+        if act.is_interaction:
+            try:
+                px, py = (int(v) for v in pixel)
+            except (TypeError, ValueError):
+                raise ValueError(f'{act.name} needs a target pixel (x, y), got {pixel!r}') from None
+            if not (0 <= px < self.resolution and 0 <= py < self.resolution):
+                raise ValueError(f'pixel ({px}, {py}) is outside the {self.resolution}x{self.resolution} frame')
+            return act, (px, py)
+        return act, (-1, -1)
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        rgb, depth, seg = self._frame
+        a = self.world.agent
+        pose = np.array([a.x, a.y, a.rotation, a.horizon], np.float32)
+        return {'rgb': rgb, 'depth': depth, 'segmentation': seg, 'pose': pose}
+
+    def _info(self) -> dict[str, Any]:
+        ids, names = self.world.instance_table()
+        return {
+            'scene': self.world.layout.scene,
+            'room_type': self.world.layout.room_type,
+            'held_object': self.world.held or '',
+            'last_action_success': self.last_result.success,
+            'last_action_error': self.last_result.error,
+            'last_action_target': self.last_result.target or '',
+            'step_count': self.steps,
+            'failed_actions': self.failures,
+            'instances': (ids, names),
+        }
+
+
+__all__ = ['DialfredEnv', 'ACTION_NAMES', 'DEFAULT_RESOLUTION']

@@ -1,0 +1,150 @@
+"""`dialfred_sim node`: the household simulator as a ROS 2 node.
+
+Serves `/sim/reset` (dialfred_msgs/srv/SimReset) and `/sim/step` (dialfred_msgs/srv/SimStep) and
+publishes every new observation on `/sim/observation`. All logic lives in `env.DialfredEnv`; this
+node only converts messages. Bad requests get ok=false and an error text, and the node keeps serving.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image
+
+from dialfred_msgs.msg import AgentPose, Observation
+from dialfred_msgs.srv import SimReset, SimStep
+
+from .env import DEFAULT_RESOLUTION, DialfredEnv
+from .ros_util import make_executor, spin_forever
+
+# Observations: every one matters to a recorder, only the newest to a controller.
+OBSERVATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                             depth=1, durability=DurabilityPolicy.VOLATILE)
+
+
+def image_msg(array: np.ndarray, encoding: str, header) -> Image:
+    """A sensor_msgs/Image holding `array` (HxW or HxWxC, contiguous)."""
+    msg = Image()
+    msg.header = header
+    msg.height, msg.width = int(array.shape[0]), int(array.shape[1])
+    msg.encoding = encoding
+    msg.is_bigendian = 0
+    msg.step = int(array.strides[0])
+    msg.data = np.ascontiguousarray(array).tobytes()
+    return msg
+
+
+class SimNode(Node):
+    """Thin ROS adapter over DialfredEnv."""
+
+    def __init__(self):
+        super().__init__('dialfred_sim')
+        self.declare_parameter('resolution', DEFAULT_RESOLUTION)
+        self.declare_parameter('seed', 0)
+        self.declare_parameter('scene', '')
+        self.declare_parameter('max_steps', 1000)
+        self.declare_parameter('max_failures', 10)
+        self.declare_parameter('publish_observations', True)
+        p = self.get_parameter
+        scene = p('scene').value or None
+        self.default_seed = int(p('seed').value)
+        self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
+                               max_steps=int(p('max_steps').value), max_failures=int(p('max_failures').value))
+        self.publish_observations = bool(p('publish_observations').value)
+        self.observation_pub = self.create_publisher(Observation, '/sim/observation', OBSERVATION_QOS)
+        self.create_service(SimReset, '/sim/reset', self.on_reset)
+        self.create_service(SimStep, '/sim/step', self.on_step)
+        self.obs = None
+        self.info = None
+        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
+
+    # ------------------------------------------------------------------ services
+
+    def on_reset(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
+        if request.task_id:
+            response.ok = False
+            response.error = f'unknown task_id {request.task_id!r}: no task catalogue is loaded'
+            return response
+        options = {'scene': request.scene} if request.scene else None
+        seed = int(request.seed)
+        try:
+            self.obs, self.info = self.env.reset(seed=seed, options=options)
+        except ValueError as exc:
+            response.ok, response.error = False, str(exc)
+            return response
+        response.ok = True
+        response.observation = self._observation_msg(done=False)
+        response.task.scene = self.info['scene']
+        self._publish(response.observation)
+        return response
+
+    def on_step(self, request: SimStep.Request, response: SimStep.Response) -> SimStep.Response:
+        if self.obs is None:
+            response.ok, response.error = False, 'step before reset: call /sim/reset first'
+            return response
+        action = {'action': request.action.action, 'pixel': (request.action.x, request.action.y)}
+        try:
+            obs, reward, terminated, truncated, info = self.env.step(action)
+        except (ValueError, RuntimeError) as exc:
+            response.ok, response.error = False, str(exc)
+            response.observation = self._observation_msg(done=self.env.done)
+            return response
+        self.obs, self.info = obs, info
+        response.ok = True
+        response.reward = float(reward)
+        response.terminated, response.truncated = bool(terminated), bool(truncated)
+        response.observation = self._observation_msg(done=terminated or truncated)
+        self._publish(response.observation)
+        return response
+
+    # ------------------------------------------------------------------ messages
+
+    def _observation_msg(self, done: bool) -> Observation:
+        msg = Observation()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = 'agent_camera'
+        msg.rgb = image_msg(self.obs['rgb'], 'rgb8', msg.header)
+        msg.depth = image_msg(self.obs['depth'], '32FC1', msg.header)
+        msg.segmentation = image_msg(self.obs['segmentation'], '32SC1', msg.header)
+        ids, names = self.info['instances']
+        msg.instance_ids = [int(i) for i in ids]
+        msg.instance_object_ids = list(names)
+        x, y, rot, horizon = (float(v) for v in self.obs['pose'])
+        msg.pose = AgentPose(x=x, y=y, camera_height=1.5, rotation_deg=rot, horizon_deg=horizon)
+        msg.held_object = self.info['held_object']
+        msg.last_action_success = bool(self.info['last_action_success'])
+        msg.last_action_error = self.info['last_action_error']
+        msg.step_count = int(self.info['step_count'])
+        msg.failed_actions = int(self.info['failed_actions'])
+        msg.done = bool(done)
+        return msg
+
+    def _publish(self, msg: Observation) -> None:
+        if self.publish_observations and self.observation_pub.get_subscription_count() > 0:
+            self.observation_pub.publish(msg)
+
+    def destroy_node(self):
+        self.env.close()
+        super().destroy_node()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = SimNode()
+    executor = make_executor()
+    executor.add_node(node)
+    try:
+        spin_forever(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

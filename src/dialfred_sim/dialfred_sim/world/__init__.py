@@ -1,0 +1,1 @@
+"""The household world: object catalog, shapes, rooms and their pybullet bodies (ROS-free)."""

@@ -1,0 +1,23 @@
+from setuptools import find_packages, setup
+
+package_name = 'dialfred_sim'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(include=[package_name, package_name + '.*']),
+    package_data={package_name: ['data/*.csv']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    description='DialFRED simulator node (pybullet world, ALFRED-style actions).',
+    license='TODO',
+    entry_points={
+        'console_scripts': [
+            'node = dialfred_sim.node:main',
+        ],
+    },
+)

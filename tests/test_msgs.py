@@ -1,0 +1,129 @@
+"""The dialfred_msgs interfaces are built, importable, and carry the documented fields."""
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header
+
+from dialfred_msgs.msg import Action, AgentPose, Observation, QAPair, TaskDescription
+from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
+
+RGB_4X4 = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3)
+
+
+def rgb_image(pixels: np.ndarray) -> Image:
+    height, width, _ = pixels.shape
+    return Image(height=height, width=width, encoding='rgb8', is_bigendian=0, step=width * 3,
+                 data=pixels.tobytes())
+
+
+def make_observation() -> Observation:
+    return Observation(
+        header=Header(frame_id='camera'),
+        rgb=rgb_image(RGB_4X4),
+        instance_ids=[3, 7],
+        instance_object_ids=['Apple_3', 'Fridge_7'],
+        pose=AgentPose(x=1.25, y=-0.5, camera_height=0.9, rotation_deg=90.0, horizon_deg=30.0),
+        held_object='Apple_3',
+        last_action_success=False,
+        last_action_error='blocked',
+        step_count=12,
+        failed_actions=1,
+        done=False,
+    )
+
+
+def test_action_names_are_alfreds():
+    assert {
+        Action.MOVE_AHEAD, Action.ROTATE_LEFT, Action.ROTATE_RIGHT, Action.LOOK_UP, Action.LOOK_DOWN,
+        Action.PICKUP, Action.PUT, Action.OPEN, Action.CLOSE, Action.TOGGLE_ON, Action.TOGGLE_OFF,
+        Action.SLICE, Action.STOP,
+    } == {
+        'MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown', 'Pickup', 'Put', 'Open',
+        'Close', 'ToggleOn', 'ToggleOff', 'Slice', 'Stop',
+    }
+    assert Action.get_fields_and_field_types() == {'action': 'string', 'x': 'int32', 'y': 'int32'}
+
+
+def test_question_types():
+    assert (QAPair.LOCATION, QAPair.APPEARANCE, QAPair.DIRECTION) == (
+        'location', 'appearance', 'direction')
+    assert QAPair.get_fields_and_field_types() == {
+        'question_type': 'string', 'object_noun': 'string', 'question': 'string',
+        'answer': 'string', 'valid': 'boolean'}
+
+
+def test_observation_fields():
+    assert Observation.get_fields_and_field_types() == {
+        'header': 'std_msgs/Header',
+        'rgb': 'sensor_msgs/Image',
+        'depth': 'sensor_msgs/Image',
+        'segmentation': 'sensor_msgs/Image',
+        'instance_ids': 'sequence<int32>',
+        'instance_object_ids': 'sequence<string>',
+        'pose': 'dialfred_msgs/AgentPose',
+        'held_object': 'string',
+        'last_action_success': 'boolean',
+        'last_action_error': 'string',
+        'step_count': 'uint32',
+        'failed_actions': 'uint32',
+        'done': 'boolean',
+    }
+    assert AgentPose.get_fields_and_field_types() == {
+        'x': 'double', 'y': 'double', 'camera_height': 'double', 'rotation_deg': 'double',
+        'horizon_deg': 'double'}
+    assert TaskDescription.get_fields_and_field_types() == {
+        'task_id': 'string', 'task_type': 'string', 'scene': 'string', 'instruction': 'string',
+        'step_instructions': 'sequence<string>', 'object_nouns': 'sequence<string>',
+        'expert_length': 'uint32'}
+
+
+def test_observation_with_a_4x4_rgb_image_round_trips():
+    observation = make_observation()
+    assert isinstance(observation.rgb, Image)
+    assert isinstance(observation.pose, AgentPose)
+    assert list(observation.instance_ids) == [3, 7]
+    assert observation.step_count == 12
+
+    restored = deserialize_message(serialize_message(observation), Observation)
+
+    assert restored == observation
+    assert (restored.rgb.height, restored.rgb.width, restored.rgb.encoding) == (4, 4, 'rgb8')
+    pixels = np.frombuffer(bytes(restored.rgb.data), dtype=np.uint8).reshape(4, 4, 3)
+    np.testing.assert_array_equal(pixels, RGB_4X4)
+    assert restored.pose.rotation_deg == 90.0
+    assert list(restored.instance_object_ids) == ['Apple_3', 'Fridge_7']
+
+
+def test_field_types_are_enforced_when_checking_is_on():
+    # Jazzy checks field values only with check_fields=True or ROS_PYTHON_CHECK_FIELDS=1.
+    observation = Observation(check_fields=True)
+    with pytest.raises(AssertionError):
+        observation.step_count = -1  # uint32
+    with pytest.raises(AssertionError):
+        observation.done = 1  # bool, not int
+    with pytest.raises(AssertionError):
+        observation.rgb = 'not an image'
+    with pytest.raises(AssertionError):
+        Action(check_fields=True).x = 1.5  # int32
+
+
+def test_services_have_the_documented_request_and_response():
+    assert SimReset.Request.get_fields_and_field_types() == {
+        'scene': 'string', 'seed': 'int64', 'task_id': 'string'}
+    assert SimReset.Response.get_fields_and_field_types() == {
+        'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
+        'task': 'dialfred_msgs/TaskDescription'}
+    assert SimStep.Request.get_fields_and_field_types() == {'action': 'dialfred_msgs/Action'}
+    assert SimStep.Response.get_fields_and_field_types() == {
+        'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
+        'reward': 'double', 'terminated': 'boolean', 'truncated': 'boolean'}
+    assert OracleAnswer.Request.get_fields_and_field_types() == {
+        'question_type': 'string', 'object_noun': 'string'}
+    assert OracleAnswer.Response.get_fields_and_field_types() == {
+        'valid': 'boolean', 'answer': 'string', 'reason': 'string'}
+
+    request = SimStep.Request(action=Action(action=Action.PICKUP, x=150, y=200))
+    restored = deserialize_message(serialize_message(request), SimStep.Request)
+    assert (restored.action.action, restored.action.x, restored.action.y) == ('Pickup', 150, 200)
