@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """`/sim/step` round trip through ROS between two processes vs the same step in-process.
 
-Starts the real `dialfred_sim node` executable (as `ros2 run` would), plays a fixed action sequence
-through `/sim/step` from this process, then plays the same sequence on an in-process DialfredEnv.
-Also reads the node's peak resident memory (VmHWM). Prints JSON.
+Starts the real `dialfred_sim node` executable (as `ros2 run` would) and plays a fixed action
+sequence through `/sim/step` from this process, timing each step paired with the same step on an
+in-process DialfredEnv. Also reads the node's peak resident memory (VmHWM). Prints JSON.
 
     ./dialfred bench ros_step [--resolution 300] [--steps 300]
 """
@@ -33,43 +33,47 @@ def peak_rss_mb(pid: int) -> float:
     return float('nan')
 
 
-def ros_times(resolution: int, steps: int, scene: str, seed: int):
+def paired_times(resolution: int, steps: int, scene: str, seed: int):
+    """Each action goes once through /sim/step and once through an in-process env in the same state.
+
+    Both simulators start from the same seed and get the same actions, so by determinism they stay
+    in identical states; pairing the two timings per step lets machine noise hit both alike.
+    """
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import SimReset, SimStep
+
+    from dialfred_sim.env import DialfredEnv
+    env = DialfredEnv(resolution=resolution)
     node = sim_node(resolution)
+    ros, local = [], []
     with Graph([node]) as graph:
         reset_cli = graph.client(SimReset, '/sim/reset')
         step_cli = graph.client(SimStep, '/sim/step')
-        graph.call(reset_cli, SimReset.Request(scene=scene, seed=seed))
-        times = []
-        c = resolution // 2
-        for k in range(steps):
-            req = SimStep.Request(action=Action(action=PATTERN[k % len(PATTERN)], x=c, y=c))
-            t0 = time.perf_counter()
-            reply = graph.call(step_cli, req)
-            times.append(time.perf_counter() - t0)
+
+        def reset(s):
+            reply = graph.call(reset_cli, SimReset.Request(scene=scene, seed=s))
             if not reply.ok:
                 raise RuntimeError(reply.error)
+            env.reset(seed=s, options={'scene': scene})
+
+        reset(seed)
+        c = resolution // 2
+        for k in range(steps):
+            name = PATTERN[k % len(PATTERN)]
+            t0 = time.perf_counter()
+            reply = graph.call(step_cli, SimStep.Request(action=Action(action=name, x=c, y=c)))
+            t1 = time.perf_counter()
+            env.step({'action': name, 'pixel': (c, c)})
+            t2 = time.perf_counter()
+            if not reply.ok:
+                raise RuntimeError(reply.error)
+            ros.append(t1 - t0)
+            local.append(t2 - t1)
             if reply.terminated or reply.truncated:
-                graph.call(reset_cli, SimReset.Request(scene=scene, seed=seed + k + 1))
+                reset(seed + k + 1)
         rss = peak_rss_mb(node.proc.pid)
-    return times, rss
-
-
-def inprocess_times(resolution: int, steps: int, scene: str, seed: int):
-    from dialfred_sim.env import DialfredEnv
-    env = DialfredEnv(resolution=resolution)
-    env.reset(seed=seed, options={'scene': scene})
-    times = []
-    c = resolution // 2
-    for k in range(steps):
-        t0 = time.perf_counter()
-        _, _, term, trunc, _ = env.step({'action': PATTERN[k % len(PATTERN)], 'pixel': (c, c)})
-        times.append(time.perf_counter() - t0)
-        if term or trunc:
-            env.reset(seed=seed + k + 1, options={'scene': scene})
     env.close()
-    return times
+    return ros, local, rss
 
 
 def summary(times):
@@ -86,8 +90,9 @@ def main() -> None:
     ap.add_argument('--seed', type=int, default=0)
     args = ap.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    ros, rss = ros_times(args.resolution, args.steps, args.scene, args.seed)
-    local = inprocess_times(args.resolution, args.steps, args.scene, args.seed)
+    # A domain of its own, so that no other graph on this machine answers our requests.
+    os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)
+    ros, local, rss = paired_times(args.resolution, args.steps, args.scene, args.seed)
     r, l = summary(ros), summary(local)
     print(json.dumps({
         'benchmark': 'ros_step', 'resolution': args.resolution, 'steps': args.steps, 'scene': args.scene,

@@ -8,13 +8,33 @@ with a target pixel for interactions. An episode ends at Stop or after `max_fail
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 from typing import Any, Optional
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from pybullet_utils import bullet_client
-import pybullet
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Silence C-level prints to stdout (pybullet's banner and 'argv[0]=') so JSON output stays clean."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, 'wb') as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+with _quiet_stdout():
+    import pybullet
+    from pybullet_utils import bullet_client
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
 from .world.rooms import all_scenes, room_layout, scene_number
@@ -47,7 +67,8 @@ class DialfredEnv(gym.Env):
         self.max_steps, self.max_failures = max_steps, max_failures
         self.dirty_probability = dirty_probability
         self.render_mode = render_mode
-        self.client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
+        with _quiet_stdout():
+            self.client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
         self.world = World(self.client, self.resolution, self.resolution)
         r = self.resolution
         self.observation_space = spaces.Dict({
@@ -104,6 +125,36 @@ class DialfredEnv(gym.Env):
         truncated = not terminated and self.steps >= self.max_steps
         self.done = terminated or truncated
         return self._observation(), 0.0, terminated, truncated, self._info()
+
+    def teleport(self, i: int, j: int, rotation: int, horizon: float):
+        """Put the agent on grid point (i, j) facing `rotation` degrees with camera pitch `horizon`.
+
+        For experts, tests and tools (not an agent action; it does not count as a step). ValueError
+        if the point is not free floor or the pose is off the action grid. Returns the observation.
+        """
+        if self._frame is None:
+            raise RuntimeError('teleport() before reset()')
+        if (i, j) not in self.world.layout.navigable:
+            raise ValueError(f'grid point ({i}, {j}) is not free floor in {self.world.layout.scene}')
+        if rotation % 90 or not HORIZON_MIN <= horizon <= HORIZON_MAX or horizon % 15:
+            raise ValueError(f'rotation must be a multiple of 90 and horizon a multiple of 15 in '
+                             f'[{HORIZON_MIN:g}, {HORIZON_MAX:g}], got {rotation}, {horizon}')
+        a = self.world.agent
+        a.i, a.j, a.rotation, a.horizon = int(i), int(j), int(rotation) % 360, float(horizon)
+        self.world.update_held_pose()
+        self._frame = self.world.render()
+        return self._observation()
+
+    def pixel_of(self, object_id: str):
+        """A pixel (x, y) of `object_id` in the current frame (the one nearest its mask's centre), or None."""
+        obj = self.world.objects.get(object_id)
+        if obj is None or self._frame is None:
+            return None
+        ys, xs = np.nonzero(self._frame[2] == obj.body)
+        if len(xs) == 0:
+            return None
+        k = int(np.argmin((xs - xs.mean()) ** 2 + (ys - ys.mean()) ** 2))
+        return int(xs[k]), int(ys[k])
 
     def render(self):
         return None if self._frame is None else self._frame[0]

@@ -1,0 +1,61 @@
+"""Shared set-up of the test suite: ROS isolation and a small simulator.
+
+ROS isolation happens at import time, before any test module imports rclpy or starts a node: every
+pytest session picks its own ROS_DOMAIN_ID (from its pid) and keeps discovery on this host, so two
+test runs on one machine (or a test run next to a demo) never see each other's /sim/* services.
+The value is chosen afresh even if the calling shell set one: a fixed CI value would make parallel
+jobs cross-talk, which is exactly what this prevents. Child processes (the node under test) inherit
+it through os.environ.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+# ROS 2 domain ids 0-101 are safe on Linux with the default participant limits; 0 is everyone's
+# default, so use 1-101.
+os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 101)
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.pop('ROS_STATIC_PEERS', None)
+os.environ.pop('ROS_LOCALHOST_ONLY', None)   # deprecated in Jazzy; would warn next to the above
+
+TESTS = Path(__file__).resolve().parent
+if str(TESTS) not in sys.path:     # `import helpers` from any test module
+    sys.path.insert(0, str(TESTS))
+
+SMALL_RESOLUTION = 64
+
+
+@pytest.fixture(scope='session')
+def ros_domain_id() -> int:
+    return int(os.environ['ROS_DOMAIN_ID'])
+
+
+@pytest.fixture(scope='module')
+def env():
+    """A 64x64 DialfredEnv shared by a test module; each test resets it to the situation it needs."""
+    from dialfred_sim.env import DialfredEnv
+    e = DialfredEnv(resolution=SMALL_RESOLUTION)
+    yield e
+    e.close()
+
+
+@pytest.fixture
+def make_env():
+    """Factory for extra environments (other limits, a second copy); all are closed afterwards."""
+    from dialfred_sim.env import DialfredEnv
+    made = []
+
+    def make(**kwargs):
+        kwargs.setdefault('resolution', SMALL_RESOLUTION)
+        e = DialfredEnv(**kwargs)
+        made.append(e)
+        return e
+
+    yield make
+    for e in made:
+        e.close()

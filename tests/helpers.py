@@ -1,0 +1,174 @@
+"""Helpers to set up simulator situations deterministically in tests (no ROS).
+
+The tests put objects where they need them (`spawn_on`, `World.place`, `World.hold`), then use
+`face()` to stand the agent where the target is visible and within reach and get the pixel to act on.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from dialfred_sim.actions import REACH
+from dialfred_sim.world.rooms import GRID
+
+HORIZONS = (0, 15, 30, 45, 60, -15, -30)
+
+
+def reset(env, scene: str = 'FloorPlan1', seed: int = 0, **options):
+    return env.reset(seed=seed, options={'scene': scene, **options})
+
+
+def rerender(env):
+    """Render the current world state again from the agent's current pose (after direct edits)."""
+    a = env.world.agent
+    return env.teleport(a.i, a.j, a.rotation, a.horizon)
+
+
+def agent_pose(env) -> tuple:
+    a = env.world.agent
+    return (a.i, a.j, a.rotation, a.horizon)
+
+
+def snapshot(env) -> tuple:
+    """Everything an action may change: every object's ground truth, the agent pose, the hand."""
+    return env.world.object_states(), agent_pose(env), env.world.held
+
+
+def first_of(env, type_name: str):
+    """The first object of `type_name` (by id), failing the test if the scene has none."""
+    ids = sorted(k for k, o in env.world.objects.items() if o.type_name == type_name)
+    assert ids, f'{env.world.layout.scene} has no {type_name}'
+    return env.world.objects[ids[0]]
+
+
+def spawn_on(env, type_name: str, receptacle_id: str, colour: Optional[str] = None):
+    """A new `type_name` resting on/in `receptacle_id` (first free spot); re-renders the frame."""
+    w = env.world
+    obj = w.spawn(type_name, colour or _colour(type_name))
+    assert w.place(obj, w.objects[receptacle_id]), f'no room for {type_name} on {receptacle_id}'
+    rerender(env)
+    return obj
+
+
+def spawn_held(env, type_name: str, colour: Optional[str] = None):
+    """A new `type_name` in the agent's hand; re-renders the frame."""
+    w = env.world
+    obj = w.spawn(type_name, colour or _colour(type_name))
+    w.hold(obj)
+    rerender(env)
+    return obj
+
+
+def _colour(type_name: str) -> str:
+    from dialfred_sim.world.catalog import load_catalog
+    return load_catalog()[type_name].colours[0]
+
+
+def distance_at(env, pixel) -> float:
+    """Distance from the camera to the point seen at `pixel` of the current frame."""
+    _, depth, _ = env._frame
+    return env.world.pixel_point(pixel[0], pixel[1], depth)[1]
+
+
+def pixel(env, object_id: str):
+    """A pixel of `object_id` in the current frame; fails the test if it is not visible."""
+    px = env.pixel_of(object_id)
+    assert px is not None, f'{object_id} is not visible from {agent_pose(env)}'
+    return px
+
+
+def _candidates(env, target, radius: float, min_radius: float = 0.0):
+    w = env.world
+    ox, oy, oz = target.position
+    out = []
+    for i, j in w.layout.navigable:
+        x, y = i * GRID, j * GRID
+        d = math.hypot(ox - x, oy - y)
+        if not min_radius <= d <= radius:
+            continue
+        bearing = math.degrees(math.atan2(oy - y, ox - x))
+        pitch = math.degrees(math.atan2(1.5 - oz, max(d, 0.05)))
+        for rot in (0, 90, 180, 270):
+            off = abs((bearing - rot + 180) % 360 - 180)
+            if off > 60 and d > 0.3:
+                continue
+            for hor in HORIZONS:
+                out.append((off + abs(hor - pitch) / 2 + 10 * d * (min_radius == 0), (i, j, rot, hor)))
+    out.sort()
+    return [pose for _, pose in out]
+
+
+def face(env, object_id: str, reach: float = REACH - 0.1, radius: float = 1.3):
+    """Teleport the agent so that `object_id` is visible within `reach` metres; return its pixel.
+
+    Searches free grid points within `radius` metres (horizontal) of the object, the 4 rotations and
+    the camera pitches, best guesses first. Fails the test if no pose shows the object in reach.
+    """
+    target = env.world.objects[object_id]
+    for i, j, rot, hor in _candidates(env, target, radius):
+        env.teleport(i, j, rot, hor)
+        px = env.pixel_of(object_id)
+        if px is not None and distance_at(env, px) <= reach:
+            return px
+    raise AssertionError(f'{object_id} cannot be seen within {reach} m from any free point of '
+                         f'{env.world.layout.scene}')
+
+
+def face_from_afar(env, object_id: str, beyond: float = REACH + 0.2):
+    """Like face(), but from a pose where the object is visible and more than `beyond` m away."""
+    target = env.world.objects[object_id]
+    for i, j, rot, hor in _candidates(env, target, radius=8.0, min_radius=beyond):
+        env.teleport(i, j, rot, hor)
+        px = env.pixel_of(object_id)
+        if px is not None and distance_at(env, px) > beyond:
+            return px
+    raise AssertionError(f'{object_id} cannot be seen from farther than {beyond} m')
+
+
+def pixel_of_structure(env, name: str):
+    """A pixel showing room structure `name` ('Floor', 'Wall', 'Ceiling') in the current frame."""
+    _, _, seg = env._frame
+    bodies = [b for b, n in env.world.structure_bodies.items() if n == name]
+    ys, xs = np.nonzero(np.isin(seg, bodies))
+    if len(xs) == 0:
+        return None
+    k = len(xs) // 2
+    return int(xs[k]), int(ys[k])
+
+
+def act(env, action: str, px=None):
+    """One step; returns (observation, terminated, truncated, info)."""
+    cmd = {'action': action} if px is None else {'action': action, 'pixel': px}
+    obs, reward, terminated, truncated, info = env.step(cmd)
+    return obs, terminated, truncated, info
+
+
+def free_ahead_pose(env):
+    """A free grid point and rotation whose forward neighbour is free too (for MoveAhead)."""
+    nav = env.world.layout.navigable
+    steps = {0: (1, 0), 90: (0, 1), 180: (-1, 0), 270: (0, -1)}
+    for i, j in sorted(nav):
+        for rot, (di, dj) in steps.items():
+            if (i + di, j + dj) in nav:
+                return i, j, rot
+    raise AssertionError('no free step in this room')
+
+
+def unproject(env, px: int, py: int) -> np.ndarray:
+    """The world point seen at pixel (px, py) of the current frame, from pybullet's own camera matrices.
+
+    Independent of World.pixel_point: inverts the view matrix the frame was rendered with, using the
+    metric depth of the observation (OpenGL camera frame: x right, y up, looking along -z).
+    """
+    w = env.world
+    _, depth, _ = env._frame
+    view = np.array(w.view_matrix(), dtype=float).reshape(4, 4).T
+    proj = np.array(w._projection, dtype=float).reshape(4, 4).T
+    x_ndc = (px + 0.5) / w.width * 2 - 1
+    y_ndc = 1 - (py + 0.5) / w.height * 2
+    d = float(depth[py, px])
+    cam = np.array([x_ndc * d / proj[0, 0], y_ndc * d / proj[1, 1], -d, 1.0])
+    return (np.linalg.inv(view) @ cam)[:3]
