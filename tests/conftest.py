@@ -1,8 +1,9 @@
 """Shared set-up of the test suite: ROS isolation and a small simulator.
 
 ROS isolation happens at import time, before any test module imports rclpy or starts a node: every
-pytest session picks its own ROS_DOMAIN_ID (from its pid) and keeps discovery on this host, so two
-test runs on one machine (or a test run next to a demo) never see each other's /sim/* services.
+pytest session picks its own ROS_DOMAIN_ID (derived from its pid, and locked so that no concurrent
+session on this machine takes the same one) and keeps discovery on this host, so two test runs on
+one machine never see each other's /sim/* services.
 The value is chosen afresh even if the calling shell set one: a fixed CI value would make parallel
 jobs cross-talk, which is exactly what this prevents. Child processes (the node under test) inherit
 it through os.environ.
@@ -16,9 +17,31 @@ from pathlib import Path
 
 import pytest
 
-# ROS 2 domain ids 0-101 are safe on Linux with the default participant limits; 0 is everyone's
-# default, so use 1-101.
-os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 101)
+
+def claim_ros_domain_id():
+    """A ROS domain id in 1-101 that no other pytest session on this machine holds.
+
+    Ids 0-101 are safe on Linux with the default participant limits; 0 is everyone's default, so
+    use 1-101. Start from one derived from the pid and take the first whose lock file we can lock;
+    the lock (not inherited by child processes) is held until this process exits.
+    """
+    import fcntl
+    import tempfile
+    start = os.getpid() % 101
+    for k in range(101):
+        domain = 1 + (start + k) % 101
+        lock = open(os.path.join(tempfile.gettempdir(), f'dialfred-test-ros-domain-{domain}.lock'), 'a')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        return domain, lock
+    return 1 + start, None
+
+
+ROS_DOMAIN_ID, _DOMAIN_LOCK = claim_ros_domain_id()
+os.environ['ROS_DOMAIN_ID'] = str(ROS_DOMAIN_ID)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_STATIC_PEERS', None)
 os.environ.pop('ROS_LOCALHOST_ONLY', None)   # deprecated in Jazzy; would warn next to the above
@@ -33,6 +56,15 @@ SMALL_RESOLUTION = 64
 @pytest.fixture(scope='session')
 def ros_domain_id() -> int:
     return int(os.environ['ROS_DOMAIN_ID'])
+
+
+@pytest.fixture(scope='session')
+def spare_ros_domain_id():
+    """A second domain id of this session's own, for nodes that must stay out of the main graph."""
+    domain, lock = claim_ros_domain_id()
+    yield domain
+    if lock is not None:
+        lock.close()
 
 
 @pytest.fixture(scope='module')

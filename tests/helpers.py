@@ -44,11 +44,12 @@ def first_of(env, type_name: str):
     return env.world.objects[ids[0]]
 
 
-def spawn_on(env, type_name: str, receptacle_id: str, colour: Optional[str] = None):
-    """A new `type_name` resting on/in `receptacle_id` (first free spot); re-renders the frame."""
+def spawn_on(env, type_name: str, receptacle_id: str, colour: Optional[str] = None, near=None):
+    """A new `type_name` resting on/in `receptacle_id` (the free spot nearest the world point `near`,
+    else the first free spot); re-renders the frame."""
     w = env.world
     obj = w.spawn(type_name, colour or _colour(type_name))
-    assert w.place(obj, w.objects[receptacle_id]), f'no room for {type_name} on {receptacle_id}'
+    assert w.place(obj, w.objects[receptacle_id], near=near), f'no room for {type_name} on {receptacle_id}'
     rerender(env)
     return obj
 
@@ -160,15 +161,18 @@ def free_ahead_pose(env):
 def unproject(env, px: int, py: int) -> np.ndarray:
     """The world point seen at pixel (px, py) of the current frame, from pybullet's own camera matrices.
 
-    Independent of World.pixel_point: inverts the view matrix the frame was rendered with, using the
-    metric depth of the observation (OpenGL camera frame: x right, y up, looking along -z).
+    Independent of World.pixel_point: inverts the view and projection matrices the frame was rendered
+    with, using the observation's metric depth (OpenGL camera frame: x right, y up, looking along -z).
+    pybullet's TinyRenderer samples pixel (px, py) at normalised device coordinates
+    (2 px / W - 1, 1 - 2 (py + 1) / H) (measured: floor and wall pixels then land exactly on their
+    planes), not at the pixel centre.
     """
     w = env.world
     _, depth, _ = env._frame
     view = np.array(w.view_matrix(), dtype=float).reshape(4, 4).T
     proj = np.array(w._projection, dtype=float).reshape(4, 4).T
-    x_ndc = (px + 0.5) / w.width * 2 - 1
-    y_ndc = 1 - (py + 0.5) / w.height * 2
+    x_ndc = px / w.width * 2 - 1
+    y_ndc = 1 - (py + 1) / w.height * 2
     d = float(depth[py, px])
     cam = np.array([x_ndc * d / proj[0, 0], y_ndc * d / proj[1, 1], -d, 1.0])
     return (np.linalg.inv(view) @ cam)[:3]

@@ -52,6 +52,13 @@ def counter(env):
     return tops[0]
 
 
+def middle_shelf(env, fridge):
+    """The world point at the centre of the fridge's middle shelf."""
+    from dialfred_sim.world.rooms import local_to_world
+    surf = fridge.spec.surfaces[len(fridge.spec.surfaces) // 2]
+    return local_to_world(fridge.position, fridge.yaw, surf.center)
+
+
 def faucet_of(env, basin_id: str):
     return next(o for o in env.world.objects.values() if o.controls == basin_id)
 
@@ -67,11 +74,13 @@ def ok(env, action: str, px=None):
 def fails(env, action: str, px=None, match: str = ''):
     """Step an action that must fail with an error matching `match`, changing nothing but the counters."""
     before = snapshot(env)
+    view = env.world.render()[0]           # what the agent's camera sees of the world right now
     steps, failures = env.steps, env.failures
     obs, terminated, truncated, info = act(env, action, px)
     assert not info['last_action_success'], f'{action} at {px} unexpectedly succeeded'
     assert re.search(match, info['last_action_error']), info['last_action_error']
     assert snapshot(env) == before, f'failed {action} changed the world or the agent'
+    assert np.array_equal(obs['rgb'], view), f'failed {action} changed what the agent sees'
     assert info['failed_actions'] == failures + 1
     assert info['step_count'] == steps + 1
     return info
@@ -193,28 +202,25 @@ def test_depth_is_metric_floor_pixels_lie_on_the_floor(env):
     assert len(xs) > 100
     for x, y in zip(xs[::5], ys[::5]):
         point = unproject(env, int(x), int(y))
-        assert abs(point[2]) < 0.02, (x, y, point)      # the floor is the plane z = 0
+        assert abs(point[2]) < 0.01, (x, y, point)      # the floor is the plane z = 0
         assert float(obs['depth'][y, x]) > 0
 
 
-PIXEL_POINT_BUG = ('World.pixel_point (world/scene.py:429) builds the camera up vector as fwd x right, '
-                   'which points down: the 3-D point of a pixel is mirrored about the optical axis '
-                   'vertically (distances are right, positions are not), so Put aims at the wrong spot')
 
-
-@pytest.mark.xfail(reason=PIXEL_POINT_BUG, strict=True)
 @pytest.mark.parametrize('horizon', [0, 30, 60])
 def test_pixel_point_is_the_point_seen_at_the_pixel(env, horizon):
     reset(env, KITCHEN)
     i, j, rot = free_ahead_pose(env)
     obs = env.teleport(i, j, rot, horizon)
+    eye = (env.world.agent.x, env.world.agent.y, 1.5)
     for y in range(0, 64, 9):
         for x in range(0, 64, 9):
             point, dist = env.world.pixel_point(x, y, obs['depth'])
             expected = unproject(env, x, y)
-            eye = (env.world.agent.x, env.world.agent.y, 1.5)
-            assert dist == pytest.approx(math.dist(eye, expected), abs=0.01)
-            assert point == pytest.approx(tuple(expected), abs=0.02), (x, y)
+            # Within a pixel's width at that distance (pixel_point aims at pixel centres).
+            tol = 0.02 + math.dist(eye, expected) * 2 / 64
+            assert dist == pytest.approx(math.dist(eye, expected), abs=tol)
+            assert math.dist(point, expected) < tol, (x, y, point, expected)
 
 
 # ---------------------------------------------------------------------------------------------- Pickup
@@ -280,7 +286,7 @@ def test_pickup_fails_inside_a_closed_container(env):
     w = kitchen(env)
     fridge = first_of(env, 'Fridge')
     w.set_open(fridge, True)
-    apple = spawn_on(env, 'Apple', fridge.object_id)
+    apple = spawn_on(env, 'Apple', fridge.object_id, near=middle_shelf(env, fridge))
     px = face(env, apple.object_id)
     # The door shuts (a direct world edit) while the agent still acts on the frame showing the apple.
     w.set_open(fridge, False)
@@ -291,7 +297,7 @@ def test_pickup_of_an_object_in_an_open_container_succeeds(env):
     w = kitchen(env)
     fridge = first_of(env, 'Fridge')
     w.set_open(fridge, True)
-    apple = spawn_on(env, 'Apple', fridge.object_id)
+    apple = spawn_on(env, 'Apple', fridge.object_id, near=middle_shelf(env, fridge))
     ok(env, 'Pickup', face(env, apple.object_id))
     assert w.held == apple.object_id and apple.object_id not in fridge.contents
 
@@ -330,7 +336,6 @@ def test_put_into_an_open_fridge(env):
     assert apple.position[2] == pytest.approx(surface_height(env, apple), abs=1e-6)
 
 
-@pytest.mark.xfail(reason=PIXEL_POINT_BUG, strict=True)
 def test_put_places_the_object_on_the_shelf_the_agent_points_at(env):
     from dialfred_sim.world.scene import _to_local
     w = kitchen(env)
@@ -387,7 +392,12 @@ def test_put_fails_when_alfred_does_not_allow_the_object_there(env, receptacle):
     fails(env, 'Put', px, match=rf'^Apple cannot be put on {receptacle}$')
 
 
-def test_put_fails_onto_the_held_object_itself(env):
+@pytest.mark.parametrize('action, error', [
+    ('Put', r'^cannot put {} into itself$'),
+    ('Pickup', r'^{} is in your hand; target something else$'),
+    ('Open', r'^{} is in your hand; target something else$'),
+])
+def test_acting_on_the_held_object_itself_fails(env, action, error):
     w = kitchen(env)
     plate = spawn_held(env, 'Plate')
     i, j, rot = free_ahead_pose(env)
@@ -395,10 +405,10 @@ def test_put_fails_onto_the_held_object_itself(env):
         env.teleport(i, j, rot, hor)
         px = env.pixel_of(plate.object_id)
         if px is not None:
-            fails(env, 'Put', px, match=rf'cannot put {plate.object_id} into itself')
+            fails(env, action, px, match=error.format(plate.object_id))
             assert w.held == plate.object_id
             return
-    pytest.skip('the held plate is not in view')
+    pytest.fail('the held plate is never in view')
 
 
 # ---------------------------------------------------------------------------------------------- Open / Close
@@ -464,16 +474,35 @@ def test_toggle_fails_on_something_not_toggleable(env, action):
     fails(env, action, face(env, top.object_id), match=rf'^{top.object_id} cannot be turned on or off$')
 
 
-def test_a_stove_knob_lights_its_burner_and_heats_the_pan_on_it(env):
+def test_a_stove_knob_lights_its_burner_and_heats_the_kettle_on_it(env):
     w = kitchen(env)
     knob = first_of(env, 'StoveKnob')
     burner = w.objects[knob.controls]
-    pan = spawn_on(env, 'Pan', burner.object_id)
+    kettle = spawn_on(env, 'Kettle', burner.object_id)
     ok(env, 'ToggleOn', face(env, knob.object_id))
     assert knob.is_on and burner.is_on
-    assert pan.temperature == HOT
+    assert w.object_state(kettle.object_id).temperature == HOT
     ok(env, 'ToggleOff', pixel(env, knob.object_id))
     assert not knob.is_on and not burner.is_on
+
+
+def test_putting_on_a_lit_burner_heats(env):
+    w = kitchen(env)
+    knob = first_of(env, 'StoveKnob')
+    burner = w.objects[knob.controls]
+    ok(env, 'ToggleOn', face(env, knob.object_id))
+    kettle = spawn_held(env, 'Kettle')
+    ok(env, 'Put', face(env, burner.object_id))
+    assert kettle.parent == burner.object_id and kettle.temperature == HOT
+
+
+@pytest.mark.parametrize('cookware', ['Pan', 'Pot'])
+def test_a_pan_or_pot_can_be_put_on_a_stove_burner(env, cookware):
+    w = kitchen(env)
+    burner = first_of(env, 'StoveBurner')
+    pan = spawn_held(env, cookware)
+    ok(env, 'Put', face(env, burner.object_id))
+    assert pan.parent == burner.object_id
 
 
 # ---------------------------------------------------------------------------------------------- Slice
@@ -487,7 +516,6 @@ def test_slice_with_a_knife_replaces_the_object_by_slices(env):
     info = ok(env, 'Slice', face(env, apple_id))
     assert info['last_action_target'] == apple_id
     assert apple_id not in w.objects and apple_id not in top.contents
-    assert apple.body not in w.body_to_object
     slices = [o for o in w.objects.values() if o.type_name == 'AppleSliced']
     assert len(slices) == 4
     for s in slices:
@@ -552,7 +580,7 @@ def test_putting_into_the_basin_under_running_water_cleans(env):
     assert first.parent == basin.object_id and first.is_dirty      # the water is off: still dirty
     ok(env, 'ToggleOn', face(env, faucet.object_id))
     assert not first.is_dirty
-    second = spawn_held(env, 'Plate')
+    second = spawn_held(env, 'Apple')
     second.is_dirty = True
     ok(env, 'Put', face(env, basin.object_id))
     assert second.parent == basin.object_id
@@ -739,7 +767,8 @@ def test_observations_match_the_observation_space(env):
     assert obs['rgb'].shape == (64, 64, 3) and obs['rgb'].dtype == np.uint8
     assert obs['depth'].dtype == np.float32 and obs['segmentation'].dtype == np.int32
     ids, names = info['instances']
-    assert set(np.unique(obs['segmentation'])) <= set(ids)
+    assert set(np.unique(obs['segmentation']).tolist()) - {-1} <= set(ids)   # -1: nothing rendered
+    assert names[ids.index(env.world.objects['Bed_0'].body)] == 'Bed_0'
     assert info['room_type'] == 'bedroom' and info['scene'] == 'FloorPlan301'
 
 
@@ -758,7 +787,6 @@ def test_all_120_floor_plans_build_with_room_to_move(make_env):
     types = set()
     for scene in scenes:
         lay = room_layout(scene)
-        assert len(lay.navigable) >= 30, scene
         per_type[lay.room_type] = per_type.get(lay.room_type, 0) + 1
         types |= {f.type_name for f in lay.fixtures} | set(lay.small_object_types)
         _, info = e.reset(seed=0, options={'scene': scene})
@@ -769,6 +797,11 @@ def test_all_120_floor_plans_build_with_room_to_move(make_env):
     assert per_type == {room: 30 for room in ROOM_TYPES}
     assert len(types) >= 80, sorted(types)
     assert types <= set(load_catalog())
+
+
+def test_every_floor_plan_has_at_least_30_navigable_points():
+    small = {s: len(room_layout(s).navigable) for s in all_scenes() if len(room_layout(s).navigable) < 30}
+    assert small == {}
 
 
 def test_floor_plan_numbers_follow_ai2thor(env):

@@ -68,7 +68,9 @@ class SimNode(Node):
             response.ok = False
             response.error = f'unknown task_id {request.task_id!r}: no task catalogue is loaded'
             return response
-        options = {'scene': request.scene} if request.scene else None
+        # An empty scene keeps the current floor plan (a fresh node draws one from the seed).
+        scene = request.scene or (self.info['scene'] if self.info else None)
+        options = {'scene': scene} if scene else None
         seed = int(request.seed)
         try:
             self.obs, self.info = self.env.reset(seed=seed, options=options)

@@ -24,6 +24,7 @@ from .shapes import shape_for
 
 GRID = 0.25            # the agent's step, metres
 AGENT_RADIUS = 0.2     # a grid point is free if a disc of this radius touches no furniture
+MIN_NAVIGABLE = 30     # free grid points a layout must offer
 WALL_HEIGHT = 2.6
 COUNTER_HEIGHT = 0.9
 COUNTER_DEPTH = 0.62
@@ -529,7 +530,7 @@ def _try_layout(number: int, attempt: int) -> Optional[RoomLayout]:
             else:
                 _place_on(b, type_name, where[3:].split('|'))
     nav = navigable_points(width, depth, b.rects)
-    if len(nav) < 0.3 * len(_room_shell_free(width, depth)):
+    if len(nav) < max(MIN_NAVIGABLE, 0.3 * len(_room_shell_free(width, depth))):
         return None
     # Every fixture one can use must be reachable: a free grid point within 1.0 m of its front.
     for f in b.fixtures:

@@ -238,8 +238,10 @@ class World:
         if obj.spec.size[2] > surf.clearance + 1e-6:
             return []
         if hx > surf.half_size[0] + 1e-6 or hy > surf.half_size[1] + 1e-6:
-            # Allow long things (a knife on a small plate) to overhang open-top surfaces a little.
-            if surf.inside or hx > surf.half_size[0] * 1.6 + 0.02 or hy > surf.half_size[1] * 1.6 + 0.02:
+            # Long things may overhang open-top surfaces a little (a knife on a plate), and as much
+            # as they like where ALFRED's allow-list names them (a pan on a stove burner).
+            named = obj.type_name in receptacle.otype.accepts
+            if surf.inside or not named and (hx > surf.half_size[0] * 1.6 + 0.02 or hy > surf.half_size[1] * 1.6 + 0.02):
                 return []
         taken = []
         for cid in receptacle.contents:
@@ -426,8 +428,8 @@ class World:
         eye, fwd = self.camera()
         yaw = math.radians(self.agent.rotation)
         right = (math.sin(yaw), -math.cos(yaw), 0.0)
-        up = (fwd[1] * right[2] - fwd[2] * right[1], fwd[2] * right[0] - fwd[0] * right[2],
-              fwd[0] * right[1] - fwd[1] * right[0])
+        up = (right[1] * fwd[2] - right[2] * fwd[1], right[2] * fwd[0] - right[0] * fwd[2],
+              right[0] * fwd[1] - right[1] * fwd[0])   # right x forward: the camera's up
         t = math.tan(math.radians(FOV_DEG) / 2)
         u = ((px + 0.5) / self.width * 2 - 1) * t * (self.width / self.height)
         v = (1 - (py + 0.5) / self.height * 2) * t
