@@ -25,6 +25,10 @@ from pathlib import Path
 from typing import Optional
 
 REPO = Path(__file__).resolve().parent
+# Every process of the graph (this one and its children) uses the project's Fast DDS profile: a
+# shared-memory segment large enough for whole observations (see config/fastdds_profiles.xml).
+os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(REPO / 'config' / 'fastdds_profiles.xml'))
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 
 def resolve_executable(package: str, executable: str = 'node') -> Path:

@@ -7,6 +7,8 @@ node only converts messages. Bad requests get ok=false and an error text, and th
 
 from __future__ import annotations
 
+import array as pyarray
+
 import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -33,7 +35,8 @@ def image_msg(array: np.ndarray, encoding: str, header) -> Image:
     msg.encoding = encoding
     msg.is_bigendian = 0
     msg.step = int(array.strides[0])
-    msg.data = np.ascontiguousarray(array).tobytes()
+    # array.array from bytes: about 7x faster to assign than bytes (rclpy converts bytes per field).
+    msg.data = pyarray.array('B', np.ascontiguousarray(array).tobytes())
     return msg
 
 
