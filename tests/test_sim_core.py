@@ -326,7 +326,7 @@ def test_put_rests_the_held_object_on_the_receptacle(env):
 
 
 def test_put_into_an_open_fridge(env):
-    w = kitchen(env)
+    kitchen(env)
     fridge = first_of(env, 'Fridge')
     ok(env, 'Open', face(env, fridge.object_id))
     apple = spawn_held(env, 'Apple')
@@ -434,7 +434,7 @@ def test_open_and_close(env, openable):
 
 
 def test_an_opening_drawer_carries_its_contents(env):
-    w = kitchen(env)
+    kitchen(env)
     drawer = first_of(env, 'Drawer')
     spoon = spawn_on(env, 'Spoon', drawer.object_id)
     before = spoon.position
@@ -498,7 +498,7 @@ def test_putting_on_a_lit_burner_heats(env):
 
 @pytest.mark.parametrize('cookware', ['Pan', 'Pot'])
 def test_a_pan_or_pot_can_be_put_on_a_stove_burner(env, cookware):
-    w = kitchen(env)
+    kitchen(env)
     burner = first_of(env, 'StoveBurner')
     pan = spawn_held(env, cookware)
     ok(env, 'Put', face(env, burner.object_id))

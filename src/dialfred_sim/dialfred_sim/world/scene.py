@@ -15,7 +15,7 @@ import numpy as np
 
 from .bodies import ShapeCache, build_body, set_articulation
 from .catalog import ObjectType, load_catalog
-from .geometry import Part, ShapeSpec
+from .geometry import ShapeSpec
 from .palette import rgba
 from .rooms import GRID, WALL_HEIGHT, RoomLayout, local_to_world
 from .shapes import shape_for
