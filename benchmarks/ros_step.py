@@ -3,7 +3,9 @@
 
 Starts the real `dialfred_sim node` executable (as `ros2 run` would) and plays a fixed action
 sequence through `/sim/step` from this process, timing each step paired with the same step on an
-in-process DialfredEnv. Also reads the node's peak resident memory (VmHWM). Prints JSON.
+in-process DialfredEnv. Done twice: replies with the full observation, and replies with RGB only
+(`with_depth=false, with_segmentation=false`). Also reads the node's peak resident memory (VmHWM).
+Prints JSON.
 
     ./dialfred bench ros_step [--resolution 300] [--steps 300]
 """
@@ -33,7 +35,7 @@ def peak_rss_mb(pid: int) -> float:
     return float('nan')
 
 
-def paired_times(resolution: int, steps: int, scene: str, seed: int):
+def paired_times(resolution: int, steps: int, scene: str, seed: int, full: bool):
     """Each action goes once through /sim/step and once through an in-process env in the same state.
 
     Both simulators start from the same seed and get the same actions, so by determinism they stay
@@ -61,7 +63,8 @@ def paired_times(resolution: int, steps: int, scene: str, seed: int):
         for k in range(steps):
             name = PATTERN[k % len(PATTERN)]
             t0 = time.perf_counter()
-            reply = graph.call(step_cli, SimStep.Request(action=Action(action=name, x=c, y=c)))
+            req = SimStep.Request(action=Action(action=name, x=c, y=c), with_depth=full, with_segmentation=full)
+            reply = graph.call(step_cli, req)
             t1 = time.perf_counter()
             env.step({'action': name, 'pixel': (c, c)})
             t2 = time.perf_counter()
@@ -92,15 +95,19 @@ def main() -> None:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     # A domain of its own, so that no other graph on this machine answers our requests.
     os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)
-    ros, local, rss = paired_times(args.resolution, args.steps, args.scene, args.seed)
-    r, l = summary(ros), summary(local)
-    print(json.dumps({
-        'benchmark': 'ros_step', 'resolution': args.resolution, 'steps': args.steps, 'scene': args.scene,
-        'ros_round_trip': r, 'in_process': l,
-        'added_by_ros_median_ms': round(r['median_ms'] - l['median_ms'], 3),
-        'added_by_ros_mean_ms': round(r['mean_ms'] - l['mean_ms'], 3),
-        'sim_node_peak_rss_mb': round(rss, 1),
-    }, indent=2))
+    report = {'benchmark': 'ros_step', 'resolution': args.resolution, 'steps': args.steps, 'scene': args.scene}
+    # The full observation (RGB + float32 depth + int32 segmentation) and the agent's view (RGB only:
+    # what ALFRED/DialFRED agents observe; depth and segmentation are privileged, opt-in channels).
+    for label, full in (('rgb_depth_segmentation', True), ('rgb_only', False)):
+        ros, local, rss = paired_times(args.resolution, args.steps, args.scene, args.seed, full)
+        r, lo = summary(ros), summary(local)
+        report[label] = {
+            'ros_round_trip': r, 'in_process': lo,
+            'added_by_ros_median_ms': round(r['median_ms'] - lo['median_ms'], 3),
+            'added_by_ros_mean_ms': round(r['mean_ms'] - lo['mean_ms'], 3),
+            'sim_node_peak_rss_mb': round(rss, 1),
+        }
+    print(json.dumps(report, indent=2))
 
 
 if __name__ == '__main__':

@@ -111,11 +111,16 @@ def test_field_types_are_enforced_when_checking_is_on():
 
 def test_services_have_the_documented_request_and_response():
     assert SimReset.Request.get_fields_and_field_types() == {
-        'scene': 'string', 'seed': 'int64', 'task_id': 'string'}
+        'scene': 'string', 'seed': 'int64', 'task_id': 'string', 'with_depth': 'boolean',
+        'with_segmentation': 'boolean'}
     assert SimReset.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
         'task': 'dialfred_msgs/TaskDescription'}
-    assert SimStep.Request.get_fields_and_field_types() == {'action': 'dialfred_msgs/Action'}
+    assert SimStep.Request.get_fields_and_field_types() == {
+        'action': 'dialfred_msgs/Action', 'with_depth': 'boolean', 'with_segmentation': 'boolean'}
+    # Replies carry every channel unless the caller opts out.
+    for request in (SimReset.Request(), SimStep.Request()):
+        assert request.with_depth and request.with_segmentation
     assert SimStep.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
         'reward': 'double', 'terminated': 'boolean', 'truncated': 'boolean'}

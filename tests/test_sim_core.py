@@ -282,11 +282,17 @@ def test_pickup_fails_on_a_fixture(env, fixture):
     fails(env, 'Pickup', px, match=rf'^{obj.object_id} cannot be picked up$')
 
 
-def test_pickup_fails_inside_a_closed_container(env):
+def apple_in_open_fridge(env):
+    """The kitchen with its fridge open and an apple on the fridge's middle shelf."""
     w = kitchen(env)
     fridge = first_of(env, 'Fridge')
     w.set_open(fridge, True)
     apple = spawn_on(env, 'Apple', fridge.object_id, near=middle_shelf(env, fridge))
+    return w, fridge, apple
+
+
+def test_pickup_fails_inside_a_closed_container(env):
+    w, fridge, apple = apple_in_open_fridge(env)
     px = face(env, apple.object_id)
     # The door shuts (a direct world edit) while the agent still acts on the frame showing the apple.
     w.set_open(fridge, False)
@@ -294,10 +300,7 @@ def test_pickup_fails_inside_a_closed_container(env):
 
 
 def test_pickup_of_an_object_in_an_open_container_succeeds(env):
-    w = kitchen(env)
-    fridge = first_of(env, 'Fridge')
-    w.set_open(fridge, True)
-    apple = spawn_on(env, 'Apple', fridge.object_id, near=middle_shelf(env, fridge))
+    w, fridge, apple = apple_in_open_fridge(env)
     ok(env, 'Pickup', face(env, apple.object_id))
     assert w.held == apple.object_id and apple.object_id not in fridge.contents
 

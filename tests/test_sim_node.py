@@ -196,6 +196,18 @@ def test_rotate_and_move_ahead_change_the_pose(sim):
     pytest.fail('MoveAhead blocked in every direction')
 
 
+def test_a_step_can_leave_depth_and_segmentation_out_of_the_reply(sim):
+    sim.reset('FloorPlan1', seed=0)
+    request = SimStep.Request(action=Action(action='RotateLeft'), with_depth=False, with_segmentation=False)
+    reply = sim.graph.call(sim.step_cli, request)
+    assert reply.ok and reply.observation.last_action_success
+    obs = reply.observation
+    assert (obs.rgb.height, obs.rgb.width, len(obs.rgb.data)) == (RES, RES, RES * RES * 3)
+    assert len(obs.depth.data) == 0 and len(obs.segmentation.data) == 0
+    # By default every channel comes back.
+    assert_valid_observation(sim.step('RotateRight').observation)
+
+
 def test_a_failed_action_is_ok_but_unsuccessful(sim):
     sim.reset('FloorPlan1', seed=0)
     for _ in range(4):

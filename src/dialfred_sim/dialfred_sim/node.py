@@ -81,7 +81,7 @@ class SimNode(Node):
             response.ok, response.error = False, str(exc)
             return response
         response.ok = True
-        response.observation = self._observation_msg(done=False)
+        response.observation = self._observation_msg(False, request.with_depth, request.with_segmentation)
         response.task.scene = self.info['scene']
         self._publish(response.observation)
         return response
@@ -95,25 +95,30 @@ class SimNode(Node):
             obs, reward, terminated, truncated, info = self.env.step(action)
         except (ValueError, RuntimeError) as exc:
             response.ok, response.error = False, str(exc)
-            response.observation = self._observation_msg(done=self.env.done)
+            response.observation = self._observation_msg(self.env.done, request.with_depth,
+                                                          request.with_segmentation)
             return response
         self.obs, self.info = obs, info
         response.ok = True
         response.reward = float(reward)
         response.terminated, response.truncated = bool(terminated), bool(truncated)
-        response.observation = self._observation_msg(done=terminated or truncated)
+        response.observation = self._observation_msg(terminated or truncated, request.with_depth,
+                                                     request.with_segmentation)
         self._publish(response.observation)
         return response
 
     # ------------------------------------------------------------------ messages
 
-    def _observation_msg(self, done: bool) -> Observation:
+    def _observation_msg(self, done: bool, with_depth: bool = True, with_segmentation: bool = True) -> Observation:
+        """The current observation; depth and segmentation only when asked for (they are 2/3 of the bytes)."""
         msg = Observation()
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = 'agent_camera'
         msg.rgb = image_msg(self.obs['rgb'], 'rgb8', msg.header)
-        msg.depth = image_msg(self.obs['depth'], '32FC1', msg.header)
-        msg.segmentation = image_msg(self.obs['segmentation'], '32SC1', msg.header)
+        if with_depth:
+            msg.depth = image_msg(self.obs['depth'], '32FC1', msg.header)
+        if with_segmentation:
+            msg.segmentation = image_msg(self.obs['segmentation'], '32SC1', msg.header)
         ids, names = self.info['instances']
         msg.instance_ids = [int(i) for i in ids]
         msg.instance_object_ids = list(names)
