@@ -204,6 +204,7 @@ def test_a_step_can_leave_depth_and_segmentation_out_of_the_reply(sim):
     obs = reply.observation
     assert (obs.rgb.height, obs.rgb.width, len(obs.rgb.data)) == (RES, RES, RES * RES * 3)
     assert len(obs.depth.data) == 0 and len(obs.segmentation.data) == 0
+    assert len(obs.instance_ids) == 0   # the id table travels with the segmentation it explains
     # By default every channel comes back.
     assert_valid_observation(sim.step('RotateRight').observation)
 

@@ -35,8 +35,11 @@ def image_msg(array: np.ndarray, encoding: str, header) -> Image:
     msg.encoding = encoding
     msg.is_bigendian = 0
     msg.step = int(array.strides[0])
-    # array.array from bytes: about 7x faster to assign than bytes (rclpy converts bytes per field).
-    msg.data = pyarray.array('B', np.ascontiguousarray(array).tobytes())
+    # array.array: about 7x faster to assign than bytes (rclpy converts bytes per field); frombytes
+    # reads the numpy buffer directly, one copy.
+    data = pyarray.array('B')
+    data.frombytes(memoryview(np.ascontiguousarray(array)).cast('B'))
+    msg.data = data
     return msg
 
 
@@ -118,10 +121,11 @@ class SimNode(Node):
         if with_depth:
             msg.depth = image_msg(self.obs['depth'], '32FC1', msg.header)
         if with_segmentation:
+            # The id table only explains the segmentation, so it travels with it (0.15 ms per step).
             msg.segmentation = image_msg(self.obs['segmentation'], '32SC1', msg.header)
-        ids, names = self.info['instances']
-        msg.instance_ids = [int(i) for i in ids]
-        msg.instance_object_ids = list(names)
+            ids, names = self.info['instances']
+            msg.instance_ids = pyarray.array('i', ids)
+            msg.instance_object_ids = list(names)
         x, y, rot, horizon = (float(v) for v in self.obs['pose'])
         msg.pose = AgentPose(x=x, y=y, camera_height=1.5, rotation_deg=rot, horizon_deg=horizon)
         msg.held_object = self.info['held_object']
