@@ -74,9 +74,9 @@ def test_observation_fields():
         'x': 'double', 'y': 'double', 'camera_height': 'double', 'rotation_deg': 'double',
         'horizon_deg': 'double'}
     assert TaskDescription.get_fields_and_field_types() == {
-        'task_id': 'string', 'task_type': 'string', 'scene': 'string', 'instruction': 'string',
-        'step_instructions': 'sequence<string>', 'object_nouns': 'sequence<string>',
-        'expert_length': 'uint32'}
+        'task_id': 'string', 'task_type': 'string', 'scene': 'string', 'split': 'string',
+        'instruction': 'string', 'step_instructions': 'sequence<string>', 'object_nouns': 'sequence<string>',
+        'expert_length': 'uint32', 'expert_end_pose': 'dialfred_msgs/AgentPose', 'goal_conditions_total': 'uint32'}
 
 
 def test_observation_with_a_4x4_rgb_image_round_trips():
@@ -123,7 +123,8 @@ def test_services_have_the_documented_request_and_response():
         assert request.with_depth and request.with_segmentation
     assert SimStep.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
-        'reward': 'double', 'terminated': 'boolean', 'truncated': 'boolean'}
+        'reward': 'double', 'terminated': 'boolean', 'truncated': 'boolean', 'success': 'boolean',
+        'goal_conditions_met': 'uint32', 'goal_conditions_total': 'uint32'}
     assert OracleAnswer.Request.get_fields_and_field_types() == {
         'question_type': 'string', 'object_noun': 'string'}
     assert OracleAnswer.Response.get_fields_and_field_types() == {

@@ -361,3 +361,40 @@ def test_a_node_killed_while_running_is_reported_with_its_exit_code(other_ros_do
             graph.check()
     finally:
         node.stop()
+
+
+# ---------------------------------------------------------------------- tasks through the node
+
+@pytest.fixture(scope='module')
+def task_sim():
+    """A second node at the tasks' own resolution, in a namespace of its own."""
+    node = NodeProcess('dialfred_sim', {'resolution': 128}, namespace='/tasks')
+    with Graph([node]) as graph:
+        yield graph, graph.client(SimReset, '/tasks/sim/reset'), graph.client(SimStep, '/tasks/sim/step')
+
+
+def test_a_task_reset_describes_the_task_and_the_expert_reaches_its_goal(task_sim):
+    from dialfred_sim.tasks import get_task
+    graph, reset_cli, step_cli = task_sim
+    task = get_task('valid_unseen/000003')
+    reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id))
+    assert reply.ok, reply.error
+    t = reply.task
+    assert (t.task_id, t.task_type, t.scene, t.split) == (task.task_id, task.task_type, task.scene, 'valid_unseen')
+    assert t.instruction == task.instruction and list(t.step_instructions) == task.step_instructions
+    assert t.expert_length == task.expert_length and t.goal_conditions_total == len(task.goal) > 0
+    assert t.expert_end_pose.x == task.expert_end_pose[0] * 0.25
+    for k, a in enumerate(task.expert_actions):
+        step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y)))
+        assert step.ok and step.observation.last_action_success, step.observation.last_action_error
+        if step.terminated:
+            break
+    assert step.success and step.terminated and step.reward == 1.0
+    assert step.goal_conditions_met == step.goal_conditions_total == len(task.goal)
+
+
+def test_free_exploration_has_no_goal(task_sim):
+    graph, reset_cli, step_cli = task_sim
+    assert graph.call(reset_cli, SimReset.Request(scene='FloorPlan1', seed=0)).ok
+    step = graph.call(step_cli, SimStep.Request(action=Action(action='RotateLeft')))
+    assert step.ok and not step.success and step.goal_conditions_total == 0

@@ -240,6 +240,7 @@ def slice_object(world: World, obj: WorldObject) -> ActionResult:
         piece.parent, piece.surface = parent.object_id, surface
         piece.local = (x0 + (k - (n - 1) / 2) * length / n, y0, z0)
         piece.is_dirty, piece.temperature = state
+        piece.sliced_from = oid
         parent.contents.append(piece.object_id)
         world._update_pose(piece)
     return ActionResult(True, target=oid)

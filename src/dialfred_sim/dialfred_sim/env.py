@@ -85,13 +85,19 @@ class DialfredEnv(gym.Env):
         self.failures = 0
         self.done = True
         self.last_result = ActionResult(True)
+        self.task = None                  # the DialFRED task being played, if any
+        self.goal_met: list[bool] = []
 
     # ------------------------------------------------------------------ Gymnasium API
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict[str, Any]] = None):
-        """Start an episode. options: {'scene': 'FloorPlanN'} picks the floor plan."""
+        """Start an episode. options: {'scene': 'FloorPlanN'} picks the floor plan; {'task_id':
+        'valid_unseen/000012'} (or {'task': Task}) starts that DialFRED task (the seed is then the task's)."""
         super().reset(seed=seed)
         options = options or {}
+        if options.get('task_id') or options.get('task') is not None:
+            return self._reset_to_task(options.get('task') or options['task_id'])
+        self.task, self.goal_met = None, []
         scene = options.get('scene') or self.scene
         if scene is None:
             scenes = all_scenes()
@@ -121,10 +127,40 @@ class DialfredEnv(gym.Env):
         if not result.success:
             self.failures += 1
         self._frame = self.world.render()
-        terminated = act == Action.Stop or self.failures >= self.max_failures
+        success = self._check_goal()
+        terminated = success or act == Action.Stop or self.failures >= self.max_failures
         truncated = not terminated and self.steps >= self.max_steps
         self.done = terminated or truncated
-        return self._observation(), 0.0, terminated, truncated, self._info()
+        return self._observation(), float(success), terminated, truncated, self._info()
+
+    def _reset_to_task(self, task):
+        """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
+        from .tasks import get_task
+        from .tasks.expert import replay
+        from .tasks.generator import apply_setup
+        task = get_task(task) if isinstance(task, str) else task   # ValueError for an unknown id
+        episode = task.episode
+        super().reset(seed=episode.seed)
+        self.world.build(room_layout(episode.scene), self.np_random, self.dirty_probability)
+        apply_setup(self.world, episode.setup)
+        replay(self.world, episode.actions[:task.start])
+        a = self.world.agent
+        a.i, a.j, a.rotation, a.horizon = task.start_pose
+        self.world.update_held_pose()
+        self.steps, self.failures, self.done = 0, 0, False
+        self.last_result = ActionResult(True)
+        self.task = task
+        self._frame = self.world.render()
+        self._check_goal()
+        return self._observation(), self._info()
+
+    def _check_goal(self) -> bool:
+        """Update which goal conditions of the task hold; True when all do."""
+        if self.task is None:
+            return False
+        from .tasks.goals import conditions_met
+        self.goal_met = conditions_met(self.world, self.task.goal, self._frame)
+        return all(self.goal_met)
 
     def teleport(self, i: int, j: int, rotation: int, horizon: float):
         """Put the agent on grid point (i, j) facing `rotation` degrees with camera pitch `horizon`.
@@ -206,6 +242,10 @@ class DialfredEnv(gym.Env):
             'step_count': self.steps,
             'failed_actions': self.failures,
             'instances': (ids, names),
+            'task_id': self.task.task_id if self.task is not None else '',
+            'success': bool(self.goal_met) and all(self.goal_met),
+            'goal_conditions_met': int(sum(self.goal_met)),
+            'goal_conditions_total': len(self.goal_met),
         }
 
 

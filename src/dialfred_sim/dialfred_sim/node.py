@@ -20,6 +20,8 @@ from dialfred_msgs.msg import AgentPose, Observation
 from dialfred_msgs.srv import SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
+from .world.rooms import GRID
+from .world.scene import CAMERA_HEIGHT
 from .ros_util import make_executor, spin_forever
 
 # Observations: every one matters to a recorder, only the newest to a controller.
@@ -60,9 +62,9 @@ class SimNode(Node):
         self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
                                max_steps=int(p('max_steps').value), max_failures=int(p('max_failures').value))
         self.publish_observations = bool(p('publish_observations').value)
-        self.observation_pub = self.create_publisher(Observation, '/sim/observation', OBSERVATION_QOS)
-        self.create_service(SimReset, '/sim/reset', self.on_reset)
-        self.create_service(SimStep, '/sim/step', self.on_step)
+        self.observation_pub = self.create_publisher(Observation, 'sim/observation', OBSERVATION_QOS)
+        self.create_service(SimReset, 'sim/reset', self.on_reset)
+        self.create_service(SimStep, 'sim/step', self.on_step)
         self.obs = None
         self.info = None
         self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
@@ -71,9 +73,7 @@ class SimNode(Node):
 
     def on_reset(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
         if request.task_id:
-            response.ok = False
-            response.error = f'unknown task_id {request.task_id!r}: no task catalogue is loaded'
-            return response
+            return self._reset_to_task(request, response)
         # An empty scene keeps the current floor plan (a fresh node draws one from the seed).
         scene = request.scene or (self.info['scene'] if self.info else None)
         options = {'scene': scene} if scene else None
@@ -86,6 +86,26 @@ class SimNode(Node):
         response.ok = True
         response.observation = self._observation_msg(False, request.with_depth, request.with_segmentation)
         response.task.scene = self.info['scene']
+        self._publish(response.observation)
+        return response
+
+    def _reset_to_task(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
+        try:
+            self.obs, self.info = self.env.reset(options={'task_id': request.task_id})
+        except (ValueError, FileNotFoundError) as exc:
+            response.ok, response.error = False, str(exc)
+            return response
+        task = self.env.task
+        response.ok = True
+        response.observation = self._observation_msg(False, request.with_depth, request.with_segmentation)
+        t = response.task
+        t.task_id, t.task_type, t.scene, t.split = task.task_id, task.task_type, task.scene, task.split
+        t.instruction, t.step_instructions = task.instruction, list(task.step_instructions)
+        t.object_nouns, t.expert_length = list(task.object_nouns), task.expert_length
+        i, j, rot, horizon = task.expert_end_pose
+        t.expert_end_pose = AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
+                                      rotation_deg=float(rot), horizon_deg=float(horizon))
+        t.goal_conditions_total = len(task.goal)
         self._publish(response.observation)
         return response
 
@@ -105,6 +125,9 @@ class SimNode(Node):
         response.ok = True
         response.reward = float(reward)
         response.terminated, response.truncated = bool(terminated), bool(truncated)
+        response.success = bool(info['success'])
+        response.goal_conditions_met = int(info['goal_conditions_met'])
+        response.goal_conditions_total = int(info['goal_conditions_total'])
         response.observation = self._observation_msg(terminated or truncated, request.with_depth,
                                                      request.with_segmentation)
         self._publish(response.observation)
@@ -127,7 +150,7 @@ class SimNode(Node):
             msg.instance_ids = pyarray.array('i', ids)
             msg.instance_object_ids = list(names)
         x, y, rot, horizon = (float(v) for v in self.obs['pose'])
-        msg.pose = AgentPose(x=x, y=y, camera_height=1.5, rotation_deg=rot, horizon_deg=horizon)
+        msg.pose = AgentPose(x=x, y=y, camera_height=CAMERA_HEIGHT, rotation_deg=rot, horizon_deg=horizon)
         msg.held_object = self.info['held_object']
         msg.last_action_success = bool(self.info['last_action_success'])
         msg.last_action_error = self.info['last_action_error']

@@ -56,6 +56,7 @@ class WorldObject:
     is_sliced: bool = False
     temperature: str = ROOM
     held: bool = False
+    sliced_from: Optional[str] = None            # a slice remembers the object it was cut from
 
     @property
     def type_name(self) -> str:
@@ -412,15 +413,18 @@ class World:
         target = (eye[0] + d[0], eye[1] + d[1], eye[2] + d[2])
         return self.client.computeViewMatrix(eye, target, (0.0, 0.0, 1.0))
 
-    def render(self):
-        """(rgb uint8 HxWx3, depth float32 HxW metres along the view axis, segmentation int32 HxW)."""
+    def render(self, width: Optional[int] = None, height: Optional[int] = None):
+        """(rgb uint8 HxWx3, depth float32 HxW metres along the view axis, segmentation int32 HxW).
+
+        A smaller `width` x `height` (same aspect) gives a cheap preview, as the expert uses."""
+        w, h = width or self.width, height or self.height
         _, _, rgba_px, zbuf, seg = self.client.getCameraImage(
-            self.width, self.height, self.view_matrix(), self._projection,
+            w, h, self.view_matrix(), self._projection,
             renderer=self.client.ER_TINY_RENDERER, shadow=0, lightDirection=LIGHT_DIRECTION)
-        rgb = np.ascontiguousarray(np.asarray(rgba_px, dtype=np.uint8).reshape(self.height, self.width, 4)[:, :, :3])
-        z = np.asarray(zbuf, dtype=np.float32).reshape(self.height, self.width)
+        rgb = np.ascontiguousarray(np.asarray(rgba_px, dtype=np.uint8).reshape(h, w, 4)[:, :, :3])
+        z = np.asarray(zbuf, dtype=np.float32).reshape(h, w)
         depth = (FAR * NEAR / (FAR - (FAR - NEAR) * z)).astype(np.float32)
-        seg = np.asarray(seg, dtype=np.int32).reshape(self.height, self.width)
+        seg = np.asarray(seg, dtype=np.int32).reshape(h, w)
         return rgb, depth, seg
 
     def pixel_point(self, px: int, py: int, depth: np.ndarray) -> tuple[tuple[float, float, float], float]:

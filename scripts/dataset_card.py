@@ -1,0 +1,323 @@
+#!/usr/bin/env python3
+"""Dataset card of the DialFRED task splits: statistics as JSON, docs/dataset.md and an example image.
+
+    ./dialfred env python3 scripts/dataset_card.py [--splits valid_seen valid_unseen train]
+
+Prints the statistics of every split that exists (and names the absent ones) as JSON on stdout,
+writes docs/dataset.md and renders docs/images/task_examples.png (first frames of six valid_unseen
+tasks of different types). `split_statistics` is plain Python over `Task` objects (no ROS, no
+simulator); only the example image starts a simulator.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+from statistics import mean
+from typing import Callable, Sequence
+
+from dialfred_sim.tasks import SPLIT_SIZES, TASK_TYPES, Task, load_split
+from dialfred_sim.tasks.instructions import tokenize, vocabulary
+from dialfred_sim.tasks.splits import VALID_UNSEEN_SCENES
+
+ROOT = Path(__file__).resolve().parents[1]
+CARD = ROOT / 'docs' / 'dataset.md'
+IMAGE = ROOT / 'docs' / 'images' / 'task_examples.png'
+SPLITS = ('train', 'valid_seen', 'valid_unseen')
+# ALFRED's 7 job types, in the order of the ALFRED paper.
+ALFRED_JOB_TYPES = ('pick_and_place_simple', 'pick_two_obj_and_place', 'look_at_obj_in_light',
+                    'pick_clean_then_place_in_recep', 'pick_heat_then_place_in_recep',
+                    'pick_cool_then_place_in_recep', 'pick_and_place_with_movable_recep')
+# Types the example image tries first: long and short, with and without a receptacle.
+EXAMPLE_TYPES = ('Move & Heat', 'Open & Pick & Close', 'Pick & Move & Put', 'Move & Clean',
+                 'Turn on', 'Pick & Move & Slice')
+EXAMPLE_SPLIT = 'valid_unseen'
+EXAMPLE_RESOLUTION = 192
+
+
+# ---------------------------------------------------------------------- statistics (ROS-free)
+
+def split_statistics(tasks: Sequence[Task]) -> dict:
+    """Summary of a list of tasks (one split): counts, expert lengths, instruction lengths, vocabulary.
+
+    Returns a JSON-ready dict: tasks, episodes, rooms; task_types (count per type, paper order, zeros
+    kept); alfred_job_types (episodes per ALFRED job type); expert_length {mean, min, max} in
+    low-level actions; main_instruction_words and step_instructions_words (means; a task's step
+    sentences counted together); vocabulary_size (distinct tokens of main + step instructions);
+    distractor_fraction (a same-class object besides the target) and target_not_visible_fraction.
+    """
+    if not tasks:
+        raise ValueError('no tasks')
+    episodes = {t.episode.episode_id: t.episode for t in tasks}
+    type_counts = Counter(t.task_type for t in tasks)
+    unknown = set(type_counts) - set(TASK_TYPES)
+    if unknown:
+        raise ValueError(f'tasks of unknown types {sorted(unknown)}')
+    job_counts = Counter(e.alfred_type for e in episodes.values())
+    jobs = [j for j in ALFRED_JOB_TYPES if j in job_counts] + sorted(set(job_counts) - set(ALFRED_JOB_TYPES))
+    lengths = [t.expert_length for t in tasks]
+    sentences = [s for t in tasks for s in [t.instruction, *t.step_instructions]]
+    return {
+        'tasks': len(tasks),
+        'episodes': len(episodes),
+        'rooms': len({e.scene for e in episodes.values()}),
+        'task_types': {name: type_counts.get(name, 0) for name in TASK_TYPES},
+        'alfred_job_types': {name: job_counts[name] for name in jobs},
+        'expert_length': {'mean': round(mean(lengths), 3), 'min': min(lengths), 'max': max(lengths)},
+        'main_instruction_words': round(mean(len(tokenize(t.instruction)) for t in tasks), 3),
+        'step_instructions_words': round(mean(sum(len(tokenize(s)) for s in t.step_instructions)
+                                              for t in tasks), 3),
+        'vocabulary_size': len(vocabulary(sentences)),
+        'distractor_fraction': round(sum(t.has_distractor for t in tasks) / len(tasks), 4),
+        'target_not_visible_fraction': round(sum(not t.target_visible_at_start for t in tasks) / len(tasks), 4),
+    }
+
+
+def load_existing(splits: Sequence[str]) -> tuple[dict[str, list[Task]], list[str]]:
+    """The tasks of each split that exists on this machine, and the names of the absent ones."""
+    found, absent = {}, []
+    for name in splits:
+        try:
+            found[name] = load_split(name)
+        except FileNotFoundError:
+            absent.append(name)
+    return found, absent
+
+
+# ---------------------------------------------------------------------- the card's tables
+
+def _integer(v) -> str:
+    return f'{v:,}'
+
+
+def _decimal(v) -> str:
+    return f'{v:.2f}'
+
+
+def _percent(v) -> str:
+    return f'{100 * v:.1f}%'
+
+
+# (row label, value from split_statistics, how the card writes it)
+SUMMARY_ROWS: tuple[tuple[str, Callable[[dict], float], Callable[[float], str]], ...] = (
+    ('tasks', lambda s: s['tasks'], _integer),
+    ('episodes', lambda s: s['episodes'], _integer),
+    ('rooms', lambda s: s['rooms'], _integer),
+    ('expert actions per task, mean', lambda s: s['expert_length']['mean'], _decimal),
+    ('expert actions per task, min', lambda s: s['expert_length']['min'], _integer),
+    ('expert actions per task, max', lambda s: s['expert_length']['max'], _integer),
+    ('words in the main instruction, mean', lambda s: s['main_instruction_words'], _decimal),
+    ('words in the step-by-step instructions, mean', lambda s: s['step_instructions_words'], _decimal),
+    ('vocabulary (main + step instructions)', lambda s: s['vocabulary_size'], _integer),
+    ('tasks with a same-class distractor', lambda s: s['distractor_fraction'], _percent),
+    ('tasks with the target not visible at start', lambda s: s['target_not_visible_fraction'], _percent),
+)
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str) -> list[str]:
+    """A GitHub markdown table; `align` holds one 'l' or 'r' per column."""
+    rule = ['---:' if a == 'r' else '---' for a in align]
+    return ['| ' + ' | '.join(r) + ' |' for r in [list(header), rule, *map(list, rows)]]
+
+
+def summary_table(stats: dict[str, dict]) -> list[str]:
+    rows = [[label] + [fmt(value(s)) for s in stats.values()] for label, value, fmt in SUMMARY_ROWS]
+    return markdown_table(['statistic', *stats], rows, 'l' + 'r' * len(stats))
+
+
+def task_type_table(stats: dict[str, dict]) -> list[str]:
+    rows = [[str(k), name] + [_integer(s['task_types'][name]) for s in stats.values()]
+            for k, name in enumerate(TASK_TYPES, 1)]
+    rows.append(['', '**total**'] + [f"**{_integer(sum(s['task_types'].values()))}**" for s in stats.values()])
+    return markdown_table(['#', 'task type', *stats], rows, 'rl' + 'r' * len(stats))
+
+
+def job_type_table(stats: dict[str, dict]) -> list[str]:
+    jobs = list(ALFRED_JOB_TYPES)
+    jobs += sorted({j for s in stats.values() for j in s['alfred_job_types']} - set(jobs))
+    rows = [[f'`{j}`'] + [_integer(s['alfred_job_types'].get(j, 0)) for s in stats.values()] for j in jobs]
+    return markdown_table(['ALFRED job type (episodes)', *stats], rows, 'l' + 'r' * len(stats))
+
+
+def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[Task]) -> str:
+    """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples."""
+    present = ', '.join(f'`{name}`' for name in stats)
+    lines = [
+        '# DialFRED task data (generated)',
+        '',
+        '<!-- Written by scripts/dataset_card.py; edit the script, not this file. -->',
+        '',
+        'The tasks are procedurally generated ALFRED-style episodes played by our expert in our pybullet '
+        'rooms: for each episode the generator picks a room and one of ALFRED\'s 7 job types (e.g. heat an '
+        'apple and put it on the table), sets the room up so the job is possible, and records the expert\'s '
+        'low-level actions. Each episode is then cut into runs of consecutive primitives (go to, pick up, '
+        'put, open, close, turn on/off, slice) carrying one of the paper\'s 25 task types, each with a goal, a '
+        'main-action instruction ("Chill the tomato.") and step-by-step instructions. Everything is '
+        'deterministic from seeds: episode *k* of a split plays in room *k* mod (rooms of the split) with '
+        'a seed derived from (split, *k*), so regenerating a split gives the same tasks. The valid splits '
+        'ship in `src/dialfred_sim/dialfred_sim/data/tasks/`; `train` is generated on demand into '
+        '`~/.cache/dialfred/tasks/` (or `$DIALFRED_TASK_DIR`). Regenerate a split with',
+        '',
+        '```bash',
+        './dialfred env python3 -m dialfred_sim.tasks.splits <split>      # train, valid_seen or valid_unseen',
+        './dialfred env python3 scripts/dataset_card.py                   # then this card',
+        '```',
+        '',
+        '## How this differs from the paper\'s data',
+        '',
+        '- **Episodes.** DialFRED cut its tasks out of ALFRED\'s episodes: expert demonstrations in AI2-THOR '
+        '(112 rooms, 80 object types), each annotated by people with a goal and step-by-step sentences. '
+        'Ours are generated by our planner in pybullet re-creations of the ALFRED floor plans; object '
+        'placement, the expert\'s paths and hence the expert lengths are ours, and no person wrote or '
+        'checked any of it.',
+        '- **Instructions.** The paper also builds its task instructions from templates per low-level '
+        'action (step-by-step) plus a main-action instruction; ours follow that recipe with DialFRED\'s '
+        'verb synonyms and our object nouns. What we lack is any human language: none of ALFRED\'s human '
+        'annotations and none of DialFRED\'s 53K human questions and answers. The vocabulary is therefore '
+        'small and every instruction is grammatical and correct, unlike crowd-sourced text.',
+        '- **Sizes.** The split sizes are the paper\'s by construction (train {:,}, valid_seen {:,}, '
+        'valid_unseen {:,} tasks); the mix of task types follows from our episodes, not from ALFRED\'s.'
+        .format(SPLIT_SIZES['train'], SPLIT_SIZES['valid_seen'], SPLIT_SIZES['valid_unseen']),
+        '- **Rooms.** As in ALFRED, valid_unseen uses rooms never seen in train (FloorPlan'
+        + ', '.join(map(str, VALID_UNSEEN_SCENES)) + ') and valid_seen reuses train\'s rooms.',
+        '',
+        '## Summary per split',
+        '',
+        f'Splits present when this card was written: {present}.',
+    ]
+    if absent:
+        lines.append('Absent (not generated on the machine that wrote this card): '
+                     + ', '.join(f'`{name}` ({SPLIT_SIZES[name]:,} tasks once generated)' for name in absent) + '.')
+    lines += [
+        '',
+        'Expert actions are low-level actions (moves, turns, looks, interactions). Word counts are tokens '
+        'of `dialfred_sim.tasks.instructions.tokenize`; the step-by-step count adds up all step sentences of '
+        'a task. A distractor is a second object of the target\'s class in the room; "not visible at start" '
+        'means the target is outside the first frame.',
+        '',
+        *summary_table(stats),
+        '',
+        '## Tasks per type',
+        '',
+        *task_type_table(stats),
+        '',
+        '## Episodes per ALFRED job type',
+        '',
+        *job_type_table(stats),
+        '',
+    ]
+    if examples:
+        lines += [
+            '## Examples',
+            '',
+            f'First frames ({EXAMPLE_RESOLUTION}x{EXAMPLE_RESOLUTION}) of six `{EXAMPLE_SPLIT}` tasks of '
+            'different types, with the main-action instruction the agent receives:',
+            '',
+            '![six example tasks](images/task_examples.png)',
+            '',
+            *markdown_table(['task', 'type', 'main instruction', 'step-by-step instructions'],
+                            [[f'`{t.task_id}`', t.task_type, t.instruction, ' '.join(t.step_instructions)]
+                             for t in examples], 'llll'),
+            '',
+        ]
+    return '\n'.join(lines)
+
+
+# ---------------------------------------------------------------------- example image
+
+def pick_examples(tasks: Sequence[Task], count: int = 6) -> list[Task]:
+    """`count` tasks of different types: EXAMPLE_TYPES first, then the rest in paper order; each the
+    first task of its type in a room not yet shown (rooms repeat only when all have been used)."""
+    by_type: dict[str, list[Task]] = {}
+    for t in tasks:
+        by_type.setdefault(t.task_type, []).append(t)
+    order = [n for n in EXAMPLE_TYPES if n in by_type] + [n for n in TASK_TYPES
+                                                          if n in by_type and n not in EXAMPLE_TYPES]
+    chosen: list[Task] = []
+    for name in order[:count]:
+        rooms = {t.scene for t in chosen}
+        candidates = by_type[name]
+        chosen.append(next((t for t in candidates if t.scene not in rooms), candidates[0]))
+    return chosen
+
+
+def first_frames(tasks: Sequence[Task], resolution: int = EXAMPLE_RESOLUTION) -> list:
+    """The agent's RGB frame (HxWx3 uint8) at the start of each task."""
+    from dialfred_sim.env import DialfredEnv
+    env = DialfredEnv(resolution=resolution)
+    try:
+        return [env.reset(options={'task': t})[0]['rgb'] for t in tasks]
+    finally:
+        env.close()
+
+
+def _wrap(draw, text: str, font, width: int) -> list[str]:
+    lines, line = [], ''
+    for word in text.split():
+        trial = f'{line} {word}'.strip()
+        if line and draw.textlength(trial, font=font) > width:
+            lines.append(line)
+            line = word
+        else:
+            line = trial
+    return lines + [line] if line else lines
+
+
+def example_sheet(tasks: Sequence[Task], frames: Sequence, cols: int = 3, label_lines: int = 4):
+    """A PIL image: each frame with its task type (and id) and main instruction written under it."""
+    from PIL import Image, ImageDraw, ImageFont
+    font = ImageFont.load_default(size=12)
+    bold = ImageFont.load_default(size=13)
+    px, pad, line_h = frames[0].shape[1], 6, 15
+    cell_w, cell_h = px + 2 * pad, px + pad + (label_lines + 1) * line_h + pad
+    rows = -(-len(frames) // cols)
+    sheet = Image.new('RGB', (cols * cell_w, rows * cell_h), 'white')
+    draw = ImageDraw.Draw(sheet)
+    for k, (task, rgb) in enumerate(zip(tasks, frames)):
+        x, y = (k % cols) * cell_w + pad, (k // cols) * cell_h + pad
+        sheet.paste(Image.fromarray(rgb), (x, y))
+        y += px + 3
+        draw.text((x, y), task.task_type, font=bold, fill=(20, 60, 140))
+        number = task.task_id.split('/')[-1]
+        draw.text((x + px - draw.textlength(number, font=font), y + 1), number, font=font, fill=(130, 130, 130))
+        for line in _wrap(draw, f'"{task.instruction}"', font, px)[:label_lines]:
+            y += line_h
+            draw.text((x, y), line, font=font, fill='black')
+    return sheet
+
+
+# ---------------------------------------------------------------------- entry point
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--splits', nargs='+', choices=SPLITS, default=list(SPLITS),
+                    help='splits to describe (absent ones are listed as absent)')
+    ap.add_argument('--card', default=str(CARD), help='markdown file to write')
+    ap.add_argument('--image', default=str(IMAGE), help='example image to write')
+    ap.add_argument('--no-image', action='store_true', help='keep the existing image (no simulator)')
+    args = ap.parse_args(argv)
+    splits = [s for s in SPLITS if s in args.splits]        # always in the card's order
+    found, absent = load_existing(splits)
+    if not found:
+        print(f'none of {", ".join(splits)} exists; generate one with '
+              '`./dialfred env python3 -m dialfred_sim.tasks.splits <split>`', file=sys.stderr)
+        return 1
+    stats = {name: split_statistics(tasks) for name, tasks in found.items()}
+    examples = pick_examples(found[EXAMPLE_SPLIT]) if EXAMPLE_SPLIT in found else []
+    if examples and not args.no_image:
+        image = Path(args.image)
+        image.parent.mkdir(parents=True, exist_ok=True)
+        example_sheet(examples, first_frames(examples)).save(image, optimize=True)
+    card = Path(args.card)
+    card.parent.mkdir(parents=True, exist_ok=True)
+    card.write_text(card_text(stats, absent, examples))
+    print(json.dumps({'splits': stats, 'absent': absent, 'examples': [t.task_id for t in examples],
+                      'card': str(card), 'image': str(args.image) if examples else None}, indent=2))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,101 @@
+"""Agents that the evaluation drives through the simulator (no ROS).
+
+An agent is told the task at the start of an episode (`reset(task, seed)`) and then, given the latest
+observation, names its next action (`act(observation) -> (action, x, y)`, ALFRED's action names, the
+target pixel in the simulator's frame; -1, -1 for actions without a target). The observation is
+whatever the driver has (the launcher passes the dialfred_msgs/Observation message); the two agents
+here do not look at it. The performer and the questioner of later issues are agents too:
+`make_agent` is where a new one gets its name.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+# ALFRED's 13 low-level actions, as in dialfred_msgs/msg/Action.msg.
+ACTIONS = ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown', 'Pickup', 'Put', 'Open', 'Close',
+           'ToggleOn', 'ToggleOff', 'Slice', 'Stop')
+
+Decision = tuple[str, int, int]
+
+
+class Agent(Protocol):
+    name: str
+
+    def reset(self, task: Any, seed: int) -> None:
+        """Start an episode of `task` (a dialfred_sim.tasks.Task); `seed` seeds any randomness."""
+
+    def act(self, observation: Any) -> Decision:
+        """The next action (name, x, y) given the latest observation."""
+
+
+def episode_seed(run_seed: int, task_index: int) -> int:
+    """A seed for one episode from the run's seed and the task's index in its split, so that an
+    episode plays the same whichever worker runs it, in whatever order, and after a resume."""
+    return int(np.random.SeedSequence([run_seed, task_index]).generate_state(1)[0])
+
+
+def scale_pixel(x: int, y: int, from_resolution: int, to_resolution: int) -> tuple[int, int]:
+    """The pixel (x, y) of a `from_resolution` frame in a `to_resolution` frame (same camera):
+    the pixel whose centre is nearest the same point. Negative (no target) stays as it is."""
+    if x < 0 or y < 0 or from_resolution == to_resolution:
+        return x, y
+
+    def one(v: int) -> int:
+        return min(to_resolution - 1, int((v + 0.5) * to_resolution / from_resolution))
+
+    return one(x), one(y)
+
+
+class ExpertAgent:
+    """Replays the task's expert actions in order, then Stop (if the episode is still running)."""
+
+    name = 'expert'
+
+    def __init__(self, resolution: int = 128):
+        self.resolution = resolution      # the simulator's frame size; pixels are scaled to it
+        self._plan: list[Decision] = []
+        self._next = 0
+
+    def reset(self, task: Any, seed: int = 0) -> None:
+        self._plan = [(a.action, *scale_pixel(a.x, a.y, task.resolution, self.resolution))
+                      for a in task.expert_actions]
+        self._next = 0
+
+    def act(self, observation: Any = None) -> Decision:
+        if self._next >= len(self._plan):
+            return ('Stop', -1, -1)
+        decision = self._plan[self._next]
+        self._next += 1
+        return decision
+
+
+class RandomAgent:
+    """Uniform over the 13 actions, with a uniform random pixel; seeded per episode."""
+
+    name = 'random'
+
+    def __init__(self, resolution: int = 128):
+        self.resolution = resolution
+        self._rng = np.random.default_rng(0)
+
+    def reset(self, task: Any, seed: int = 0) -> None:
+        self._rng = np.random.default_rng(seed)
+
+    def act(self, observation: Any = None) -> Decision:
+        action = ACTIONS[int(self._rng.integers(len(ACTIONS)))]
+        x, y = (int(v) for v in self._rng.integers(self.resolution, size=2))
+        return (action, x, y)
+
+
+AGENTS = {'expert': ExpertAgent, 'random': RandomAgent}
+
+
+def make_agent(name: str, resolution: int = 128) -> Agent:
+    """A new agent by name (one per worker: agents keep per-episode state)."""
+    try:
+        return AGENTS[name](resolution=resolution)
+    except KeyError:
+        raise ValueError(f'unknown agent {name!r}; known: {", ".join(AGENTS)}') from None

@@ -1,0 +1,249 @@
+"""DialFRED's evaluation metrics over episode results: SR, PWSR, GC and NQ (no ROS).
+
+Per episode (Gao et al., 2022, after ALFRED): success s in {0, 1}; goal-condition fraction
+GC = met / total; path-weighted success p = s * L* / max(L*, L) with L* the expert's length and L the
+agent's steps; NQ the number of questions asked. `summarize` averages them overall and per task type
+(SR, PWSR and GC in percent, NQ as a mean count), in the task order of the paper's table.
+
+Results are kept one JSON object per line (`append_result`, `load_results`), written and synced
+episode by episode so that an interrupted evaluation loses nothing and can resume.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from dataclasses import MISSING, asdict, dataclass, fields
+from pathlib import Path
+from typing import Iterable, Optional, Union
+
+from .tasks.schema import TASK_TYPES
+
+END_REASONS = ('success', 'stop', 'max_steps', 'max_failures', 'error')
+MAX_FAILURES = 10   # the paper's failed-action limit; the simulator's default too
+
+
+@dataclass
+class EpisodeResult:
+    """What one evaluated episode came to.
+
+    `end_reason` is one of END_REASONS; `error` is why a request failed ('error' episodes) or the
+    last failed action's error message (other unsuccessful episodes), else ''.
+    """
+
+    task_id: str
+    task_type: str
+    split: str
+    success: bool
+    goal_conditions_met: int
+    goal_conditions_total: int
+    steps: int
+    expert_length: int
+    questions: int = 0
+    failed_actions: int = 0
+    end_reason: str = 'stop'
+    error: str = ''
+    agent: str = ''
+    seed: int = 0
+    wall_s: float = 0.0
+
+    def __post_init__(self):
+        if self.end_reason not in END_REASONS:
+            raise ValueError(f'end_reason must be one of {END_REASONS}, got {self.end_reason!r}')
+
+    @property
+    def gc(self) -> float:
+        """Fraction of the goal conditions met (a task without conditions counts its success)."""
+        if self.goal_conditions_total <= 0:
+            return float(self.success)
+        return self.goal_conditions_met / self.goal_conditions_total
+
+    @property
+    def path_weighted_success(self) -> float:
+        """s * L* / max(L*, L): full credit at or under the expert's length, less the longer it took."""
+        if not self.success:
+            return 0.0
+        longest = max(self.expert_length, self.steps)
+        return 1.0 if longest <= 0 else self.expert_length / longest
+
+    def to_json(self) -> str:
+        """One line of JSON (no newline)."""
+        return json.dumps(asdict(self), separators=(',', ':'))
+
+    @classmethod
+    def from_json(cls, line: str) -> 'EpisodeResult':
+        """Parse a line written by `to_json`; ValueError says what is wrong with a bad line."""
+        try:
+            data = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f'not a JSON episode result ({exc.msg} at column {exc.colno}): {line[:80]!r}') from None
+        if not isinstance(data, dict):
+            raise ValueError(f'an episode result must be a JSON object, got {type(data).__name__}')
+        known = {f.name: f for f in fields(cls)}
+        unknown = sorted(set(data) - set(known))
+        if unknown:
+            raise ValueError(f'unknown episode result fields {unknown}')
+        missing = [name for name, f in known.items() if name not in data and f.default is MISSING]
+        if missing:
+            raise ValueError(f'episode result is missing fields {missing}')
+        for name, value in data.items():
+            want = _FIELD_TYPES[name]
+            if not _has_type(value, want):
+                raise ValueError(f'episode result field {name!r} should be {want.__name__}, got {value!r}')
+        return cls(**data)
+
+
+_FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
+                'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
+                'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str, 'seed': int,
+                'wall_s': float}
+
+
+def _has_type(value, want: type) -> bool:
+    if want is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if want is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, want)
+
+
+def end_reason(success: bool, last_action: str, failed_actions: int, truncated: bool,
+               max_failures: int = MAX_FAILURES) -> str:
+    """Why an episode ended, from its last step: success, the agent's Stop, too many failed actions,
+    or the step limit (in that order of precedence)."""
+    if success:
+        return 'success'
+    if last_action == 'Stop':
+        return 'stop'
+    if failed_actions >= max_failures:
+        return 'max_failures'
+    if truncated:
+        return 'max_steps'
+    raise ValueError('the episode has not ended: no success, no Stop, no failure or step limit')
+
+
+# ---------------------------------------------------------------------------------------- summaries
+
+def _row(results: list[EpisodeResult]) -> dict:
+    n = len(results)
+    if n == 0:
+        return {'n': 0, 'SR': 0.0, 'PWSR': 0.0, 'GC': 0.0, 'NQ': 0.0}
+    return {
+        'n': n,
+        'SR': 100.0 * sum(r.success for r in results) / n,
+        'PWSR': 100.0 * sum(r.path_weighted_success for r in results) / n,
+        'GC': 100.0 * sum(r.gc for r in results) / n,
+        'NQ': sum(r.questions for r in results) / n,
+    }
+
+
+def type_order(task_type: str) -> tuple:
+    """Sort key: the paper's task order, unknown types after it by name."""
+    return (TASK_TYPES.index(task_type), '') if task_type in TASK_TYPES else (len(TASK_TYPES), task_type)
+
+
+def summarize(results: Iterable[EpisodeResult]) -> dict:
+    """{'overall': row, 'per_type': {task_type: row}, 'end_reasons': {reason: count}}.
+
+    A row is {'n', 'SR', 'PWSR', 'GC' (percent), 'NQ' (mean questions per episode)}; per_type holds
+    the types present, in the paper's task order.
+    """
+    results = list(results)
+    by_type: dict[str, list[EpisodeResult]] = {}
+    for r in results:
+        by_type.setdefault(r.task_type, []).append(r)
+    reasons = {reason: sum(r.end_reason == reason for r in results) for reason in END_REASONS}
+    return {
+        'overall': _row(results),
+        'per_type': {t: _row(by_type[t]) for t in sorted(by_type, key=type_order)},
+        'end_reasons': {k: v for k, v in reasons.items() if v},
+    }
+
+
+def format_table(summary: dict) -> str:
+    """The summary as a fixed-width text table: one line per task type, then the overall line."""
+    width = max([len('task type'), len('overall')] + [len(t) for t in summary['per_type']])
+    header = f'{"task type":<{width}}  {"n":>5}  {"SR":>6}  {"PWSR":>6}  {"GC":>6}  {"NQ":>5}'
+
+    def line(name: str, row: dict) -> str:
+        return (f'{name:<{width}}  {row["n"]:>5d}  {row["SR"]:>6.1f}  {row["PWSR"]:>6.1f}  '
+                f'{row["GC"]:>6.1f}  {row["NQ"]:>5.2f}')
+
+    rule = '-' * len(header)
+    body = [line(t, row) for t, row in summary['per_type'].items()]
+    return '\n'.join([header, rule, *body, rule, line('overall', summary['overall'])])
+
+
+# ---------------------------------------------------------------------------------------- JSON lines
+
+class TruncatedResultsWarning(UserWarning):
+    """The last line of a results file was cut off (an interrupted write) and was skipped."""
+
+
+def append_result(path: Union[str, Path], result: EpisodeResult) -> None:
+    """Append one result line and push it to disk (flush + fsync): a crash loses no finished episode."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, 'a+b') as f:
+        # never glue onto a line without its newline (a file cut off mid-line, or edited by hand)
+        if f.tell() > 0:
+            f.seek(-1, os.SEEK_END)
+            prefix = b'' if f.read(1) == b'\n' else b'\n'
+        else:
+            prefix = b''
+        f.write(prefix + result.to_json().encode('utf-8') + b'\n')
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def load_results(path: Union[str, Path], drop_truncated: bool = False) -> list[EpisodeResult]:
+    """Every result in a JSON-lines file ([] if there is none).
+
+    A bad final line (a write cut off by a crash) is skipped with a TruncatedResultsWarning; with
+    `drop_truncated` it is also cut from the file, so that the next append starts on a clean line.
+    A bad line anywhere else is corruption: ValueError naming the file and line.
+    """
+    path = Path(path)
+    if not path.exists():
+        return []
+    lines = path.read_bytes().split(b'\n')
+    last_number = max((k for k, line in enumerate(lines, start=1) if line.strip()), default=0)
+    results: list[EpisodeResult] = []
+    good_end = 0         # byte offset just past the last good line
+    for number, line in enumerate(lines, start=1):
+        if line.strip():
+            try:
+                results.append(EpisodeResult.from_json(line.decode('utf-8', errors='replace')))
+            except ValueError as exc:
+                if number != last_number:
+                    raise ValueError(f'{path}:{number}: corrupt result line: {exc}') from None
+                warnings.warn(f'{path}:{number}: skipped 1 truncated final line ({exc})', TruncatedResultsWarning,
+                              stacklevel=2)
+                if drop_truncated:
+                    _truncate(path, good_end)
+                break
+        good_end += len(line) + 1
+    return results
+
+
+def _truncate(path: Path, size: int) -> None:
+    with open(path, 'r+b') as f:
+        f.truncate(size)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def failures(results: Iterable[EpisodeResult]) -> list[EpisodeResult]:
+    """The unsuccessful episodes, in task order."""
+    return sorted((r for r in results if not r.success), key=lambda r: r.task_id)
+
+
+def results_by_task(results: Iterable[EpisodeResult], task_ids: Optional[Iterable[str]] = None) -> dict:
+    """{task_id: result}, the first result of each task (optionally only of `task_ids`)."""
+    wanted = None if task_ids is None else set(task_ids)
+    out: dict[str, EpisodeResult] = {}
+    for r in results:
+        if (wanted is None or r.task_id in wanted) and r.task_id not in out:
+            out[r.task_id] = r
+    return out

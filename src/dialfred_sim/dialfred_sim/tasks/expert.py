@@ -1,0 +1,231 @@
+"""The expert: shortest-path navigation on the 0.25 m grid and pixel-targeted interactions.
+
+The expert acts on a `World` directly, rendering only when it must look (to choose a pose from which
+its targets are in view and within reach, and to pick the pixel of an interaction). Every action goes
+through the same `actions.execute` an agent's does, so what the expert records replays exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ..actions import LOOK_STEP, Action, execute, interact
+from ..world.rooms import GRID
+from ..world.scene import CAMERA_HEIGHT, HORIZON_MAX, HORIZON_MIN, World
+from .goals import is_reachable, reachable_mask
+from .schema import ExpertAction, Primitive
+
+KIND_TO_ACTION = {'pickup': Action.Pickup, 'put': Action.Put, 'open': Action.Open, 'close': Action.Close,
+                  'toggle_on': Action.ToggleOn, 'toggle_off': Action.ToggleOff, 'slice': Action.Slice}
+MARGIN = 0.08          # the expert keeps its targets this far inside the reach limit
+MAX_POSE_RENDERS = 40  # candidate poses looked at per navigation goal
+PREVIEW = 64           # pixels of the cheap first look at a candidate pose
+_STEP = {0: (1, 0), 90: (0, 1), 180: (-1, 0), 270: (0, -1)}
+
+
+class ExpertFailed(RuntimeError):
+    """The expert could not carry out a step (no pose sees the target, no room to put, ...)."""
+
+
+Pose = tuple[int, int, int, float]
+
+
+class Expert:
+    """Plays primitives on `world`, recording low-level actions, primitives and poses."""
+
+    def __init__(self, world: World):
+        self.world = world
+        self.actions: list[ExpertAction] = []
+        self.primitives: list[Primitive] = []
+        self.poses: list[Pose] = []
+
+    # ------------------------------------------------------------------ bookkeeping
+
+    def pose(self) -> Pose:
+        a = self.world.agent
+        return (a.i, a.j, a.rotation, a.horizon)
+
+    def _set_pose(self, pose: Pose) -> None:
+        a = self.world.agent
+        a.i, a.j, a.rotation, a.horizon = pose
+        self.world.update_held_pose()
+
+    def _nav(self, act: Action) -> None:
+        self.poses.append(self.pose())
+        result = execute(self.world, act, (-1, -1), None, None)
+        if not result.success:
+            raise ExpertFailed(f'{act.name} failed: {result.error}')
+        self.actions.append(ExpertAction(act.name))
+
+    def finish(self) -> None:
+        self.poses.append(self.pose())
+
+    # ------------------------------------------------------------------ navigation
+
+    def _bfs(self) -> dict:
+        """Shortest action paths from the current (i, j, rotation) to every reachable one."""
+        start = self.pose()[:3]
+        parent = {start: None}
+        queue = deque([start])
+        free = self.world.layout.navigable
+        while queue:
+            s = queue.popleft()
+            i, j, r = s
+            di, dj = _STEP[r]
+            for act, nxt in ((Action.MoveAhead, (i + di, j + dj, r)), (Action.RotateLeft, (i, j, (r + 90) % 360)),
+                             (Action.RotateRight, (i, j, (r - 90) % 360))):
+                if nxt in parent or (act == Action.MoveAhead and nxt[:2] not in free):
+                    continue
+                parent[nxt] = (s, act)
+                queue.append(nxt)
+        return parent
+
+    @staticmethod
+    def _path(parent: dict, goal) -> list[Action]:
+        path = []
+        while parent[goal] is not None:
+            goal, act = parent[goal]
+            path.append(act)
+        return path[::-1]
+
+    def _centre(self, object_id: str) -> np.ndarray:
+        lo, hi = self._aabb(object_id)
+        return (lo + hi) / 2
+
+    def _sees(self, focus: Sequence[str], preview: bool = False) -> bool:
+        size = PREVIEW if preview else None
+        _, depth, seg = self.world.render(size, size)
+        return all(is_reachable(self.world, f, depth, seg, MARGIN) for f in focus)
+
+    def _aabb(self, object_id: str) -> tuple[np.ndarray, np.ndarray]:
+        obj = self.world.objects[object_id]
+        c = self.world.client
+        lo, hi = (np.array(v) for v in c.getAABB(obj.body, -1))
+        for link in range(c.getNumJoints(obj.body)):
+            a, b = c.getAABB(obj.body, link)
+            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+        return lo, hi
+
+    def find_pose(self, focus: Sequence[str]) -> tuple[Pose, list[Action]]:
+        """The cheapest pose (fewest actions) from which every object in `focus` can be acted on."""
+        here = self.pose()
+        if self._sees(focus):
+            return here, []
+        parent = self._bfs()
+        centre = self._centre(focus[0])
+        boxes = [self._aabb(f) for f in focus]
+        candidates = []
+        for (i, j, r) in parent:
+            dx, dy = centre[0] - i * GRID, centre[1] - j * GRID
+            d = math.hypot(dx, dy)
+            if d > 1.6 or d < 0.2:
+                continue
+            eye = np.array([i * GRID, j * GRID, CAMERA_HEIGHT])
+            # Every target's nearest point must be within reach, or no view of it can be.
+            if any(np.linalg.norm(eye - np.clip(eye, lo, hi)) > 1.5 - MARGIN for lo, hi in boxes):
+                continue
+            facing = round(math.degrees(math.atan2(dy, dx)) / 90) * 90 % 360
+            if r != facing:
+                continue
+            pitch = math.degrees(math.atan2(CAMERA_HEIGHT - centre[2], d))
+            h0 = min(max(round(pitch / LOOK_STEP) * LOOK_STEP, HORIZON_MIN), HORIZON_MAX)
+            for h in (h0, h0 + LOOK_STEP, h0 - LOOK_STEP):
+                if HORIZON_MIN <= h <= HORIZON_MAX:
+                    n_moves = len(self._path(parent, (i, j, r)))
+                    cost = n_moves + abs(h - here[3]) / LOOK_STEP + (0.5 if h != h0 else 0.0)
+                    candidates.append((cost, d, (i, j, r, float(h))))
+        candidates.sort()
+        try:
+            for _, _, pose in candidates[:MAX_POSE_RENDERS]:
+                self._set_pose(pose)
+                # A cheap low-resolution look first; the full frame decides.
+                if self._sees(focus, preview=True) and self._sees(focus):
+                    path = self._path(parent, pose[:3])
+                    return pose, path + self._look_actions(here[3], pose[3])
+        finally:
+            self._set_pose(here)
+        raise ExpertFailed(f'no pose in {self.world.layout.scene} sees {", ".join(focus)} within reach')
+
+    @staticmethod
+    def _look_actions(h_from: float, h_to: float) -> list[Action]:
+        n = round((h_to - h_from) / LOOK_STEP)
+        return [Action.LookDown] * n if n > 0 else [Action.LookUp] * (-n)
+
+    def goto(self, landmark: str, focus: Sequence[str]) -> None:
+        """Walk to where `focus` can be acted on; a `goto landmark` primitive if any action was needed."""
+        start = len(self.actions)
+        _, actions = self.find_pose(list(dict.fromkeys(focus)))
+        for act in actions:
+            self._nav(act)
+        if len(self.actions) > start:
+            self.primitives.append(Primitive('goto', landmark, start, len(self.actions)))
+
+    # ------------------------------------------------------------------ interaction
+
+    def _pixel(self, object_id: str, depth: np.ndarray, seg: np.ndarray) -> Optional[tuple[int, int]]:
+        near = reachable_mask(self.world, object_id, depth, seg, 1.5 - MARGIN)
+        ys, xs = np.nonzero(near)
+        if len(xs) == 0:
+            return None
+        whole_y, whole_x = np.nonzero(seg == self.world.objects[object_id].body)
+        k = int(np.argmin((xs - whole_x.mean()) ** 2 + (ys - whole_y.mean()) ** 2))
+        return int(xs[k]), int(ys[k])
+
+    def act(self, kind: str, target: str, receptacle: str = '') -> None:
+        """One interaction primitive (plus the look up/down it needs to see its target)."""
+        start = len(self.actions)
+        clicked = receptacle if kind == 'put' else target
+        _, depth, seg = self.world.render()
+        pixel = self._pixel(clicked, depth, seg)
+        if pixel is None:
+            here = self.pose()
+            for dh in (LOOK_STEP, -LOOK_STEP, 2 * LOOK_STEP, -2 * LOOK_STEP):
+                h = here[3] + dh
+                if not HORIZON_MIN <= h <= HORIZON_MAX:
+                    continue
+                self._set_pose((*here[:3], h))
+                _, depth, seg = self.world.render()
+                pixel = self._pixel(clicked, depth, seg)
+                self._set_pose(here)
+                if pixel is not None:
+                    for a in self._look_actions(here[3], h):
+                        self._nav(a)
+                    break
+            if pixel is None:   # walk again (a drawer's contents show only from closer by)
+                for a in self.find_pose([clicked])[1]:
+                    self._nav(a)
+                _, depth, seg = self.world.render()
+                pixel = self._pixel(clicked, depth, seg)
+            if pixel is None:
+                raise ExpertFailed(f'{kind}: {clicked} is not in reach')
+        action = KIND_TO_ACTION[kind]
+        point, _ = self.world.pixel_point(pixel[0], pixel[1], depth)
+        self.poses.append(self.pose())
+        result = execute(self.world, action, pixel, depth, seg)
+        if not result.success:
+            raise ExpertFailed(f'{action.name} {clicked}: {result.error}')
+        self.actions.append(ExpertAction(action.name, pixel[0], pixel[1], result.target or clicked,
+                                         tuple(float(v) for v in point)))
+        self.primitives.append(Primitive(kind, target, start, len(self.actions), receptacle))
+
+
+def replay(world: World, actions: Sequence[ExpertAction]) -> None:
+    """Apply recorded expert actions to `world` without rendering (rebuilds a task's initial state).
+
+    Raises RuntimeError if an action does not succeed, which means the world has drifted from the
+    one the expert acted in."""
+    for k, a in enumerate(actions):
+        act = Action[a.action]
+        if act.is_interaction:
+            obj = world.objects.get(a.target)
+            if obj is None:
+                raise RuntimeError(f'replay step {k}: {a.target} does not exist')
+            result = interact(world, act, obj, a.point)
+        else:
+            result = execute(world, act, (-1, -1), None, None)
+        if not result.success:
+            raise RuntimeError(f'replay step {k} ({a.action} {a.target}): {result.error}')

@@ -1,0 +1,132 @@
+"""Goal conditions of the 25 task types and their check against the world (like ALFRED's
+`goal_conditions_met`): which conditions hold now, and success when all do."""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ..actions import REACH
+from ..world.scene import COLD, FOV_DEG, HOT, World
+from .schema import Condition, Primitive
+
+MIN_REACHABLE_PIXELS = 4     # at 128x128; scaled with the frame area
+
+
+@functools.lru_cache(maxsize=8)
+def _ray_lengths(width: int, height: int) -> np.ndarray:
+    """Per pixel, the length of the camera ray whose component along the view axis is 1."""
+    t = math.tan(math.radians(FOV_DEG) / 2)
+    u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
+    v = (1 - (np.arange(height) + 0.5) / height * 2) * t
+    return np.sqrt(1.0 + u[None, :] ** 2 + v[:, None] ** 2).astype(np.float32)
+
+
+def reachable_mask(world: World, object_id: str, depth: np.ndarray, seg: np.ndarray,
+                   reach: float = REACH) -> np.ndarray:
+    """Pixels of `object_id` in the frame that lie within `reach` of the camera."""
+    obj = world.objects.get(object_id)
+    if obj is None:
+        return np.zeros(seg.shape, bool)
+    mask = seg == obj.body
+    if not mask.any():
+        return mask
+    dist = depth * _ray_lengths(seg.shape[1], seg.shape[0])
+    return mask & (dist <= reach)
+
+
+def min_pixels(shape: tuple) -> int:
+    """Pixels of an object that must show for it to count as in view, in a frame of `shape`."""
+    return max(1, round(MIN_REACHABLE_PIXELS * shape[0] * shape[1] / (128 * 128)))
+
+
+def is_reachable(world: World, object_id: str, depth: np.ndarray, seg: np.ndarray, margin: float = 0.0) -> bool:
+    """Whether enough of `object_id` is in view and within reach to act on it."""
+    return int(reachable_mask(world, object_id, depth, seg, REACH - margin).sum()) >= min_pixels(seg.shape)
+
+
+def condition_met(world: World, c: Condition, frame: Optional[tuple] = None) -> bool:
+    objects = world.objects
+    if c.kind == 'sliced':
+        # Slicing replaces the object by its pieces.
+        return c.obj not in objects and any(o.sliced_from == c.obj for o in objects.values())
+    obj = objects.get(c.obj)
+    if obj is None:
+        return False
+    if c.kind == 'holding':
+        return world.held == c.obj
+    if c.kind == 'in':
+        return not obj.held and any(r.type_name == c.arg for r in world.container_chain(obj))
+    if c.kind == 'open':
+        return obj.is_open
+    if c.kind == 'closed':
+        return not obj.is_open
+    if c.kind == 'on':
+        return obj.is_on
+    if c.kind == 'off':
+        return not obj.is_on
+    if c.kind == 'clean':
+        return not obj.is_dirty
+    if c.kind == 'hot':
+        return obj.temperature == HOT
+    if c.kind == 'cold':
+        return obj.temperature == COLD
+    if c.kind == 'reachable':
+        if frame is None:
+            return False
+        return is_reachable(world, c.obj, frame[1], frame[2])
+    raise ValueError(f'unknown goal condition kind {c.kind!r}')
+
+
+def conditions_met(world: World, goal: Sequence[Condition], frame: Optional[tuple] = None) -> list[bool]:
+    """Per condition, whether it holds now. `frame` = (rgb, depth, segmentation) of the current view."""
+    return [condition_met(world, c, frame) for c in goal]
+
+
+# ---------------------------------------------------------------------- goals of the task types
+
+def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, str]) -> list[Condition]:
+    """The goal conditions of a task of `task_type` made of `prims`.
+
+    `world_types` maps object ids to type names (receptacles are matched by type, as ALFRED does;
+    the object acted on is the very instance, which appearance questions tell apart)."""
+    last = prims[-1]
+    main = task_type.split(' & ')[-1] if task_type.startswith('Move & ') else task_type
+    if main in ('Clean', 'Cool', 'Heat'):
+        state = {'Clean': 'clean', 'Cool': 'cold', 'Heat': 'hot'}[main]
+        if main == 'Clean':   # put in basin, faucet on, faucet off, pick up
+            obj, faucet = last.target, prims[-3].target
+            return [Condition('clean', obj), Condition('holding', obj), Condition('off', faucet)]
+        appliance = last.target   # the fridge or microwave, closed last
+        pickup = prims[-2]
+        return [Condition(state, pickup.target), Condition('holding', pickup.target), Condition('closed', appliance)]
+    if main in ('Move', 'Pick & Move'):
+        conds = [Condition('reachable', last.target)]
+        if main == 'Pick & Move':
+            conds.insert(0, Condition('holding', prims[0].target))
+        return conds
+    if main == 'Open':
+        return [Condition('open', last.target)]
+    if main == 'Close':
+        return [Condition('closed', last.target)]
+    if main == 'Pick':
+        return [Condition('holding', last.target)]
+    if main in ('Put', 'Pick & Move & Put'):
+        return [Condition('in', last.target, world_types[last.receptacle])]
+    if main == 'Slice':
+        return [Condition('sliced', last.target)]
+    if main == 'Turn on':
+        return [Condition('on', last.target)]
+    if main == 'Turn off':
+        return [Condition('off', last.target)]
+    if main == 'Open & Pick & Close':
+        return [Condition('holding', prims[1].target), Condition('closed', last.target)]
+    if main == 'Open & Put & Close':
+        put = prims[1]
+        return [Condition('in', put.target, world_types[put.receptacle]), Condition('closed', last.target)]
+    if main == 'Pick & Move & Slice':
+        return [Condition('sliced', last.target), Condition('holding', prims[0].target)]
+    raise ValueError(f'unknown task type {task_type!r}')

@@ -1,0 +1,146 @@
+"""The task schema: episodes of an expert, the DialFRED tasks cut from them, and their goals.
+
+An `Episode` is one ALFRED-style household job (e.g. heat an apple and put it on the table) played by
+the expert: its room and seed, the set-up that makes the job possible, the expert's low-level actions
+and the primitives (go to, pick up, put, open, ...) they form. A `Task` is a run of consecutive
+primitives of an episode with one of the 25 DialFRED task types; its initial state is the world as the
+expert left it at the task's first action.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+# The 25 DialFRED task types, in the order of the paper's table.
+TASK_TYPES: tuple[str, ...] = (
+    'Clean', 'Close', 'Cool', 'Heat', 'Move', 'Open', 'Pick', 'Put', 'Slice', 'Turn on', 'Turn off',
+    'Move & Clean', 'Move & Close', 'Move & Cool', 'Move & Heat', 'Move & Open', 'Move & Pick',
+    'Move & Put', 'Move & Slice', 'Move & Turn on', 'Open & Pick & Close', 'Open & Put & Close',
+    'Pick & Move', 'Pick & Move & Put', 'Pick & Move & Slice',
+)
+
+PRIMITIVE_KINDS = ('goto', 'pickup', 'put', 'open', 'close', 'toggle_on', 'toggle_off', 'slice')
+
+
+@dataclass(frozen=True)
+class ExpertAction:
+    """One low-level expert action. Interactions carry their target pixel (in a frame of the task's
+    resolution), the object id the pixel hit and the world point under it (to replay it without
+    rendering when a task's initial state is rebuilt)."""
+
+    action: str
+    x: int = -1
+    y: int = -1
+    target: str = ''
+    point: Optional[tuple[float, float, float]] = None
+
+    def to_json(self) -> list:
+        if self.target:
+            return [self.action, self.x, self.y, self.target, list(self.point or ())]
+        return [self.action]
+
+    @classmethod
+    def from_json(cls, row: list) -> 'ExpertAction':
+        if len(row) == 1:
+            return cls(row[0])
+        return cls(row[0], int(row[1]), int(row[2]), row[3], tuple(row[4]) if row[4] else None)
+
+
+@dataclass(frozen=True)
+class Primitive:
+    """A step of the expert: `kind` on `target` (for put: `target` is the object, `receptacle` where
+    it goes), made of the episode's actions [start, end)."""
+
+    kind: str
+    target: str
+    start: int
+    end: int
+    receptacle: str = ''
+
+    def to_json(self) -> list:
+        return [self.kind, self.target, self.start, self.end, self.receptacle]
+
+    @classmethod
+    def from_json(cls, row: list) -> 'Primitive':
+        return cls(row[0], row[1], int(row[2]), int(row[3]), row[4])
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One goal condition: `kind` about object `obj` (and receptacle type `arg` for 'in').
+
+    kinds: holding, in, open, closed, on, off, sliced, clean, hot, cold, reachable."""
+
+    kind: str
+    obj: str
+    arg: str = ''
+
+    def to_json(self) -> list:
+        return [self.kind, self.obj, self.arg]
+
+    @classmethod
+    def from_json(cls, row: list) -> 'Condition':
+        return cls(row[0], row[1], row[2])
+
+
+@dataclass
+class Episode:
+    """An expert demonstration of one ALFRED-style job in one room."""
+
+    episode_id: str
+    split: str
+    scene: str
+    seed: int
+    alfred_type: str
+    setup: dict                    # changes applied after the scene is built (see generator.apply_setup)
+    actions: list[ExpertAction]
+    primitives: list[Primitive]
+    poses: list[tuple[int, int, int, float]] = field(default_factory=list)   # agent pose before each action, and at the end
+    resolution: int = 128
+
+
+@dataclass
+class Task:
+    """One DialFRED task: a run of an episode's primitives with a type, goal and instructions."""
+
+    task_id: str
+    task_type: str
+    episode: Episode
+    start: int                     # first expert action (index into episode.actions)
+    end: int                       # one past the last
+    goal: list[Condition]
+    instruction: str               # the main-action instruction
+    step_instructions: list[str]
+    object_nouns: list[str]
+    primitives: list[Primitive]
+    target_visible_at_start: bool = True
+    has_distractor: bool = False
+
+    @property
+    def split(self) -> str:
+        return self.episode.split
+
+    @property
+    def scene(self) -> str:
+        return self.episode.scene
+
+    @property
+    def resolution(self) -> int:
+        return self.episode.resolution
+
+    @property
+    def expert_actions(self) -> list[ExpertAction]:
+        return self.episode.actions[self.start:self.end]
+
+    @property
+    def expert_length(self) -> int:
+        return self.end - self.start
+
+    @property
+    def start_pose(self) -> tuple[int, int, int, float]:
+        return self.episode.poses[self.start]
+
+    @property
+    def expert_end_pose(self) -> tuple[int, int, int, float]:
+        return self.episode.poses[self.end]

@@ -1,0 +1,259 @@
+"""The evaluation: the expert and random agents (no ROS), then `dialfred_launch.py eval` through real
+simulator nodes, two workers in their own namespaces driven from one client.
+
+Claims: the expert succeeds on every task it is run on; a run is a pure function of split, agent and
+seed; a results file resumes (a longer --limit, or a run interrupted by Ctrl-C) without redoing or
+losing an episode.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from dialfred_sim.agents import ACTIONS, ExpertAgent, RandomAgent, episode_seed, make_agent, scale_pixel
+from dialfred_sim.metrics import EpisodeResult, append_result, load_results
+from dialfred_sim.tasks import ExpertAction
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+from dialfred_launch import EvalConfig, Graph, NodeProcess, print_report, run_eval, sim_service  # noqa: E402
+
+SPLIT = 'valid_unseen'
+
+
+def fake_task(actions, resolution=128):
+    return SimpleNamespace(expert_actions=actions, resolution=resolution)
+
+
+# ---------------------------------------------------------------------------------------------- agents (no ROS)
+
+def test_the_expert_replays_its_demonstration_then_stops():
+    actions = [ExpertAction('MoveAhead'), ExpertAction('Pickup', 40, 90, 'Apple_1'), ExpertAction('RotateLeft')]
+    agent = ExpertAgent(resolution=128)
+    agent.reset(fake_task(actions), seed=0)
+    assert [agent.act(None) for _ in range(5)] == [('MoveAhead', -1, -1), ('Pickup', 40, 90), ('RotateLeft', -1, -1),
+                                                   ('Stop', -1, -1), ('Stop', -1, -1)]
+    agent.reset(fake_task(actions[:1]), seed=0)      # a new episode starts from its first action again
+    assert agent.act(None) == ('MoveAhead', -1, -1)
+
+
+def test_the_expert_scales_its_pixels_to_the_simulators_frame():
+    agent = ExpertAgent(resolution=300)
+    agent.reset(fake_task([ExpertAction('Open', 0, 127, 'Fridge_1'), ExpertAction('Close', 64, 10, 'Fridge_1')]))
+    assert agent.act(None) == ('Open', 1, 298)
+    assert agent.act(None) == ('Close', 151, 24)
+    assert scale_pixel(-1, -1, 128, 64) == (-1, -1)
+    assert scale_pixel(127, 0, 128, 64) == (63, 0)
+    assert scale_pixel(5, 6, 128, 128) == (5, 6)
+
+
+def test_the_random_agent_draws_all_13_actions_and_pixels_in_the_frame():
+    agent = RandomAgent(resolution=64)
+    agent.reset(None, seed=episode_seed(0, 0))
+    decisions = [agent.act(None) for _ in range(2000)]
+    assert {a for a, _, _ in decisions} == set(ACTIONS) and len(ACTIONS) == 13
+    assert all(0 <= x < 64 and 0 <= y < 64 for _, x, y in decisions)
+
+
+def test_the_random_agent_repeats_itself_for_the_same_episode_seed():
+    def play(seed):
+        agent = make_agent('random')
+        agent.reset(None, seed=seed)
+        return [agent.act(None) for _ in range(50)]
+
+    assert play(episode_seed(0, 7)) == play(episode_seed(0, 7))
+    assert play(episode_seed(0, 7)) != play(episode_seed(0, 8))
+    assert play(episode_seed(0, 7)) != play(episode_seed(1, 7))
+
+
+def test_an_unknown_agent_is_named_in_the_error():
+    with pytest.raises(ValueError, match="unknown agent 'oracle'"):
+        make_agent('oracle')
+
+
+# ---------------------------------------------------------------------------------------------- through the nodes
+
+def evaluate(out: Path, agent: str = 'random', limit: int = 6, workers: int = 2, **kw):
+    return run_eval(EvalConfig(split=SPLIT, agent=agent, limit=limit, workers=workers, out=out, **kw), progress=False)
+
+
+def without_wall_time(results):
+    return [dataclasses.replace(r, wall_s=0.0) for r in results]
+
+
+def test_a_worker_node_gets_its_own_namespace():
+    node = NodeProcess('dialfred_sim', {'resolution': 64}, namespace='/w1')
+    assert node.command()[1:] == ['--ros-args', '-p', 'resolution:=64', '-r', '__ns:=/w1']
+    assert node.label == 'dialfred_sim [/w1]'
+    assert sim_service('/w1', 'step') == '/w1/sim/step' and sim_service('', 'reset') == '/sim/reset'
+
+
+@pytest.fixture(scope='module')
+def expert_run(tmp_path_factory):
+    return evaluate(tmp_path_factory.mktemp('expert') / 'expert.jsonl', agent='expert', limit=8)
+
+
+def test_the_expert_succeeds_on_the_first_valid_unseen_tasks(expert_run):
+    results = expert_run.results
+    assert len(results) == 8 and expert_run.ran == 8
+    from dialfred_sim.tasks import load_split
+    tasks = load_split(SPLIT)[:8]
+    assert [r.task_id for r in results] == [t.task_id for t in tasks]
+    failed = [(r.task_id, r.task_type, r.end_reason, r.error) for r in results if not r.success]
+    assert failed == []
+    for r, t in zip(results, tasks):
+        assert r.end_reason == 'success' and r.task_type == t.task_type and r.agent == 'expert'
+        # success ends the episode as soon as the goal holds: at the latest on the expert's last action
+        assert 1 <= r.steps <= t.expert_length == r.expert_length
+        assert r.goal_conditions_met == r.goal_conditions_total > 0
+    overall = expert_run.summary['overall']
+    assert (overall['n'], overall['SR'], overall['PWSR'], overall['GC'], overall['NQ']) == (8, 100.0, 100.0, 100.0, 0.0)
+
+
+def test_the_run_writes_its_results_and_a_summary_next_to_them(expert_run):
+    config = expert_run.config
+    in_file = load_results(config.results_path)          # in the order the episodes ended
+    assert sorted(in_file, key=lambda r: r.task_id) == expert_run.results
+    assert config.summary_path == config.results_path.with_name('expert.summary.json')
+    summary = json.loads(config.summary_path.read_text())
+    assert summary['tasks'] == 8 and summary['failures'] == []
+    assert summary['summary']['overall']['SR'] == 100.0
+    assert list(summary['summary']['per_type']) == list(expert_run.summary['per_type'])
+
+
+@pytest.fixture(scope='module')
+def random_run(tmp_path_factory):
+    return evaluate(tmp_path_factory.mktemp('random') / 'a.jsonl')
+
+
+def test_the_random_agent_gives_a_result_for_every_task(random_run):
+    results = random_run.results
+    assert len(results) == 6
+    for r in results:
+        assert r.agent == 'random' and r.seed == 0 and r.end_reason in ('success', 'stop', 'max_failures', 'max_steps')
+        assert r.steps >= 1 and r.goal_conditions_total > 0
+        assert r.end_reason != 'max_failures' or r.failed_actions >= 10
+
+
+def test_the_same_split_and_seed_give_the_same_episodes(random_run, tmp_path):
+    again = evaluate(tmp_path / 'b.jsonl', workers=1)       # another worker count, another order of play
+    assert without_wall_time(again.results) == without_wall_time(random_run.results)
+    other_seed = evaluate(tmp_path / 'c.jsonl', seed=1)
+    assert without_wall_time(other_seed.results) != without_wall_time(random_run.results)
+
+
+def test_a_longer_limit_resumes_without_redoing_or_losing_episodes(random_run, tmp_path):
+    path = tmp_path / 'resume.jsonl'
+    first = evaluate(path, limit=3)
+    lines = path.read_text().splitlines()
+    assert first.ran == 3 and len(lines) == 3
+    second = evaluate(path, limit=6)
+    assert second.ran == 3
+    now = path.read_text().splitlines()
+    assert now[:3] == lines and len(now) == 6
+    assert without_wall_time(second.results) == without_wall_time(random_run.results)
+    assert evaluate(path, limit=6).ran == 0                   # nothing left to do
+
+
+def test_a_run_interrupted_by_ctrl_c_resumes_where_it_stopped(tmp_path):
+    path = tmp_path / 'interrupted.jsonl'
+    cmd = [sys.executable, str(REPO / 'dialfred_launch.py'), 'eval', '--split', SPLIT, '--agent', 'expert',
+           '--limit', '40', '--out', str(path), '--no-progress']
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not (path.exists() and path.read_text().count('\n') >= 2):
+            assert proc.poll() is None, proc.stdout.read()
+            assert time.monotonic() < deadline, 'no episode finished in 30 s'
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, out
+    assert 'the same command resumes' in out
+    before = path.read_text().splitlines()
+    assert 2 <= len(before) < 40
+    report = evaluate(path, agent='expert', limit=40)
+    after = path.read_text().splitlines()
+    assert after[:len(before)] == before
+    assert report.ran == 40 - len(before) and len(after) == 40
+    ids = [EpisodeResult.from_json(line).task_id for line in after]
+    assert sorted(ids) == sorted(r.task_id for r in report.results) and len(set(ids)) == 40
+
+
+def test_a_task_the_node_cannot_load_is_recorded_as_an_error_and_the_run_goes_on(tmp_path, monkeypatch):
+    import dialfred_sim.tasks
+    good = dialfred_sim.tasks.load_split(SPLIT)[:2]
+    unknown = dataclasses.replace(good[0], task_id='valid_unseen/999999')
+    monkeypatch.setattr(dialfred_sim.tasks, 'load_split', lambda split: [unknown, good[1]])
+    report = evaluate(tmp_path / 'errors.jsonl', agent='expert', workers=1)
+    error, ok = report.results
+    assert (error.task_id, error.end_reason, error.success, error.steps) == (unknown.task_id, 'error', False, 0)
+    assert 'unknown task_id' in error.error
+    assert ok.success and report.summary['end_reasons'] == {'success': 1, 'error': 1}
+    with contextlib.redirect_stdout(io.StringIO()) as printed:     # the expert's failures are listed
+        print_report(report)
+    out = printed.getvalue()
+    assert 'expert failures: 1' in out
+    line = next(line for line in out.splitlines() if unknown.task_id in line)
+    assert unknown.task_type in line and ' error ' in line and 'unknown task_id' in line
+
+
+def test_a_results_file_of_another_agent_is_not_mixed_in(tmp_path, random_run):
+    path = tmp_path / 'mixed.jsonl'
+    append_result(path, dataclasses.replace(random_run.results[0], agent='expert'))
+    with pytest.raises(ValueError, match="agent 'expert'.*choose another --out"):
+        evaluate(path)
+
+
+def test_the_eval_command_prints_the_table_and_the_experts_failures(expert_run, capsys):
+    import dialfred_launch
+    code = dialfred_launch.main(['eval', '--split', SPLIT, '--agent', 'expert', '--limit', '8',
+                                 '--out', str(expert_run.config.results_path), '--no-progress'])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert '8 tasks (0 played now' in out                      # all resumed from the file
+    assert out.splitlines()[1].split()[:3] == ['task', 'type', 'n']
+    assert 'overall' in out and 'expert failures: 0' in out
+    assert os.path.exists(expert_run.config.summary_path)
+
+
+def test_a_graph_inside_another_shares_the_process_ros_context():
+    import rclpy
+
+    was_up = rclpy.ok()
+    with Graph([]) as outer:
+        assert outer.owns_context == (not was_up)
+        with Graph([]) as inner:
+            assert not inner.owns_context and inner.client_node is not outer.client_node
+        assert rclpy.ok()                                    # the inner graph left the context up
+    assert rclpy.ok() == was_up
+
+
+def test_a_graph_that_fails_to_start_stops_the_nodes_it_started(monkeypatch):
+    import dialfred_sim.ros_util
+
+    def broken_executor():
+        raise RuntimeError('no executor')
+
+    monkeypatch.setattr(dialfred_sim.ros_util, 'make_executor', broken_executor)
+    node = NodeProcess('dialfred_sim', {'resolution': 16}, namespace='/broken')
+    with pytest.raises(RuntimeError, match='no executor'):
+        with Graph([node]):
+            pass
+    assert node.proc is not None and node.proc.poll() is not None

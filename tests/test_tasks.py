@@ -1,0 +1,130 @@
+"""The task layer: the 25 task types, their goals, the expert, and the splits (no ROS)."""
+
+from __future__ import annotations
+
+import gzip
+import json
+
+import numpy as np
+import pytest
+
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.tasks import TASK_TYPES, get_task, load_split, split_scenes
+from dialfred_sim.tasks.goals import conditions_met
+from dialfred_sim.tasks.schema import Condition
+from dialfred_sim.tasks.splits import SPLIT_SIZES, generate_split, packaged_path
+from dialfred_sim.world.scene import HOT
+
+from helpers import reset, spawn_held, spawn_on
+
+VALID = ('valid_seen', 'valid_unseen')
+
+
+@pytest.fixture(scope='module')
+def valid_tasks():
+    return {s: load_split(s) for s in VALID}
+
+
+def play_expert(env, task):
+    """Reset to `task`, check its goal is not met yet, replay the expert; return the last info."""
+    obs, info = env.reset(options={'task': task})
+    assert not info['success'], f'{task.task_id}: goal already met before the expert acts'
+    for a in task.expert_actions:
+        obs, reward, terminated, truncated, info = env.step({'action': a.action, 'pixel': (a.x, a.y)})
+        assert info['last_action_success'], f'{task.task_id}: {a.action} failed: {info["last_action_error"]}'
+        if terminated or truncated:
+            break
+    return info
+
+
+@pytest.mark.parametrize('task_type', TASK_TYPES)
+def test_every_task_type_has_a_task_the_expert_solves(valid_tasks, task_type):
+    tasks = [t for s in VALID for t in valid_tasks[s] if t.task_type == task_type]
+    assert tasks, f'no {task_type} task in the valid splits'
+    env = DialfredEnv(resolution=tasks[0].resolution)
+    try:
+        for task in tasks[:2]:
+            info = play_expert(env, task)
+            assert info['success'], f'{task.task_id} ({task_type}): expert ended with goal ' \
+                                    f'{info["goal_conditions_met"]}/{info["goal_conditions_total"]}'
+    finally:
+        env.close()
+
+
+def test_the_valid_splits_have_the_papers_sizes(valid_tasks):
+    for split in VALID:
+        tasks = valid_tasks[split]
+        assert len(tasks) == SPLIT_SIZES[split]
+        assert len({t.task_id for t in tasks}) == len(tasks)
+        assert all(t.split == split for t in tasks)
+    assert SPLIT_SIZES['train'] == 34253
+
+
+def test_unseen_rooms_never_appear_in_train_and_seen_rooms_do(valid_tasks):
+    train = set(split_scenes('train'))
+    assert not {t.scene for t in valid_tasks['valid_unseen']} & train
+    assert {t.scene for t in valid_tasks['valid_seen']} <= train
+    assert len(train) == 108
+
+
+def test_a_split_regenerates_identically_from_its_seeds():
+    with gzip.open(packaged_path('valid_unseen'), 'rt') as f:
+        shipped = [json.loads(next(f)) for _ in range(3)]
+    fresh = list(generate_split('valid_unseen', size=sum(len(r['tasks']) for r in shipped), progress=False))
+    assert fresh == shipped
+
+
+def test_an_unknown_task_id_is_a_clear_error():
+    with pytest.raises(ValueError, match='unknown task_id'):
+        get_task('valid_unseen/999999')
+    with pytest.raises(ValueError, match='unknown task_id'):
+        get_task('nonsense')
+
+
+def test_the_same_task_gives_the_same_first_frame():
+    a, b = DialfredEnv(), DialfredEnv()
+    try:
+        oa, _ = a.reset(options={'task_id': 'valid_unseen/000005'})
+        ob, _ = b.reset(options={'task_id': 'valid_unseen/000005'})
+        assert np.array_equal(oa['rgb'], ob['rgb']) and np.array_equal(oa['segmentation'], ob['segmentation'])
+    finally:
+        a.close()
+        b.close()
+
+
+# ---------------------------------------------------------------------- near misses
+
+def test_an_object_on_the_wrong_receptacle_does_not_count(env):
+    reset(env, 'FloorPlan1')
+    table = next(o for o in env.world.objects.values() if o.type_name == 'CounterTop')
+    apple = spawn_on(env, 'Apple', table.object_id)
+    goal = [Condition('in', apple.object_id, 'DiningTable')]
+    assert conditions_met(env.world, goal) == [False]
+    assert conditions_met(env.world, [Condition('in', apple.object_id, 'CounterTop')]) == [True]
+
+
+def test_a_dirty_object_is_not_clean_and_a_room_temperature_one_not_hot(env):
+    reset(env, 'FloorPlan1')
+    mug = spawn_held(env, 'Mug')
+    mug.is_dirty = True
+    goal = [Condition('clean', mug.object_id), Condition('hot', mug.object_id), Condition('holding', mug.object_id)]
+    assert conditions_met(env.world, goal) == [False, False, True]
+    mug.is_dirty, mug.temperature = False, HOT
+    assert conditions_met(env.world, goal) == [True, True, True]
+
+
+def test_holding_a_same_class_distractor_is_not_holding_the_target(env):
+    reset(env, 'FloorPlan1')
+    table = next(o for o in env.world.objects.values() if o.type_name == 'CounterTop')
+    target = spawn_on(env, 'Apple', table.object_id, colour='red')
+    other = spawn_held(env, 'Apple', colour='green')
+    assert conditions_met(env.world, [Condition('holding', target.object_id)]) == [False]
+    assert conditions_met(env.world, [Condition('holding', other.object_id)]) == [True]
+
+
+def test_tasks_often_hide_the_target_or_hold_a_distractor(valid_tasks):
+    for split in VALID:
+        tasks = valid_tasks[split]
+        hidden = np.mean([not t.target_visible_at_start for t in tasks])
+        distractor = np.mean([t.has_distractor for t in tasks])
+        assert hidden > 0.2 and distractor > 0.2, (split, hidden, distractor)
