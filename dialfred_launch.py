@@ -7,7 +7,8 @@ services answer, runs a job, and shuts everything down on exit or Ctrl-C. A node
 reported with its exit code and the last lines it printed.
 
     python dialfred_launch.py demo [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/demo]
-    python dialfred_launch.py nodes              # start the graph and keep it up until Ctrl-C
+    python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
+    python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
     python dialfred_launch.py eval --split valid_unseen --agent expert|random [--limit N] [--workers 2]
                                    [--out out/eval/<split>_<agent>.jsonl] [--seed 0] [--resolution 128]
 
@@ -21,19 +22,18 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import os
 import signal
 import subprocess
 import sys
 import threading
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 REPO = Path(__file__).resolve().parent
+SERVICE_SETTLE_S = 0.2   # see Graph.client
 # Every process of the graph (this one and its children) uses the project's Fast DDS profile: a
 # shared-memory segment large enough for whole observations (see config/fastdds_profiles.xml).
 os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(REPO / 'config' / 'fastdds_profiles.xml'))
@@ -67,6 +67,8 @@ class NodeProcess:
     parameters: dict = field(default_factory=dict)
     executable: str = 'node'
     namespace: str = ''          # e.g. '/w0': the node's relative names (sim/step) become /w0/sim/step
+    stdin: Optional[int] = None  # subprocess.PIPE to feed it text (tests of the oracle's human mode)
+    capture_output: bool = True  # False: it talks to this terminal (the oracle asking a person)
     proc: Optional[subprocess.Popen] = None
     tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=40))
 
@@ -82,9 +84,12 @@ class NodeProcess:
         return cmd + ['--ros-args'] + ros_args if ros_args else cmd
 
     def start(self) -> None:
-        self.proc = subprocess.Popen(self.command(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        out = subprocess.PIPE if self.capture_output else None
+        self.proc = subprocess.Popen(self.command(), stdin=self.stdin, stdout=out,
+                                     stderr=subprocess.STDOUT if self.capture_output else None, text=True,
                                      start_new_session=True)
-        threading.Thread(target=self._drain, daemon=True).start()
+        if self.capture_output:
+            threading.Thread(target=self._drain, daemon=True).start()
 
     def _drain(self) -> None:
         for line in self.proc.stdout:
@@ -170,6 +175,12 @@ class Graph:
             self.check()
             if time.monotonic() > deadline:
                 raise TimeoutError(f'service {name} not available after {timeout:.0f} s')
+        # "Available" means the server's request reader matched; its reply writer may not have
+        # matched our reply reader yet, and a reply sent before that is lost (a known DDS service
+        # discovery race, ros2/rmw_fastrtps#390). A moment of discovery traffic closes the gap.
+        settle = time.monotonic() + SERVICE_SETTLE_S
+        while time.monotonic() < settle:
+            self.executor.spin_once(timeout_sec=0.02)
         return cli
 
     def spin_until_any(self, futures: list, timeout: float = 0.5) -> None:
@@ -193,6 +204,13 @@ class Graph:
 
 def sim_node(resolution: int = 128, namespace: str = '', **params) -> NodeProcess:
     return NodeProcess('dialfred_sim', {'resolution': resolution, **params}, namespace=namespace)
+
+
+def oracle_node(namespace: str = '', human: bool = False, **params) -> NodeProcess:
+    """The oracle; `human` makes it ask a person in this terminal (its output is then not captured)."""
+    if human:
+        params['human'] = True
+    return NodeProcess('dialfred_oracle', dict(params), namespace=namespace, capture_output=not human)
 
 
 def sim_service(namespace: str, name: str) -> str:
@@ -275,283 +293,60 @@ def save_frames(frames, out: Path) -> dict:
 
 def run_nodes(args) -> int:
     """Start the graph and keep it up until Ctrl-C, reporting any node that dies."""
-    from dialfred_msgs.srv import SimReset
-    with Graph([sim_node(args.resolution)]) as graph:
+    from dialfred_msgs.srv import OracleAnswer, SimReset
+    with Graph([sim_node(args.resolution), oracle_node()]) as graph:
         graph.client(SimReset, '/sim/reset')
-        print('graph up: /sim/reset, /sim/step, /sim/observation. Ctrl-C to stop.')
+        graph.client(OracleAnswer, '/oracle/answer')
+        print('graph up: /sim/reset, /sim/step, /sim/ground_truth, /sim/observation, /oracle/answer. Ctrl-C to stop.')
         while True:
             graph.check()
             time.sleep(0.5)
 
 
-# ---------------------------------------------------------------------------------------- eval
+def run_dialogue(args) -> int:
+    """Scripted integration run: on a few tasks, ask the oracle each question type and print the dialogue."""
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
-@dataclass
-class EvalConfig:
-    """One evaluation run: an agent over (the first `limit` tasks of) a split."""
-
-    split: str = 'valid_unseen'
-    agent: str = 'expert'
-    limit: Optional[int] = None
-    workers: int = 2
-    out: Optional[Path] = None          # default: out/eval/<split>_<agent>.jsonl
-    seed: int = 0
-    resolution: int = 128
-    request_timeout: float = 120.0      # seconds one reset or step may take before the run gives up
-
-    @property
-    def results_path(self) -> Path:
-        return Path(self.out) if self.out else REPO / 'out' / 'eval' / f'{self.split}_{self.agent}.jsonl'
-
-    @property
-    def summary_path(self) -> Path:
-        return self.results_path.with_suffix('.summary.json')
-
-
-@dataclass
-class EvalReport:
-    """What a run came to: the results of every selected task (in split order), and this run's share."""
-
-    config: EvalConfig
-    results: list
-    ran: int                # episodes played by this run (the others were in the file already)
-    startup_s: float        # loading the tasks and the results file, starting the nodes until they answer
-    wall_s: float           # the whole run, start-up included
-    summary: dict
-
-    def to_json(self) -> dict:
-        from dialfred_sim.metrics import failures
-        c = self.config
-        loop_s = self.wall_s - self.startup_s
-        return {
-            'split': c.split, 'agent': c.agent, 'seed': c.seed, 'resolution': c.resolution, 'workers': c.workers,
-            'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
-            'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
-                         'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None},
-            'summary': self.summary,
-            'failures': [{'task_id': r.task_id, 'task_type': r.task_type, 'end_reason': r.end_reason,
-                          'error': r.error} for r in failures(self.results)],
-        }
-
-
-class SimWorker:
-    """One simulator node (in its own namespace) playing one episode at a time with its own agent,
-    one request in flight. `begin` starts an episode; `advance` handles the reply that arrived and
-    either sends the next request or returns the episode's EpisodeResult."""
-
-    def __init__(self, graph: Graph, namespace: str, agent, config: EvalConfig):
-        from dialfred_msgs.srv import SimReset, SimStep
-        self.reset_cli = graph.client(SimReset, sim_service(namespace, 'reset'))
-        self.step_cli = graph.client(SimStep, sim_service(namespace, 'step'))
-        self.namespace, self.agent, self.config = namespace, agent, config
-        self.future = None
-        self.sent_at = 0.0
-        self.task = None
-
-    @property
-    def busy(self) -> bool:
-        return self.future is not None
-
-    def begin(self, index: int, task) -> None:
-        from dialfred_msgs.srv import SimReset
-
-        from dialfred_sim.agents import episode_seed
-        self.task, self.episode_seed = task, episode_seed(self.config.seed, index)
-        self.started = time.monotonic()
-        self.last_action, self.last_error = '', ''
-        self.goal_conditions = (0, 0)
-        self.resetting = True
-        self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False))
-
-    def overdue(self) -> bool:
-        return self.busy and time.monotonic() - self.sent_at > self.config.request_timeout
-
-    def advance(self):
-        """Handle the finished request: the next request is sent, or the episode's result returned."""
-        reply, self.future = self.future.result(), None
-        if reply is None:
-            return self._result('error', error='the service call returned no reply')
-        if self.resetting:
-            self.resetting = False
-            if not reply.ok:
-                return self._result('error', error=reply.error)
-            self.goal_conditions = (0, reply.task.goal_conditions_total)
-            self.agent.reset(self.task, self.episode_seed)
-            return self._act(reply.observation)
-        return self._after_step(reply)
-
-    def _after_step(self, reply):
-        from dialfred_sim.metrics import end_reason
-        obs = reply.observation
-        if not reply.ok:
-            return self._result('error', obs, error=reply.error)
-        self.goal_conditions = (reply.goal_conditions_met, reply.goal_conditions_total)
-        if not obs.last_action_success:
-            self.last_error = obs.last_action_error
-        if reply.terminated or reply.truncated:
-            reason = end_reason(reply.success, self.last_action, obs.failed_actions, reply.truncated)
-            return self._result(reason, obs, success=reply.success)
-        return self._act(obs)
-
-    def _act(self, obs):
-        from dialfred_msgs.msg import Action
-        from dialfred_msgs.srv import SimStep
-        name, x, y = self.agent.act(obs)
-        self.last_action = name
-        self._send(self.step_cli, SimStep.Request(action=Action(action=name, x=int(x), y=int(y)),
-                                                  with_depth=False, with_segmentation=False))
-        return None
-
-    def _send(self, cli, request) -> None:
-        self.sent_at = time.monotonic()
-        self.future = cli.call_async(request)
-
-    def _result(self, reason: str, obs=None, success: bool = False, error: str = ''):
-        from dialfred_sim.metrics import EpisodeResult
-        task = self.task
-        met, total = self.goal_conditions
-        return EpisodeResult(
-            task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(success),
-            goal_conditions_met=int(met), goal_conditions_total=int(total),
-            steps=int(obs.step_count) if obs is not None else 0, expert_length=int(task.expert_length),
-            questions=0, failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
-            error='' if success else (error or self.last_error), agent=self.agent.name, seed=self.config.seed,
-            wall_s=round(time.monotonic() - self.started, 4))
-
-
-def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
-    """Play every (index, task) of `jobs` on the workers, each keeping one request in flight, and
-    call `on_result(result)` as each episode ends (in the order they end)."""
-    queue = collections.deque(jobs)
-    for w in workers:
-        if queue:
-            w.begin(*queue.popleft())
-    while any(w.busy for w in workers):
-        graph.spin_until_any([w.future for w in workers if w.busy])
-        for w in workers:
-            if w.busy and w.future.done():
-                result = w.advance()
-                if result is not None:
-                    on_result(result)
-                    if queue:
-                        w.begin(*queue.popleft())
-            elif w.overdue():
-                raise TimeoutError(f'no reply from {w.namespace or "/"} sim node after '
-                                   f'{w.config.request_timeout:.0f} s (task {w.task.task_id})')
-
-
-class ResultsFileError(ValueError):
-    """The results file cannot be resumed: corrupt, or written by another split, agent or seed."""
-
-
-def resumable_results(config: EvalConfig, task_ids: list) -> dict:
-    """{task_id: result} already in the results file for the selected tasks (a cut-off last line is
-    dropped from the file); ResultsFileError if the file is corrupt or holds another split, agent or seed."""
-    from dialfred_sim.metrics import load_results, results_by_task
-    path = config.results_path
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter('always')
-        try:
-            existing = load_results(path, drop_truncated=True)
-        except ValueError as exc:
-            raise ResultsFileError(str(exc)) from None
-    for w in caught:
-        print(f'warning: {w.message}', file=sys.stderr)
-    for r in existing:
-        if (r.split, r.agent, r.seed) != (config.split, config.agent, config.seed):
-            raise ResultsFileError(f'{path} holds results of split {r.split!r}, agent {r.agent!r}, seed {r.seed}, not '
-                             f'{config.split!r}, {config.agent!r}, {config.seed}: choose another --out')
-    return results_by_task(existing, task_ids)
-
-
-def progress_bar(total: int, done: int, enabled: bool):
-    from tqdm import tqdm
-    return tqdm(total=total, initial=done, unit='ep', file=sys.stderr, disable=not enabled, dynamic_ncols=True,
-                smoothing=0.05)
-
-
-def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
-    """Evaluate `config.agent` on the split's tasks through `config.workers` simulator nodes.
-
-    Results go to the JSON-lines file as each episode ends; tasks already there are skipped (resume).
-    Writes the summary JSON next to it and returns the report of every selected task.
-    """
-    from dialfred_sim.agents import make_agent
-    from dialfred_sim.metrics import append_result, summarize
     from dialfred_sim.tasks import load_split
+    tasks = load_split(args.split)[args.first:args.first + args.tasks]
+    with Graph([sim_node(128), oracle_node(human=args.human)]) as graph:
+        reset_cli = graph.client(SimReset, '/sim/reset')
+        step_cli = graph.client(SimStep, '/sim/step')
+        ask_cli = graph.client(OracleAnswer, '/oracle/answer')
 
-    t0 = time.monotonic()
-    tasks = load_split(config.split)[:config.limit]
-    done = resumable_results(config, [t.task_id for t in tasks])
-    jobs = [(k, t) for k, t in enumerate(tasks) if t.task_id not in done]
-    ran, startup_s = 0, 0.0
-    if jobs:
-        n = max(1, min(config.workers, len(jobs)))
-        namespaces = [f'/w{k}' for k in range(n)]
-        with Graph([sim_node(config.resolution, ns, publish_observations=False) for ns in namespaces]) as graph:
-            workers = [SimWorker(graph, ns, make_agent(config.agent, config.resolution), config) for ns in namespaces]
-            startup_s = time.monotonic() - t0
-            with progress_bar(len(tasks), len(done), progress) as bar:
-                def record(result) -> None:
-                    nonlocal ran
-                    append_result(config.results_path, result)
-                    done[result.task_id] = result
-                    ran += 1
-                    bar.update(1)
+        def ask(qtype: str, noun: str) -> None:
+            request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
+            reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0)   # a person takes time
+            said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
+            print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
 
-                play_episodes(graph, workers, jobs, record)
-    results = [done[t.task_id] for t in tasks]
-    report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results))
-    config.summary_path.write_text(json.dumps(report.to_json(), indent=1) + '\n')
-    return report
-
-
-def print_report(report: EvalReport) -> None:
-    from dialfred_sim.metrics import failures, format_table
-    c, info = report.config, report.to_json()['this_run']
-    rate = f', {info["episodes_per_s"]:.2f} episodes/s' if info['episodes_per_s'] else ''
-    print(f'{c.split}, {c.agent} agent, seed {c.seed}: {len(report.results)} tasks '
-          f'({report.ran} played now in {report.wall_s:.1f} s{rate})')
-    print(format_table(report.summary))
-    if c.agent == 'expert':
-        failed = failures(report.results)
-        print(f'expert failures: {len(failed)}')
-        for r in failed:
-            print(f'  {r.task_id}  {r.task_type:<20} {r.end_reason:<12} {r.error}')
-    print(f'results: {c.results_path}\nsummary: {c.summary_path}')
-
-
-def eval_config(args) -> EvalConfig:
-    return EvalConfig(split=args.split, agent=args.agent, limit=args.limit, workers=args.workers,
-                      out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution)
-
-
-def run_eval_command(args) -> int:
-    config = eval_config(args)
-    try:
-        report = run_eval(config, progress=not args.no_progress)
-    except KeyboardInterrupt:
-        print(f'interrupted: finished episodes are in {config.results_path}; the same command resumes',
-              file=sys.stderr)
-        raise
-    print_report(report)
+        for task in tasks:
+            reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
+                                                           with_segmentation=False))
+            if not reply.ok:
+                print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
+                return 1
+            t = reply.task
+            print(f'\n{t.task_id} ({t.task_type}) in {t.scene}: "{t.instruction}"')
+            noun = t.object_nouns[0] if t.object_nouns else ''
+            for qtype in ('location', 'appearance', 'direction'):
+                ask(qtype, noun)
+            ask('location', 'unicorn')                  # not in the scene: the oracle says why
+            ask('colour', noun)                         # not a question type
+            # Walk the expert's path but the last action, and ask for directions again.
+            for a in task.expert_actions[:-1]:
+                step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y),
+                                                            with_depth=False, with_segmentation=False))
+                if step.terminated:
+                    break
+            print(f'  ... after {len(task.expert_actions) - 1} of the expert\'s {len(task.expert_actions)} actions:')
+            ask('direction', '')
     return 0
 
 
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
-
-
-def add_eval_parser(sub) -> None:
-    ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table')
-    ev.add_argument('--split', default='valid_unseen', choices=['train', 'valid_seen', 'valid_unseen'])
-    ev.add_argument('--agent', default='expert', choices=['expert', 'random'])
-    ev.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
-    ev.add_argument('--workers', type=int, default=2, help='simulator nodes playing episodes in parallel')
-    ev.add_argument('--out', default=None, help='results file (default out/eval/<split>_<agent>.jsonl)')
-    ev.add_argument('--seed', type=int, default=0)
-    ev.add_argument('--resolution', type=int, default=128)
-    ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
 
 
 def main(argv=None) -> int:
@@ -565,12 +360,19 @@ def main(argv=None) -> int:
     demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
     nodes = sub.add_parser('nodes', help='start the node graph and keep it running')
     nodes.add_argument('--resolution', type=int, default=128)
+    dialogue = sub.add_parser('dialogue', help='ask the oracle each question type on a few tasks and print the dialogue')
+    dialogue.add_argument('--split', default='valid_unseen')
+    dialogue.add_argument('--first', type=int, default=0, help='index of the first task')
+    dialogue.add_argument('--tasks', type=int, default=3)
+    dialogue.add_argument('--human', action='store_true', help='the oracle asks you in this terminal')
+    from dialfred_eval import ResultsFileError, add_eval_parser, run_eval_command
     add_eval_parser(sub)
     args = parser.parse_args(argv)
     # Ctrl-C and SIGTERM both unwind through the Graph context, which stops every child.
     signal.signal(signal.SIGTERM, _interrupt)
     try:
-        return {'demo': run_demo, 'nodes': run_nodes, 'eval': run_eval_command}[args.command](args)
+        jobs = {'demo': run_demo, 'nodes': run_nodes, 'dialogue': run_dialogue, 'eval': run_eval_command}
+        return jobs[args.command](args)
     except KeyboardInterrupt:
         print('interrupted; nodes stopped', file=sys.stderr)
         return 130

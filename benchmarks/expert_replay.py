@@ -19,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import EvalConfig, run_eval  # noqa: E402
+from dialfred_eval import EvalConfig, run_eval  # noqa: E402
 
 GOAL_S = 300.0   # whole valid_unseen
 

@@ -29,7 +29,8 @@ from dialfred_sim.tasks import ExpertAction
 REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
-from dialfred_launch import EvalConfig, Graph, NodeProcess, print_report, run_eval, sim_service  # noqa: E402
+from dialfred_eval import EvalConfig, print_report, run_eval  # noqa: E402
+from dialfred_launch import Graph, NodeProcess, sim_service  # noqa: E402
 
 SPLIT = 'valid_unseen'
 

@@ -6,6 +6,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(include=[package_name, package_name + '.*']),
+    package_data={package_name: ['data/dialogues/*.jsonl.gz']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -13,6 +14,5 @@ setup(
     install_requires=['setuptools'],
     zip_safe=False,
     license='TODO',
-    # No console scripts yet: the package is filled in by a later issue.
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['node = dialfred_oracle.node:main']},
 )

@@ -16,10 +16,11 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 
-from dialfred_msgs.msg import AgentPose, Observation
-from dialfred_msgs.srv import SimReset, SimStep
+from dialfred_msgs.msg import AgentPose, Appearance, ObjectFact, Observation, TaskDescription
+from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
+from .ground_truth import snapshot
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
 from .ros_util import make_executor, spin_forever
@@ -37,12 +38,38 @@ def image_msg(array: np.ndarray, encoding: str, header) -> Image:
     msg.encoding = encoding
     msg.is_bigendian = 0
     msg.step = int(array.strides[0])
-    # array.array: about 7x faster to assign than bytes (rclpy converts bytes per field); frombytes
-    # reads the numpy buffer directly, one copy.
-    data = pyarray.array('B')
-    data.frombytes(memoryview(np.ascontiguousarray(array)).cast('B'))
-    msg.data = data
+    msg.data = image_bytes(array)
     return msg
+
+
+def image_bytes(array: np.ndarray) -> pyarray.array:
+    """The bytes of `array` as array.array: about 7x faster for rclpy to take than bytes (which it
+    converts per element); frombytes reads the numpy buffer directly, one copy."""
+    data = pyarray.array('B')
+    data.frombytes(memoryview(np.ascontiguousarray(array)).cast("B"))
+    return data
+
+
+def task_description(task) -> TaskDescription:
+    """The TaskDescription message of a tasks.Task."""
+    t = TaskDescription()
+    t.task_id, t.task_type, t.scene, t.split = task.task_id, task.task_type, task.scene, task.split
+    t.instruction, t.step_instructions = task.instruction, list(task.step_instructions)
+    t.object_nouns, t.expert_length = list(task.object_nouns), task.expert_length
+    i, j, rot, horizon = task.expert_end_pose
+    t.expert_end_pose = AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
+                                  rotation_deg=float(rot), horizon_deg=float(horizon))
+    t.goal_conditions_total = len(task.goal)
+    return t
+
+
+def object_fact_msg(f) -> ObjectFact:
+    return ObjectFact(object_id=f.object_id, type_name=f.type_name, noun=f.noun, x=float(f.position[0]),
+                      y=float(f.position[1]), z=float(f.position[2]), parent_id=f.parent_id,
+                      parent_type=f.parent_type, parent_noun=f.parent_noun, preposition=f.preposition,
+                      colour=f.colour, material=f.material, pickupable=bool(f.pickupable),
+                      is_open=bool(f.is_open), is_on=bool(f.is_on), is_dirty=bool(f.is_dirty),
+                      is_sliced=bool(f.is_sliced), temperature=f.temperature, held=bool(f.held))
 
 
 class SimNode(Node):
@@ -65,6 +92,7 @@ class SimNode(Node):
         self.observation_pub = self.create_publisher(Observation, 'sim/observation', OBSERVATION_QOS)
         self.create_service(SimReset, 'sim/reset', self.on_reset)
         self.create_service(SimStep, 'sim/step', self.on_step)
+        self.create_service(GroundTruth, 'sim/ground_truth', self.on_ground_truth)
         self.obs = None
         self.info = None
         self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
@@ -95,18 +123,34 @@ class SimNode(Node):
         except (ValueError, FileNotFoundError) as exc:
             response.ok, response.error = False, str(exc)
             return response
-        task = self.env.task
         response.ok = True
         response.observation = self._observation_msg(False, request.with_depth, request.with_segmentation)
-        t = response.task
-        t.task_id, t.task_type, t.scene, t.split = task.task_id, task.task_type, task.scene, task.split
-        t.instruction, t.step_instructions = task.instruction, list(task.step_instructions)
-        t.object_nouns, t.expert_length = list(task.object_nouns), task.expert_length
-        i, j, rot, horizon = task.expert_end_pose
-        t.expert_end_pose = AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
-                                      rotation_deg=float(rot), horizon_deg=float(horizon))
-        t.goal_conditions_total = len(task.goal)
+        response.task = task_description(self.env.task)
         self._publish(response.observation)
+        return response
+
+    def on_ground_truth(self, request: GroundTruth.Request, response: GroundTruth.Response) -> GroundTruth.Response:
+        if self.obs is None:
+            response.ok, response.error = False, 'ground truth before reset: call /sim/reset first'
+            return response
+        unknown = [oid for oid in request.appearance_of if oid not in self.env.world.objects]
+        if unknown:
+            response.ok, response.error = False, f'unknown object id(s) in appearance_of: {unknown[:5]}'
+            return response
+        snap = snapshot(self.env, list(request.appearance_of))
+        response.ok = True
+        x, y, rot, horizon = snap.agent
+        response.agent = AgentPose(x=float(x), y=float(y), camera_height=CAMERA_HEIGHT,
+                                   rotation_deg=float(rot), horizon_deg=float(horizon))
+        if self.env.task is not None:
+            response.has_task = True
+            response.task = task_description(self.env.task)
+        response.task_nouns = list(snap.task_objects)
+        response.task_object_ids = list(snap.task_objects.values())
+        response.objects = [object_fact_msg(f) for f in snap.objects.values()]
+        response.appearances = [Appearance(object_id=a.object_id, pixels=image_bytes(a.pixels),
+                                           from_current_view=bool(a.from_current_view))
+                                for a in snap.appearances.values()]
         return response
 
     def on_step(self, request: SimStep.Request, response: SimStep.Response) -> SimStep.Response:

@@ -215,6 +215,7 @@ def main(argv=None) -> int:
         return 0
     import multiprocessing
     t0 = time.monotonic()
+    out.parent.mkdir(parents=True, exist_ok=True)
     parts = [out.with_name(f'{out.name}.shard{k}') for k in range(args.workers)]
     with multiprocessing.get_context('spawn').Pool(args.workers) as pool:
         pool.starmap(_write_shard, [(args.split, p, size, k, args.workers) for k, p in enumerate(parts)])

@@ -1,0 +1,134 @@
+#!/usr/bin/env python3
+"""Answer correctness of `/oracle/answer` against the simulator's ground truth, over valid_unseen.
+
+For `--questions` questions on tasks drawn (seeded) from valid_unseen, the simulator is reset to
+the task and, half of the time, the expert's first actions are played so the agent stands
+elsewhere; then one question (location, appearance or direction, in turn) about one of the task's
+objects goes through the oracle node, and the ground truth of the same moment comes straight from
+`/sim/ground_truth`. Checks: a location answer names the object's parent receptacle (or says it is
+held) and the 45-degree direction bin recomputed from the geometry; an appearance answer names the
+object's assigned colour variant and material; a direction answer matches the expert end pose.
+Prints JSON with the agreement rates and the colour confusions.
+
+    ./dialfred bench oracle_correctness [--questions 1000] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from dialfred_launch import Graph, oracle_node, sim_node  # noqa: E402
+
+TYPES = ('location', 'appearance', 'direction')
+BINS = ('in front of you', 'to your front right', 'to your right', 'to your rear right', 'behind you',
+        'to your rear left', 'to your left', 'to your front left')
+
+
+def expected_direction(agent, end) -> str:
+    """The direction answer the geometry calls for (the oracle's rule, recomputed independently)."""
+    from dialfred_oracle.answers import direction_bin
+    dx, dy = end[0] - agent[0], end[1] - agent[1]
+    if math.hypot(dx, dy) < 0.25:
+        turn = (end[2] - agent[2] + 180) % 360 - 180
+        if abs(turn) < 45:
+            return "You don't need to move."
+        return 'You should turn left.' if 45 <= turn < 135 else \
+            'You should turn right.' if -135 < turn <= -45 else 'You should turn around.'
+    b = direction_bin(agent[:2], agent[2], end[:2])
+    return {'in front of you': 'You should go straight ahead.', 'to your front right': 'You should go straight ahead.',
+            'to your front left': 'You should go straight ahead.', 'to your right': 'You should turn right.',
+            'to your left': 'You should turn left.', 'to your rear right': 'You should turn around.',
+            'to your rear left': 'You should turn around.', 'behind you': 'You should turn around.'}[b]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument('--questions', type=int, default=1000)
+    ap.add_argument('--seed', type=int, default=0)
+    args = ap.parse_args()
+    os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset, SimStep
+    from dialfred_oracle.answers import direction_bin
+    from dialfred_sim.tasks import load_split
+    rng = np.random.default_rng(args.seed)
+    tasks = load_split('valid_unseen')
+    checks = collections.defaultdict(list)
+    confusions = collections.Counter()
+    examples = []
+    t0 = time.perf_counter()
+    with Graph([sim_node(128), oracle_node()]) as graph:
+        reset = graph.client(SimReset, '/sim/reset')
+        step = graph.client(SimStep, '/sim/step')
+        truth_cli = graph.client(GroundTruth, '/sim/ground_truth')
+        ask = graph.client(OracleAnswer, '/oracle/answer')
+        for q in range(args.questions):
+            task = tasks[int(rng.integers(len(tasks)))]
+            assert graph.call(reset, SimReset.Request(task_id=task.task_id, with_depth=False,
+                                                      with_segmentation=False)).ok
+            if rng.random() < 0.5:
+                for a in task.expert_actions[:int(rng.integers(len(task.expert_actions)))]:
+                    r = graph.call(step, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y),
+                                                         with_depth=False, with_segmentation=False))
+                    if r.terminated:
+                        break
+            qtype = TYPES[q % 3]
+            truth = graph.call(truth_cli, GroundTruth.Request())
+            task_objects = dict(zip(truth.task_nouns, truth.task_object_ids))
+            facts = {f.object_id: f for f in truth.objects}
+            nouns = [n for n, oid in task_objects.items() if oid in facts]
+            if not nouns:
+                continue
+            noun = nouns[int(rng.integers(len(nouns)))]
+            reply = graph.call(ask, OracleAnswer.Request(question_type=qtype, object_noun=noun))
+            checks[f'{qtype}_valid'].append(reply.valid)
+            if not reply.valid:
+                examples.append({'q': (qtype, noun), 'invalid': reply.reason})
+                continue
+            fact = facts[task_objects[noun]]
+            agent = (truth.agent.x, truth.agent.y, truth.agent.rotation_deg)
+            text = reply.answer
+            if qtype == 'location':
+                if fact.held:
+                    checks['location_receptacle'].append('holding' in text)
+                else:
+                    if fact.parent_noun:
+                        checks['location_receptacle'].append(f'{fact.preposition} the {fact.parent_noun}' in text)
+                    checks['location_direction_bin'].append(
+                        direction_bin(agent[:2], agent[2], (fact.x, fact.y)) in text)
+            elif qtype == 'appearance':
+                named = next((c for c in text.replace('.', ' ').split() if c in COLOURS), '')
+                ok = named == fact.colour
+                checks['appearance_colour'].append(ok)
+                checks['appearance_material'].append(fact.material in text)
+                if not ok:
+                    confusions[f'{fact.colour}->{named or "?"}'] += 1
+            else:
+                e = truth.task.expert_end_pose
+                checks['direction'].append(text == expected_direction(agent, (e.x, e.y, e.rotation_deg)))
+            if len(examples) < 12:
+                examples.append({'task': task.task_id, 'q': (qtype, noun), 'a': text})
+    report = {'benchmark': 'oracle_correctness', 'questions': args.questions, 'seed': args.seed,
+              'wall_s': round(time.perf_counter() - t0, 1)}
+    for name, vals in sorted(checks.items()):
+        report[name] = {'n': len(vals), 'rate': round(float(np.mean(vals)), 4) if vals else None}
+    report['colour_confusions'] = dict(confusions.most_common(15))
+    report['examples'] = examples[:12]
+    print(json.dumps(report, indent=2))
+
+
+from dialfred_sim.world.palette import COLOUR_NAMES as COLOURS  # noqa: E402
+
+if __name__ == '__main__':
+    main()

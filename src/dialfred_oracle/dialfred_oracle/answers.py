@@ -1,0 +1,316 @@
+"""The oracle's rules: templated answers to location, appearance and direction questions.
+
+DialFRED's oracle (paper, "Generating answers") answers from the simulator's ground truth:
+  Location:   "The apple is to your left in the fridge."   (direction from the agent, and the
+              receptacle that holds it, "in" for containers and "on" otherwise)
+  Appearance: "The apple is red and made of food."         (colour from rendered pixels, material
+              from the object's metadata)
+  Direction:  "You should turn left." / "You don't need to move."  (where the expert ends the task,
+              seen from the agent now)
+`answer(snapshot, question_type, noun)` never raises: a question it cannot answer gets
+`Answer(valid=False, reason=...)`. Everything here is plain Python over a `Snapshot`
+(dialfred_sim.ground_truth); the ROS node only adapts messages.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, replace
+from typing import Optional
+
+import numpy as np
+
+from dialfred_sim.ground_truth import ObjectFact, Snapshot
+
+from .colours import colour_name
+
+QUESTION_TYPES = ('location', 'appearance', 'direction')
+QUESTION_ALIASES = {'loc': 'location', 'app': 'appearance', 'dir': 'direction'}   # the questioner's tokens
+MAX_NOUN_CHARS = 64
+SAME_PLACE_M = 0.25          # the expert's end is "here" within this distance ...
+SAME_HEADING_DEG = 45.0      # ... and this heading difference
+
+# The 8 bins of 45 degrees, counter-clockwise from straight ahead (+y is left when facing +x).
+DIRECTION_BINS = ('in front of you', 'to your front left', 'to your left', 'to your rear left',
+                  'behind you', 'to your rear right', 'to your right', 'to your front right')
+GO_STRAIGHT = 'You should go straight ahead.'
+TURN_LEFT = 'You should turn left.'
+TURN_RIGHT = 'You should turn right.'
+TURN_AROUND = 'You should turn around.'
+STAY = "You don't need to move."
+_MOVE_FOR_BIN = {'in front of you': GO_STRAIGHT, 'to your front left': GO_STRAIGHT, 'to your front right': GO_STRAIGHT,
+                 'to your left': TURN_LEFT, 'to your right': TURN_RIGHT, 'to your rear left': TURN_AROUND,
+                 'behind you': TURN_AROUND, 'to your rear right': TURN_AROUND}
+WITHHELD = 'withheld by the perturbation ablation'
+_ARTICLES = ('the ', 'a ', 'an ')
+
+
+@dataclass(frozen=True)
+class Answer:
+    """The oracle's reply. valid=False (with `reason`) when the question cannot be answered.
+
+    colour_from_pixels: False when an appearance answer had no pixels of the object and named its
+    colour from metadata instead."""
+
+    valid: bool
+    text: str = ''
+    reason: str = ''
+    question_type: str = ''
+    object_noun: str = ''
+    object_id: str = ''
+    colour_from_pixels: bool = True
+
+
+def question_text(question_type: str, noun: str = '') -> str:
+    """The question as a person would ask it: 'Where is the apple?'. ValueError for an unknown type."""
+    qtype = _question_type(question_type)
+    if qtype == 'location':
+        return f'Where is the {noun}?'
+    if qtype == 'appearance':
+        return f'What does the {noun} look like?'
+    if qtype == 'direction':
+        return 'Which direction should I go?'
+    raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES}')
+
+
+def _question_type(question_type) -> Optional[str]:
+    if not isinstance(question_type, str) or len(question_type) > 32:
+        return None
+    q = question_type.strip().lower()
+    q = QUESTION_ALIASES.get(q, q)
+    return q if q in QUESTION_TYPES else None
+
+
+def _wrap(deg: float) -> float:
+    """An angle in (-180, 180]."""
+    d = math.fmod(deg, 360.0)
+    if d <= -180.0:
+        d += 360.0
+    elif d > 180.0:
+        d -= 360.0
+    return d
+
+
+def bearing(agent_xy, agent_rotation_deg: float, target_xy) -> float:
+    """Where `target_xy` lies seen from the agent, in degrees: 0 ahead, positive to the left."""
+    dx, dy = target_xy[0] - agent_xy[0], target_xy[1] - agent_xy[1]
+    return _wrap(math.degrees(math.atan2(dy, dx)) - agent_rotation_deg)
+
+
+def direction_bin(agent_xy, agent_rotation_deg: float, target_xy) -> str:
+    """One of DIRECTION_BINS: the 45-degree sector, centred on the agent's heading, holding the
+    target. Rotation 0 faces +x, counter-clockwise positive (facing +x, +y is to the left)."""
+    k = math.floor((bearing(agent_xy, agent_rotation_deg, target_xy) + 22.5) / 45.0) % 8
+    return DIRECTION_BINS[k]
+
+
+def direction_advice(agent, expert_end) -> str:
+    """What to do to get from pose `agent` to pose `expert_end` (x, y, rotation, horizon)."""
+    if math.hypot(expert_end[0] - agent[0], expert_end[1] - agent[1]) <= SAME_PLACE_M + 1e-9:
+        turn = _wrap(expert_end[2] - agent[2])
+        if abs(turn) <= SAME_HEADING_DEG:
+            return STAY
+        if abs(turn) >= 180.0 - SAME_HEADING_DEG:
+            return TURN_AROUND
+        return TURN_LEFT if turn > 0 else TURN_RIGHT
+    return _MOVE_FOR_BIN[direction_bin(agent[:2], agent[2], expert_end[:2])]
+
+
+# ---------------------------------------------------------------------- which object is meant
+
+def _noun_problem(noun) -> str:
+    """Why `noun` cannot name an object ('' if it can)."""
+    if not isinstance(noun, str):
+        return 'the object noun must be text'
+    if len(noun) > MAX_NOUN_CHARS:
+        return f'the object noun is longer than {MAX_NOUN_CHARS} characters'
+    if any(ord(ch) < 32 or 127 <= ord(ch) < 160 for ch in noun):
+        return 'the object noun contains control characters'
+    if not noun.isascii():
+        return 'the object noun contains non-ASCII characters; object names are English words'
+    if not _normalise(noun):
+        return 'no object noun given'
+    return ''
+
+
+def _normalise(noun: str) -> str:
+    """'  The Sink-Basin? ' -> 'sink-basin' -> compared as 'sinkbasin' (see _key)."""
+    n = ' '.join(noun.strip().strip('.,;:!?"\'()[]{}<>`').split()).lower()
+    for article in _ARTICLES:
+        n = n.removeprefix(article)
+    return n.strip()
+
+
+def _key(text: str) -> str:
+    return re.sub(r'[\s_\-]+', '', text.lower())
+
+
+def _variants(type_name: str) -> tuple[str, ...]:
+    """Other words people use for the type ('couch' for Sofa), from the catalog; () if unknown."""
+    from dialfred_sim.world.catalog import load_catalog
+    t = load_catalog().get(type_name)
+    return t.nouns if t is not None else ()
+
+
+def _candidates(snapshot: Snapshot, noun: str) -> list[ObjectFact]:
+    """Objects that `noun` names: by noun or type name, else by another common word for the type."""
+    key = _key(_normalise(noun))
+    exact = [f for f in snapshot.objects.values() if key in (_key(f.noun), _key(f.type_name))]
+    if exact:
+        return exact
+    return [f for f in snapshot.objects.values() if key in (_key(v) for v in _variants(f.type_name))]
+
+
+def _distance(snapshot: Snapshot, fact: ObjectFact) -> float:
+    return math.hypot(fact.position[0] - snapshot.agent[0], fact.position[1] - snapshot.agent[1])
+
+
+def resolve_object(snapshot: Snapshot, noun) -> tuple[str, str]:
+    """(object id, '') of the object a question about `noun` is about, or ('', reason).
+
+    In a task only the task's own objects are answered about (its instance, not a look-alike); in
+    free exploration any object is, the nearest of several."""
+    problem = _noun_problem(noun)
+    if problem:
+        return '', problem
+    shown = _normalise(noun)
+    candidates = _candidates(snapshot, noun)
+    if not candidates:
+        return '', f'there is no {shown} here'
+    if snapshot.task_id:
+        task_ids = list(dict.fromkeys(snapshot.task_objects.values()))
+        relevant = [f for f in candidates if f.object_id in task_ids]
+        if not relevant:
+            return '', f'the {shown} is not part of this task'
+        return min(relevant, key=lambda f: task_ids.index(f.object_id)).object_id, ''
+    return min(candidates, key=lambda f: (_distance(snapshot, f), f.object_id)).object_id, ''
+
+
+# ---------------------------------------------------------------------- answers
+
+def _location(snapshot: Snapshot, fact: ObjectFact) -> str:
+    if fact.held:
+        return f'You are holding the {fact.noun}.'
+    parent = snapshot.objects.get(fact.parent_id) if fact.parent_id else None
+    if parent is not None and parent.held:
+        return f'The {fact.noun} is {fact.preposition} the {fact.parent_noun} you are holding.'
+    where = direction_bin(snapshot.agent[:2], snapshot.agent[2], fact.position[:2])
+    if fact.parent_id:
+        return f'The {fact.noun} is {where} {fact.preposition} the {fact.parent_noun}.'
+    return f'The {fact.noun} is {where}.'
+
+
+def _appearance(snapshot: Snapshot, fact: ObjectFact) -> tuple[str, bool]:
+    look = snapshot.appearances.get(fact.object_id)
+    colour = colour_name(look.pixels) if look is not None and len(look.pixels) else None
+    from_pixels = colour is not None
+    return f'The {fact.noun} is {colour or fact.colour} and made of {fact.material}.', from_pixels
+
+
+def answer(snapshot: Snapshot, question_type, object_noun='') -> Answer:
+    """The oracle's answer to a question of `question_type` ('location', 'appearance',
+    'direction'; or the tokens 'loc', 'app', 'dir') about `object_noun`. Never raises."""
+    qtype = _question_type(question_type)
+    if qtype is None:
+        shown = question_type[:32] if isinstance(question_type, str) else type(question_type).__name__
+        return Answer(False, reason=f'unknown question type {shown!r}; expected one of {", ".join(QUESTION_TYPES)}')
+    if qtype == 'direction':
+        if snapshot.expert_end is None:
+            return Answer(False, reason='there is no task, so there is no way to go', question_type=qtype)
+        return Answer(True, direction_advice(snapshot.agent, snapshot.expert_end), question_type=qtype)
+    object_id, reason = resolve_object(snapshot, object_noun)
+    if not object_id:
+        return Answer(False, reason=reason, question_type=qtype)
+    fact = snapshot.objects[object_id]
+    if qtype == 'location':
+        return Answer(True, _location(snapshot, fact), question_type=qtype, object_noun=fact.noun,
+                      object_id=object_id)
+    text, from_pixels = _appearance(snapshot, fact)
+    return Answer(True, text, question_type=qtype, object_noun=fact.noun, object_id=object_id,
+                  colour_from_pixels=from_pixels)
+
+
+# ---------------------------------------------------------------------- checking answers
+
+_BINS_RE = '|'.join(re.escape(b) for b in DIRECTION_BINS)
+_LOCATION_RE = re.compile(rf'^The (?P<noun>.+?) is (?P<bin>{_BINS_RE})(?: (?P<prep>in|on) the (?P<recep>.+))?\.$')
+_CARRIED_RE = re.compile(r'^The (?P<noun>.+?) is (?P<prep>in|on) the (?P<recep>.+) you are holding\.$')
+_HOLDING_RE = re.compile(r'^You are holding the (?P<noun>.+)\.$')
+_APPEARANCE_RE = re.compile(r'^The (?P<noun>.+?) is (?P<colour>[a-z]+) and made of (?P<material>.+)\.$')
+
+
+def check_answer(snapshot: Snapshot, ans: Answer) -> dict[str, Optional[bool]]:
+    """Whether an answer's text agrees with the ground truth of `snapshot` (for benchmarks).
+
+    receptacle_ok: a location answer names the object's parent receptacle with the right
+    preposition (or none for an object without one, or says it is held when it is);
+    direction_ok: a location answer's direction bin, or a direction answer's advice, recomputed
+    from the geometry; colour_ok: an appearance answer names the object's colour variant.
+    None where a check does not apply (and for invalid answers)."""
+    out: dict[str, Optional[bool]] = {'receptacle_ok': None, 'direction_ok': None, 'colour_ok': None}
+    if not ans.valid:
+        return out
+    if ans.question_type == 'direction':
+        out['direction_ok'] = (snapshot.expert_end is not None
+                               and ans.text == direction_advice(snapshot.agent, snapshot.expert_end))
+        return out
+    fact = snapshot.objects.get(ans.object_id)
+    if fact is None:
+        return {k: False for k in out}
+    if ans.question_type == 'appearance':
+        m = _APPEARANCE_RE.match(ans.text)
+        out['colour_ok'] = bool(m) and m.group('colour') == fact.colour
+        return out
+    parent = snapshot.objects.get(fact.parent_id)
+    if _HOLDING_RE.match(ans.text):
+        out['receptacle_ok'] = fact.held
+        return out
+    m = _CARRIED_RE.match(ans.text)
+    if m:
+        out['receptacle_ok'] = (parent is not None and parent.held and m.group('recep') == fact.parent_noun
+                                and m.group('prep') == fact.preposition)
+        return out
+    m = _LOCATION_RE.match(ans.text)
+    if not m:
+        return {'receptacle_ok': False, 'direction_ok': False, 'colour_ok': None}
+    if m.group('recep') is None:
+        out['receptacle_ok'] = not fact.parent_id and not fact.held
+    else:
+        out['receptacle_ok'] = m.group('recep') == fact.parent_noun and m.group('prep') == fact.preposition
+    out['direction_ok'] = m.group('bin') == direction_bin(snapshot.agent[:2], snapshot.agent[2], fact.position[:2])
+    return out
+
+
+# ---------------------------------------------------------------------- the paper's ablation
+
+class Perturbation:
+    """Withhold answers of one question type with probability `probability` (the paper's
+    ablation uses 0.5), drawn from a generator seeded with `seed`. question_type '' means every
+    type; probability 0 never withholds."""
+
+    def __init__(self, question_type: str = '', probability: float = 0.0, seed: int = 0):
+        qtype = _question_type(question_type) if question_type else ''
+        if qtype is None:
+            raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES} or ""')
+        if not 0.0 <= float(probability) <= 1.0:
+            raise ValueError(f'probability must be in [0, 1], got {probability!r}')
+        self.question_type, self.probability = qtype, float(probability)
+        self.reset(seed)
+
+    def reset(self, seed: int) -> None:
+        """Start the draws again from `seed`."""
+        self._rng = np.random.default_rng(seed)
+
+    def withhold(self, question_type: str) -> bool:
+        """Whether to withhold this answer. Draws only for the perturbed type."""
+        qtype = _question_type(question_type)
+        if qtype is None or self.probability <= 0.0 or self.question_type not in ('', qtype):
+            return False
+        return bool(self._rng.random() < self.probability)
+
+    def apply(self, ans: Answer) -> Answer:
+        """`ans`, or an invalid answer saying it was withheld."""
+        if ans.valid and self.withhold(ans.question_type):
+            return replace(ans, valid=False, text='', reason=WITHHELD)
+        return ans

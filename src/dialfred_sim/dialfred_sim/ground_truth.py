@@ -1,0 +1,291 @@
+"""The simulator's ground truth as plain data, for the oracle: objects, the agent, the task, looks.
+
+`snapshot(env)` reads a `DialfredEnv` after reset (a task or free exploration) and returns a
+`Snapshot` of frozen dataclasses, tuples and numpy arrays only, so that the oracle can be answered
+from it anywhere (rebuilt from a ROS message, or from JSON with `snapshot_from_dict`). Nothing here
+changes the world: appearance close-ups are extra camera images of the same scene. Importing this
+module does not import pybullet (the oracle uses the dataclasses without a simulator).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Optional, Sequence
+
+import numpy as np
+
+from .world.rooms import GRID
+
+if TYPE_CHECKING:
+    from .world.scene import World, WorldObject
+
+MAX_APPEARANCE_PIXELS = 400     # evenly subsampled from the object's mask
+MIN_APPEARANCE_PIXELS = 20      # fewer pixels of it in view: take a close-up instead
+CLOSEUP_SIZE = 64               # close-up images are this many pixels square
+CLOSEUP_FOV_DEG = 60.0
+CLOSEUP_DISTANCES = (0.45, 0.6, 0.35)      # metres from the object's centre, tried in this order
+NEAR_DISTANCES = (0.25, 0.15)              # for objects shut in a fridge, cabinet, drawer, ...
+
+
+@dataclass(frozen=True)
+class ObjectFact:
+    """What the simulator knows about one object (positions in metres, world frame)."""
+
+    object_id: str
+    type_name: str
+    noun: str
+    position: tuple[float, float, float]   # centre of its bounding box
+    parent_id: str                         # the receptacle it is in/on; '' when none (or held)
+    parent_type: str
+    parent_noun: str
+    preposition: str                       # 'in' or 'on' its parent ('' without one)
+    colour: str                            # its palette colour variant
+    material: str
+    pickupable: bool
+    is_open: bool
+    is_on: bool
+    is_dirty: bool
+    is_sliced: bool
+    temperature: str
+    held: bool
+
+
+@dataclass(frozen=True)
+class Appearance:
+    """RGB samples of an object's rendered mask: (N, 3) uint8, N <= MAX_APPEARANCE_PIXELS.
+
+    from_current_view: taken from the agent's current frame (else from a close-up render).
+    N is 0 when no camera position showed the object."""
+
+    object_id: str
+    pixels: np.ndarray
+    from_current_view: bool
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Everything the oracle needs about one moment of an episode.
+
+    agent and expert_end: (x m, y m, rotation deg (0 = facing +x, counter-clockwise), horizon deg).
+    task_objects: noun -> id of the task's own instance of it ({} without a task)."""
+
+    agent: tuple[float, float, float, float]
+    expert_end: Optional[tuple[float, float, float, float]]
+    task_id: str
+    task_type: str
+    instruction: str
+    task_objects: dict[str, str]
+    objects: dict[str, ObjectFact]
+    appearances: dict[str, Appearance] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------- facts
+
+def object_fact(world: World, obj: WorldObject) -> ObjectFact:
+    """The ground truth of one object of `world`."""
+    parent = world.objects.get(obj.parent) if obj.parent else None
+    x, y, z = obj.position    # the bottom centre of its footprint
+    return ObjectFact(
+        object_id=obj.object_id, type_name=obj.type_name, noun=obj.otype.noun,
+        position=(float(x), float(y), float(z) + obj.spec.size[2] / 2),
+        parent_id=parent.object_id if parent else '',
+        parent_type=parent.type_name if parent else '',
+        parent_noun=parent.otype.noun if parent else '',
+        preposition=parent.otype.preposition if parent else '',
+        colour=obj.colour, material=obj.otype.material, pickupable=obj.otype.pickupable,
+        is_open=obj.is_open, is_on=obj.is_on, is_dirty=obj.is_dirty, is_sliced=obj.is_sliced,
+        temperature=obj.temperature, held=obj.held)
+
+
+def task_object_ids(env) -> list[str]:
+    """Ids of the objects the current task acts on (targets and receptacles), in primitive order;
+    objects that no longer exist (a sliced target) are left out."""
+    task = getattr(env, 'task', None)
+    if task is None:
+        return []
+    ids = [q for p in task.primitives for q in (p.target, p.receptacle) if q]
+    return [q for q in dict.fromkeys(ids) if q in env.world.objects]
+
+
+def _task_objects(env) -> dict[str, str]:
+    """noun -> object id; where two task objects share a noun, the one acted on (not walked to) wins."""
+    task = getattr(env, 'task', None)
+    if task is None:
+        return {}
+    objects = env.world.objects
+    out: dict[str, str] = {}
+    ranked = [(p.kind == 'goto', q) for p in task.primitives for q in (p.target, p.receptacle) if q]
+    for _, oid in sorted(ranked, key=lambda r: r[0]):   # stable: acted-on first, primitive order
+        if oid in objects:
+            out.setdefault(objects[oid].otype.noun, oid)
+    return out
+
+
+def snapshot(env, appearance_of: Sequence[str] = ()) -> Snapshot:
+    """The ground truth of `env` (a DialfredEnv after reset) now, with the appearance of each
+    object id in `appearance_of` (ids not in the scene are skipped). Changes nothing in `env`."""
+    if env._frame is None:
+        raise RuntimeError('snapshot() before reset()')
+    world = env.world
+    a = world.agent
+    task = env.task
+    expert_end = None
+    if task is not None:
+        i, j, rot, hor = task.expert_end_pose
+        expert_end = (i * GRID, j * GRID, float(rot), float(hor))
+    view = _PartView(world)    # rendered once, if any of them is in view
+    appearances = {oid: _appearance(env, oid, MIN_APPEARANCE_PIXELS, view) for oid in dict.fromkeys(appearance_of)
+                   if oid in world.objects}
+    return Snapshot(
+        agent=(float(a.x), float(a.y), float(a.rotation), float(a.horizon)),
+        expert_end=expert_end,
+        task_id=task.task_id if task is not None else '',
+        task_type=task.task_type if task is not None else '',
+        instruction=task.instruction if task is not None else '',
+        task_objects=_task_objects(env),
+        objects={oid: object_fact(world, world.objects[oid]) for oid in sorted(world.objects)},
+        appearances=appearances)
+
+
+# ---------------------------------------------------------------------- appearance
+
+def _sample(rgb: np.ndarray, mask: np.ndarray, limit: int = MAX_APPEARANCE_PIXELS) -> np.ndarray:
+    """Up to `limit` RGB values of the masked pixels, evenly spread over the mask (row-major)."""
+    px = rgb[mask]
+    if len(px) > limit:
+        px = px[np.linspace(0, len(px) - 1, limit).round().astype(int)]
+    return np.ascontiguousarray(px, dtype=np.uint8).reshape(-1, 3)
+
+
+def _body_part_ids(obj: WorldObject) -> np.ndarray:
+    """Segmentation values (with link index) of the parts of `obj` painted in its colour variant.
+
+    Link layout of bodies.build_body: rigid parts are links 0..n-1 in spec order, then the hinge
+    link (no visual), then the moving parts; pybullet encodes body + ((link + 1) << 24)."""
+    rigid = [p for p in obj.spec.parts if not p.moving]
+    moving = [p for p in obj.spec.parts if p.moving]
+    links = [k for k, p in enumerate(rigid) if p.colour == 'main']
+    links += [len(rigid) + 1 + k for k, p in enumerate(moving) if p.colour == 'main']
+    return np.array([obj.body + ((link + 1) << 24) for link in links], dtype=np.int64)
+
+
+class _PartView:
+    """The agent's current view again, with a segmentation that tells the parts of bodies apart;
+    rendered on first use (the same image as the frame: rendering is deterministic)."""
+
+    def __init__(self, world: World):
+        self.world = world
+        self._image: Optional[tuple[np.ndarray, np.ndarray]] = None
+
+    def image(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._image is None:
+            from .world.scene import LIGHT_DIRECTION
+            w = self.world
+            c = w.client
+            _, _, px, _, seg = c.getCameraImage(w.width, w.height, w.view_matrix(), w._projection,
+                                                renderer=c.ER_TINY_RENDERER, shadow=0,
+                                                lightDirection=LIGHT_DIRECTION,
+                                                flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
+            rgb = np.asarray(px, dtype=np.uint8).reshape(w.height, w.width, 4)[:, :, :3]
+            self._image = rgb, np.asarray(seg, dtype=np.int64).reshape(w.height, w.width)
+        return self._image
+
+
+def appearance(env, object_id: str, min_pixels: int = MIN_APPEARANCE_PIXELS) -> Appearance:
+    """Pixels of `object_id`'s body: the parts painted in its colour variant, leaving out details
+    of fixed colour (a knife's blade, a window's glass, a television's screen) as a person naming
+    its colour would. From the agent's current frame when at least `min_pixels` of them show, else
+    from a close-up render around the object; 0 pixels if no close-up shows them either.
+    KeyError for an unknown id. Changes nothing in the world."""
+    return _appearance(env, object_id, min_pixels, _PartView(env.world))
+
+
+def _appearance(env, object_id: str, min_pixels: int, view: _PartView) -> Appearance:
+    world = env.world
+    obj = world.objects[object_id]
+    if env._frame is not None and int((env._frame[2] == obj.body).sum()) >= min_pixels:
+        rgb, seg = view.image()
+        mask = np.isin(seg, _body_part_ids(obj))
+        if int(mask.sum()) >= min_pixels:
+            return Appearance(object_id, _sample(rgb, mask), True)
+    closeup = closeup_pixels(world, obj, min_pixels)
+    return Appearance(object_id, closeup if closeup is not None else np.zeros((0, 3), np.uint8), False)
+
+
+def _eye_directions(yaw: float) -> list[tuple[float, float, float]]:
+    """Unit vectors from the object towards candidate eyes: its front, sides and back from 35 deg
+    above, then from above, then level with it (object frame turned by `yaw`)."""
+    out = []
+    for elevation in (35.0, 70.0, 5.0):
+        e = math.radians(elevation)
+        for azimuth in (0, 90, -90, 45, -45, 180, 135, -135):
+            az = yaw + math.radians(azimuth)
+            out.append((math.cos(e) * math.cos(az), math.cos(e) * math.sin(az), math.sin(e)))
+    return out
+
+
+def _render_closeup(world: World, eye, target, near: float) -> tuple[np.ndarray, np.ndarray]:
+    """(rgb, segmentation with link indices) of a CLOSEUP_SIZE square image from `eye` at `target`."""
+    from .world.scene import LIGHT_DIRECTION
+    c = world.client
+    view = c.computeViewMatrix(list(eye), list(target), [0.0, 0.0, 1.0])
+    proj = c.computeProjectionMatrixFOV(CLOSEUP_FOV_DEG, 1.0, near, 5.0)
+    n = CLOSEUP_SIZE
+    _, _, px, _, seg = c.getCameraImage(n, n, view, proj, renderer=c.ER_TINY_RENDERER, shadow=0,
+                                        lightDirection=LIGHT_DIRECTION,
+                                        flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
+    rgb = np.asarray(px, dtype=np.uint8).reshape(n, n, 4)[:, :, :3]
+    return rgb, np.asarray(seg, dtype=np.int64).reshape(n, n)
+
+
+def closeup_pixels(world: World, obj: WorldObject, min_pixels: int = MIN_APPEARANCE_PIXELS) -> Optional[np.ndarray]:
+    """Samples of `obj`'s body (see `appearance`) from the first close-up camera around it that
+    shows >= `min_pixels` of it (None if none does). Objects shut inside a container are tried from
+    very close first."""
+    x, y, z = obj.position
+    centre = (x, y, z + obj.spec.size[2] / 2)
+    extent = max(obj.spec.size)
+    # A big fixture needs the camera farther away than its half size; small things 0.35-0.6 m.
+    scale = max(1.0, extent / 0.6)
+    far = [(d * scale, 0.02) for d in CLOSEUP_DISTANCES]
+    near = [(d + extent / 2, 0.01) for d in NEAR_DISTANCES]
+    shut_in = world.enclosed_by_closed(obj) is not None
+    parts = _body_part_ids(obj)
+    for distance, near_plane in (near + far if shut_in else far + near):
+        for dx, dy, dz in _eye_directions(obj.yaw):
+            eye = (centre[0] + distance * dx, centre[1] + distance * dy, centre[2] + distance * dz)
+            rgb, seg = _render_closeup(world, eye, centre, near_plane)
+            mask = np.isin(seg, parts)
+            if int(mask.sum()) >= min_pixels:
+                return _sample(rgb, mask)
+    return None
+
+
+# ---------------------------------------------------------------------- JSON
+
+def snapshot_to_dict(s: Snapshot) -> dict[str, Any]:
+    """A JSON-able dict of `s` (pixels as lists of [r, g, b])."""
+    return {
+        'agent': list(s.agent),
+        'expert_end': list(s.expert_end) if s.expert_end is not None else None,
+        'task_id': s.task_id, 'task_type': s.task_type, 'instruction': s.instruction,
+        'task_objects': dict(s.task_objects),
+        'objects': {oid: {**f.__dict__, 'position': list(f.position)} for oid, f in s.objects.items()},
+        'appearances': {oid: {'object_id': a.object_id, 'pixels': np.asarray(a.pixels).tolist(),
+                              'from_current_view': a.from_current_view} for oid, a in s.appearances.items()},
+    }
+
+
+def snapshot_from_dict(d: dict[str, Any]) -> Snapshot:
+    """The Snapshot that `snapshot_to_dict` wrote."""
+    objects = {oid: ObjectFact(**{**f, 'position': tuple(float(v) for v in f['position'])})
+               for oid, f in d['objects'].items()}
+    appearances = {oid: Appearance(a['object_id'], np.asarray(a['pixels'], dtype=np.uint8).reshape(-1, 3),
+                                   bool(a['from_current_view'])) for oid, a in d.get('appearances', {}).items()}
+    end = d.get('expert_end')
+    return Snapshot(
+        agent=tuple(float(v) for v in d['agent']),
+        expert_end=tuple(float(v) for v in end) if end is not None else None,
+        task_id=d.get('task_id', ''), task_type=d.get('task_type', ''), instruction=d.get('instruction', ''),
+        task_objects=dict(d.get('task_objects', {})), objects=objects, appearances=appearances)

@@ -1,0 +1,131 @@
+"""The oracle as a ROS 2 node (integration): `dialfred_oracle node` beside `dialfred_sim node`, each
+in its own process, answering /oracle/answer from the simulator's ground truth fetched over ROS."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+from dialfred_launch import Graph, NodeProcess, oracle_node, sim_node  # noqa: E402
+
+TASK = 'valid_unseen/000003'
+
+
+@pytest.fixture(scope='module')
+def graph():
+    with Graph([sim_node(128, namespace='/o'), oracle_node(namespace='/o')]) as g:
+        g.reset_cli = g.client(SimReset, '/o/sim/reset')
+        g.truth_cli = g.client(GroundTruth, '/o/sim/ground_truth')
+        g.ask_cli = g.client(OracleAnswer, '/o/oracle/answer')
+        # The very first question comes before any reset: the simulator has nothing to tell.
+        g.first = g.call(g.ask_cli, OracleAnswer.Request(question_type='location', object_noun='apple'))
+        assert g.call(g.reset_cli, SimReset.Request(task_id=TASK, with_depth=False, with_segmentation=False)).ok
+        yield g
+
+
+def ask(g, qtype, noun, cli=None):
+    return g.call(cli or g.ask_cli, OracleAnswer.Request(question_type=qtype, object_noun=noun))
+
+
+def task_noun():
+    from dialfred_sim.tasks import get_task
+    return get_task(TASK).object_nouns[0]
+
+
+def test_a_question_before_any_episode_is_invalid_with_a_reason(graph):
+    assert not graph.first.valid and 'reset' in graph.first.reason
+
+
+def test_each_question_type_is_answered_from_the_ground_truth(graph):
+    noun = task_noun()
+    truth = graph.call(graph.truth_cli, GroundTruth.Request())
+    assert truth.ok and truth.has_task and truth.task.task_id == TASK
+    target = dict(zip(truth.task_nouns, truth.task_object_ids))[noun]
+    fact = next(f for f in truth.objects if f.object_id == target)
+    loc = ask(graph, 'location', noun)
+    assert loc.valid and noun in loc.answer and not loc.reason
+    if fact.held:
+        assert 'holding' in loc.answer
+    elif fact.parent_noun:
+        assert f'{fact.preposition} the {fact.parent_noun}' in loc.answer
+    app = ask(graph, 'appearance', noun)
+    assert app.valid and fact.material in app.answer
+    direction = ask(graph, 'direction', '')
+    assert direction.valid and direction.answer.startswith('You')
+
+
+def test_the_same_question_gets_the_same_answer(graph):
+    noun = task_noun()
+    assert ask(graph, 'appearance', noun).answer == ask(graph, 'appearance', noun).answer
+
+
+@pytest.mark.parametrize('qtype, noun, why', [
+    ('colour', 'apple', 'question type'),
+    ('location', '', 'noun'),
+    ('location', 'x' * 1_000_000, 'long'),
+    ('location', 'pomme de terre \u00e9\u00e8 \u2603', ''),
+    ('location', 'unicorn', 'no unicorn'),
+])
+def test_a_bad_question_is_invalid_and_the_node_serves_on(graph, qtype, noun, why):
+    reply = ask(graph, qtype, noun)
+    assert not reply.valid and reply.answer == '' and reply.reason
+    assert why.lower() in reply.reason.lower()
+    graph.check()
+    assert ask(graph, 'location', task_noun()).valid
+
+
+def test_without_a_simulator_the_oracle_says_so():
+    with Graph([oracle_node(namespace='/lonely', sim_timeout=1.0)]) as g:
+        cli = g.client(OracleAnswer, '/lonely/oracle/answer')
+        reply = g.call(cli, OracleAnswer.Request(question_type='location', object_noun='apple'))
+        assert not reply.valid and 'simulator' in reply.reason
+
+
+def test_the_perturbation_withholds_about_half_of_one_type_reproducibly():
+    def run():
+        with Graph([sim_node(128, namespace='/p'),
+                    oracle_node(namespace='/p', perturb_type='location', perturb_probability=0.5, seed=3)]) as g:
+            assert g.call(g.client(SimReset, '/p/sim/reset'), SimReset.Request(task_id=TASK)).ok
+            cli = g.client(OracleAnswer, '/p/oracle/answer')
+            loc = [ask(g, 'location', task_noun(), cli).answer for _ in range(200)]
+            app = [ask(g, 'appearance', task_noun(), cli).answer for _ in range(20)]
+        return loc, app
+    loc, app = run()
+    withheld = sum(a == "I don't know." for a in loc) / len(loc)
+    assert 0.38 < withheld < 0.62
+    assert not any(a == "I don't know." for a in app)       # other types are untouched
+    assert run()[0] == loc                                    # same seed, same answers withheld
+
+
+def test_the_human_mode_asks_a_person_on_standard_input(tmp_path):
+    log = tmp_path / 'dialogue.jsonl'
+    person = NodeProcess('dialfred_oracle', {'human': True, 'log_file': str(log)}, namespace='/h',
+                         stdin=subprocess.PIPE)
+    with Graph([sim_node(128, namespace='/h'), person]) as g:
+        assert g.call(g.client(SimReset, '/h/sim/reset'), SimReset.Request(task_id=TASK)).ok
+        cli = g.client(OracleAnswer, '/h/oracle/answer')
+        person.proc.stdin.write('It is next to the toaster.\n')
+        person.proc.stdin.flush()
+        reply = ask(g, 'location', task_noun(), cli)
+        assert reply.valid and reply.answer == 'It is next to the toaster.'
+        person.proc.stdin.write('\n')                    # an empty line accepts the simulator's answer
+        person.proc.stdin.flush()
+        reply = ask(g, 'location', task_noun(), cli)
+        assert reply.valid and task_noun() in reply.answer
+        person.proc.stdin.close()                         # nobody there any more
+        reply = ask(g, 'location', task_noun(), cli)
+        assert not reply.valid and 'no person' in reply.reason
+        assert any('Where is' in line for line in person.tail)   # the question was put to the person
+    rows = [json.loads(line) for line in log.read_text().splitlines()]
+    assert [r['answer'] for r in rows[:1]] == ['It is next to the toaster.'] and all(r['human'] for r in rows)
