@@ -329,7 +329,9 @@ def run_dialogue(args) -> int:
                 return 1
             t = reply.task
             print(f'\n{t.task_id} ({t.task_type}) in {t.scene}: "{t.instruction}"')
-            noun = t.object_nouns[0] if t.object_nouns else ''
+            # Ask about what the instruction names (the goto landmark comes first in object_nouns).
+            named = [n for n in t.object_nouns if n in t.instruction.lower()]
+            noun = (named or list(t.object_nouns) or [''])[0]
             for qtype in ('location', 'appearance', 'direction'):
                 ask(qtype, noun)
             ask('location', 'unicorn')                  # not in the scene: the oracle says why

@@ -39,7 +39,7 @@ def expected_direction(agent, end) -> str:
     """The direction answer the geometry calls for (the oracle's rule, recomputed independently)."""
     from dialfred_oracle.answers import direction_bin
     dx, dy = end[0] - agent[0], end[1] - agent[1]
-    if math.hypot(dx, dy) < 0.25:
+    if math.hypot(dx, dy) < 0.125:            # the same grid point
         turn = (end[2] - agent[2] + 180) % 360 - 180
         if abs(turn) < 45:
             return "You don't need to move."

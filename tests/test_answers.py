@@ -139,7 +139,8 @@ def test_direction_answers_for_every_outcome():
         return answer(scene(agent=agent, expert_end=end, task_objects={}), 'direction', '').text
     here = (1.0, 1.0, 90.0, 30.0)
     assert advice(here, (1.0, 1.0, 90.0, 0.0)) == STAY
-    assert advice(here, (1.25, 1.0, 90.0, 30.0)) == STAY          # one grid step is "here"
+    assert advice(here, (1.0, 1.0, 90.0, 30.0)) == STAY           # pitch does not matter
+    assert advice(here, (1.25, 1.0, 90.0, 30.0)) != STAY          # one grid step away is not "here"
     assert advice(here, (1.0, 3.0, 0.0, 30.0)) == GO_STRAIGHT      # facing +y, the end is ahead
     assert advice(here, (1.5, 2.5, 0.0, 30.0)) == GO_STRAIGHT      # ... ahead and a little right
     assert advice(here, (-1.0, 1.0, 0.0, 30.0)) == TURN_LEFT       # -x is on the left facing +y

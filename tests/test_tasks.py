@@ -67,11 +67,19 @@ def test_unseen_rooms_never_appear_in_train_and_seen_rooms_do(valid_tasks):
     assert len(train) == 108
 
 
-def test_a_split_regenerates_identically_from_its_seeds():
-    with gzip.open(packaged_path('valid_unseen'), 'rt') as f:
+@pytest.mark.parametrize('split', ['valid_unseen', 'train'])
+def test_a_split_regenerates_identically_from_its_seeds(split):
+    with gzip.open(packaged_path(split), 'rt') as f:
         shipped = [json.loads(next(f)) for _ in range(3)]
-    fresh = list(generate_split('valid_unseen', size=sum(len(r['tasks']) for r in shipped), progress=False))
+    fresh = list(generate_split(split, size=sum(len(r['tasks']) for r in shipped), progress=False))
     assert fresh == shipped
+
+
+def test_the_train_split_has_the_papers_size_and_only_train_rooms():
+    train = load_split('train')
+    assert len(train) == SPLIT_SIZES['train'] == 34253
+    assert {t.scene for t in train} <= set(split_scenes('train'))
+    assert {t.task_type for t in train} == set(TASK_TYPES)
 
 
 def test_an_unknown_task_id_is_a_clear_error():

@@ -28,7 +28,7 @@ from .colours import colour_name
 QUESTION_TYPES = ('location', 'appearance', 'direction')
 QUESTION_ALIASES = {'loc': 'location', 'app': 'appearance', 'dir': 'direction'}   # the questioner's tokens
 MAX_NOUN_CHARS = 64
-SAME_PLACE_M = 0.25          # the expert's end is "here" within this distance ...
+SAME_PLACE_M = 0.125         # the expert's end is "here" on the same grid point (steps are 0.25 m) ...
 SAME_HEADING_DEG = 45.0      # ... and this heading difference
 
 # The 8 bins of 45 degrees, counter-clockwise from straight ahead (+y is left when facing +x).
@@ -107,7 +107,7 @@ def direction_bin(agent_xy, agent_rotation_deg: float, target_xy) -> str:
 
 def direction_advice(agent, expert_end) -> str:
     """What to do to get from pose `agent` to pose `expert_end` (x, y, rotation, horizon)."""
-    if math.hypot(expert_end[0] - agent[0], expert_end[1] - agent[1]) <= SAME_PLACE_M + 1e-9:
+    if math.hypot(expert_end[0] - agent[0], expert_end[1] - agent[1]) < SAME_PLACE_M:
         turn = _wrap(expert_end[2] - agent[2])
         if abs(turn) <= SAME_HEADING_DEG:
             return STAY
