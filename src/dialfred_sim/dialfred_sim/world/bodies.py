@@ -106,7 +106,8 @@ def _sphere_mesh(r: float) -> tuple[list, list, list]:
 
 
 class ShapeCache:
-    """Visual shape ids of one client, keyed by (geometry, rgba); valid until resetSimulation."""
+    """Visual shape ids of one client, keyed by (geometry, rgba); valid until resetSimulation (which
+    the world never calls: shapes are shared by every room built on the client)."""
 
     def __init__(self, client: Any):
         self.client = client
