@@ -36,8 +36,11 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / 'docs' / 'dialogue_data.md'
 SPLITS = ('valid_seen', 'valid_unseen', 'train')
 ANNOTATORS = (0, 1)
-SEED = 20220226          # the dialogue data's root seed (the paper's arXiv date)
+SEED = 20220226          # the dialogue data's root seed
 CHUNK = 16               # tasks per job sent to a worker
+# Worker processes are replaced after this many chunks (400 tasks): a bound on any memory growth of
+# the simulator across resets (about 1 MB per reset once, which killed a 2-worker train run).
+CHUNKS_PER_WORKER = 25
 EXAMPLES_SPLIT, EXAMPLE_COUNT = 'valid_unseen', 8
 
 
@@ -60,12 +63,10 @@ def _init_worker(split: str) -> None:
 
 
 def _situation_and_snapshot(task):
-    from dialfred_oracle.answers import direction_bin
-    from dialfred_oracle.annotator import REAR_BINS
     from dialfred_sim.ground_truth import snapshot
     _ENV.reset(options={'task': task})
     snap = snapshot(_ENV)
-    return Situation.of(task, snap, direction_bin, REAR_BINS), snap
+    return Situation.of(task, snap), snap
 
 
 def _oracle(snap, question_type: str, noun: str):
@@ -101,7 +102,8 @@ def run_split(split: str, job, workers: int) -> list[dict]:
     chunks = [(k, min(k + CHUNK, n)) for k in range(0, n, CHUNK)]
     out, t0, shown = [], time.monotonic(), 0.0
     ctx = multiprocessing.get_context('spawn')
-    with ctx.Pool(max(1, workers), initializer=_init_worker, initargs=(split,)) as pool:
+    with ctx.Pool(max(1, workers), initializer=_init_worker, initargs=(split,),
+                  maxtasksperchild=CHUNKS_PER_WORKER) as pool:
         for rows in pool.imap(job, chunks):
             out.extend(rows)
             elapsed = time.monotonic() - t0

@@ -303,7 +303,7 @@ def answer_content(oracle: Answer, question_type: str, noun: str) -> AnswerConte
 # Answer lengths: a target drawn per answer, 1 + Gamma(shape, mean - 1); the candidate wording closest
 # to it is said. LENGTH_MEAN is tuned so that the realised mean is the paper's 6.73 words.
 LENGTH_MEAN, LENGTH_SHAPE, CANDIDATES = 7.15, 3.0, 12
-HEDGES = ('i think', 'i believe', 'probably', 'maybe', 'it seems', 'i guess')
+HEDGES = ('I think', 'I believe', 'probably', 'maybe', 'it seems', 'I guess')
 COLOUR_WORDS = {'gray': ('gray', 'grey'), 'navy': ('navy', 'navy blue', 'dark blue'),
                 'maroon': ('maroon', 'dark red'), 'tan': ('tan', 'light brown'), 'beige': ('beige', 'cream'),
                 'olive': ('olive', 'olive green'), 'teal': ('teal', 'blue green'), 'khaki': ('khaki',),
@@ -313,6 +313,10 @@ PREPOSITIONS = {'in': ('in', 'inside'), 'on': ('on', 'on top of')}
 
 def _one(rng: np.random.Generator, options: Sequence[str]) -> str:
     return options[int(rng.integers(len(options)))]
+
+
+def _a(word: str) -> str:
+    return ('an ' if word[:1] in 'aeiou' else 'a ') + word
 
 
 def _where_phrases(where: str) -> tuple[str, ...]:
@@ -354,7 +358,7 @@ def _location_candidate(c: AnswerContent, rng: np.random.Generator) -> str:
     if w:
         forms += [f'{p} the {r} {w}', f'{w}, {p} the {r}', f"it's {w} {p} the {r}", f'the {o} is {w} {p} the {r}',
                   f'the {o} is {p} the {r} {w}', f'you can find it {p} the {r} {w}', f'look {w}, {p} the {r}',
-                  f'there is a {o} {p} the {r} {w}', f'the {o} is sitting {p} the {r} {w}',
+                  f'there is {_a(o)} {p} the {r} {w}', f'the {o} is sitting {p} the {r} {w}',
                   f'go to the {r} {w}, the {o} is {p} it']
     return _one(rng, forms)
 
@@ -363,11 +367,11 @@ def _appearance_candidate(c: AnswerContent, rng: np.random.Generator, distractor
     o, m = c.noun, c.material
     col = _one(rng, COLOUR_WORDS.get(c.colour, (c.colour,)))
     made = _one(rng, ('made of', 'made out of'))
-    forms = [col, f"it's {col}", f'the {col} one', f"it's {col} colored", f'it is a {col} {o}']
+    forms = [col, f"it's {col}", f'the {col} one', f"it's {col} colored", f'it is {_a(col)} {o}']
     if m:
         forms += [f'{col} {m}', f'it is {col} and {made} {m}', f'the {o} is {col} and {made} {m}',
-                  f'a {col} {o} {made} {m}', f'look for the {col} {m} one', f"it's the {col} one, {made} {m}",
-                  f'{col}, {made} {m}', f"it's a {m} {o}, {col} in color", f'{col} and {m}']
+                  f'{_a(col)} {o} {made} {m}', f'look for the {col} {m} one', f"it's the {col} one, {made} {m}",
+                  f'{col}, {made} {m}', f"it's {_a(m)} {o}, {col} in color", f'{col} and {m}']
     if distractor:
         forms += [f'the {col} {o}, not the other one', f'the {col} one, there are two of them',
                   f'pick the {col} {o}']
@@ -396,8 +400,8 @@ def _direction_candidate(c: AnswerContent, rng: np.random.Generator) -> str:
 
 
 def _invalid_candidate(c: AnswerContent, rng: np.random.Generator) -> str:
-    return _one(rng, ("sorry, i don't know", "i couldn't tell", f"i didn't see the {c.noun}",
-                      "i'm not sure", 'no idea, sorry', f"i couldn't find the {c.noun} in the video"))
+    return _one(rng, ("sorry, I don't know", "I couldn't tell", f"I didn't see the {c.noun}",
+                      "I'm not sure", 'no idea, sorry', f"I couldn't find the {c.noun} in the video"))
 
 
 def _covered(c: AnswerContent) -> bool:
@@ -415,7 +419,7 @@ def _dress(text: str, rng: np.random.Generator) -> str:
     if u < 0.10:
         text = f'{_one(rng, HEDGES)} {text}'
     elif u < 0.14:
-        text = f'{text}, i think'
+        text = f'{text}, I think'
     text = text[0].upper() + text[1:] if text else text
     return text + ('.' if rng.random() < 0.6 else '')
 
