@@ -40,6 +40,14 @@ os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(REPO / 'config' / 'f
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 
+def use_private_ros_domain() -> int:
+    """Put this process (and the nodes it starts) in a ROS domain of its own, unless the caller chose
+    one: benchmarks must not be answered, or slowed, by another graph on this machine."""
+    if 'ROS_DOMAIN_ID' not in os.environ:
+        os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 101)   # 1-101: safe on Linux
+    return int(os.environ['ROS_DOMAIN_ID'])
+
+
 def resolve_executable(package: str, executable: str = 'node') -> Path:
     """<prefix>/lib/<package>/<executable> of an installed package, as `ros2 run` finds it."""
     from ament_index_python.packages import PackageNotFoundError, get_package_prefix

@@ -19,7 +19,6 @@ import argparse
 import collections
 import json
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -28,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, oracle_node, sim_node  # noqa: E402
+from dialfred_launch import Graph, oracle_node, sim_node, use_private_ros_domain  # noqa: E402
 
 TYPES = ('location', 'appearance', 'direction')
 BINS = ('in front of you', 'to your front right', 'to your right', 'to your rear right', 'behind you',
@@ -57,7 +56,7 @@ def main() -> None:
     ap.add_argument('--questions', type=int, default=1000)
     ap.add_argument('--seed', type=int, default=0)
     args = ap.parse_args()
-    os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)
+    use_private_ros_domain()
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset, SimStep
     from dialfred_oracle.answers import direction_bin

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -24,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, NodeDied, oracle_node, sim_node  # noqa: E402
+from dialfred_launch import Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain  # noqa: E402
 
 TYPES = ('location', 'appearance', 'direction')
 
@@ -67,7 +66,7 @@ def main() -> None:
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--task', default='valid_unseen/000003')
     args = ap.parse_args()
-    os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)
+    use_private_ros_domain()
     from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset
     rng = np.random.default_rng(args.seed)
     report = {'benchmark': 'oracle_fuzz', 'requests': args.requests, 'seed': args.seed, 'task': args.task}

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import sys
 import time
@@ -21,7 +20,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, oracle_node, sim_node  # noqa: E402
+from dialfred_launch import Graph, oracle_node, sim_node, use_private_ros_domain  # noqa: E402
 
 TYPES = ('location', 'appearance', 'direction')
 
@@ -36,7 +35,7 @@ def main() -> None:
     ap.add_argument('--in-flight', type=int, default=8)
     ap.add_argument('--task', default='valid_unseen/000003')
     args = ap.parse_args()
-    os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)   # nobody else answers
+    use_private_ros_domain()
     from dialfred_msgs.srv import OracleAnswer, SimReset
     from dialfred_sim.tasks import get_task
     nouns = get_task(args.task).object_nouns

@@ -5,7 +5,12 @@ Starts the real `dialfred_sim node` executable (as `ros2 run` would) and plays a
 sequence through `/sim/step` from this process, timing each step paired with the same step on an
 in-process DialfredEnv. Done twice: replies with the full observation, and replies with RGB only
 (`with_depth=false, with_segmentation=false`). Also reads the node's peak resident memory (VmHWM).
-Prints JSON.
+
+A third, reference run measures the floor of ROS itself in the same pattern: a bare `std_srvs/Trigger`
+service in another process whose callback performs the same step on its own DialfredEnv and replies
+with nothing. What it adds over the in-process step is the cost of any ROS service round trip here
+(wake-ups, executors, DDS, caches left cold by the render); the rest of `/sim/step`'s overhead is the
+observation message itself. Prints JSON.
 
     ./dialfred bench ros_step [--resolution 300] [--steps 300]
 """
@@ -22,7 +27,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, sim_node  # noqa: E402
+from dialfred_launch import Graph, NodeProcess, sim_node, use_private_ros_domain  # noqa: E402
 
 PATTERN = ['MoveAhead', 'RotateLeft', 'LookDown', 'MoveAhead', 'RotateRight', 'LookUp', 'RotateRight',
            'MoveAhead', 'RotateLeft', 'RotateLeft', 'Pickup']
@@ -79,6 +84,73 @@ def paired_times(resolution: int, steps: int, scene: str, seed: int, full: bool)
     return ros, local, rss
 
 
+class FloorServer(NodeProcess):
+    """This script re-run as a bare Trigger service that steps its own env (see --serve-floor)."""
+
+    def command(self) -> list[str]:
+        return [sys.executable, str(Path(__file__).resolve()), '--serve-floor',
+                f'{self.parameters["resolution"]},{self.parameters["scene"]},{self.parameters["seed"]}']
+
+
+def serve_floor(spec: str) -> None:
+    """Serve `floor/step` (std_srvs/Trigger): each call performs the next action of PATTERN."""
+    import rclpy
+    from std_srvs.srv import Trigger
+
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.ros_util import make_executor, spin_forever
+    resolution, scene, seed = spec.split(',')
+    env = DialfredEnv(resolution=int(resolution))
+    env.reset(seed=int(seed), options={'scene': scene})
+    state = {'k': 0}
+
+    def on_step(request, response):
+        k = state['k']
+        state['k'] += 1
+        c = int(resolution) // 2
+        _, _, terminated, truncated, _ = env.step({'action': PATTERN[k % len(PATTERN)], 'pixel': (c, c)})
+        if terminated or truncated:
+            env.reset(seed=int(seed) + k + 1, options={'scene': scene})
+        response.success = True
+        return response
+
+    rclpy.init()
+    node = rclpy.create_node('ros_floor')
+    node.create_service(Trigger, 'floor/step', on_step)
+    executor = make_executor()
+    executor.add_node(node)
+    try:
+        spin_forever(executor)
+    except KeyboardInterrupt:
+        pass
+
+
+def floor_times(resolution: int, steps: int, scene: str, seed: int):
+    """Like paired_times, against the bare Trigger service: the same steps, an empty reply."""
+    from std_srvs.srv import Trigger
+
+    from dialfred_sim.env import DialfredEnv
+    env = DialfredEnv(resolution=resolution)
+    env.reset(seed=seed, options={'scene': scene})
+    server = FloorServer('dialfred_sim', parameters={'resolution': resolution, 'scene': scene, 'seed': seed})
+    ros, local = [], []
+    with Graph([server]) as graph:
+        cli = graph.client(Trigger, '/floor/step')
+        c = resolution // 2
+        for k in range(steps):
+            t0 = time.perf_counter()
+            graph.call(cli, Trigger.Request())
+            t1 = time.perf_counter()
+            _, _, terminated, truncated, _ = env.step({'action': PATTERN[k % len(PATTERN)], 'pixel': (c, c)})
+            t2 = time.perf_counter()
+            if terminated or truncated:
+                env.reset(seed=seed + k + 1, options={'scene': scene})
+            ros.append(t1 - t0)
+            local.append(t2 - t1)
+    env.close()
+    return ros, local
+
+
 def summary(times):
     ms = sorted(t * 1e3 for t in times)
     return {'median_ms': round(statistics.median(ms), 3), 'mean_ms': round(statistics.fmean(ms), 3),
@@ -91,15 +163,22 @@ def main() -> None:
     ap.add_argument('--steps', type=int, default=300)
     ap.add_argument('--scene', default='FloorPlan1')
     ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--serve-floor', help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.serve_floor:
+        serve_floor(args.serve_floor)
+        return
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    # A domain of its own, so that no other graph on this machine answers our requests.
-    os.environ['ROS_DOMAIN_ID'] = str(120 + os.getpid() % 100)
+    use_private_ros_domain()
     report = {'benchmark': 'ros_step', 'resolution': args.resolution, 'steps': args.steps, 'scene': args.scene}
     # The full observation (RGB + float32 depth + int32 segmentation) and the agent's view (RGB only:
     # what ALFRED/DialFRED agents observe; depth and segmentation are privileged, opt-in channels).
-    for label, full in (('rgb_depth_segmentation', True), ('rgb_only', False)):
-        ros, local, rss = paired_times(args.resolution, args.steps, args.scene, args.seed, full)
+    for label, full in (('rgb_depth_segmentation', True), ('rgb_only', False), ('floor_empty_trigger', None)):
+        if full is None:
+            ros, local = floor_times(args.resolution, args.steps, args.scene, args.seed)
+            rss = float('nan')
+        else:
+            ros, local, rss = paired_times(args.resolution, args.steps, args.scene, args.seed, full)
         r, lo = summary(ros), summary(local)
         report[label] = {
             'ros_round_trip': r, 'in_process': lo,
@@ -109,8 +188,9 @@ def main() -> None:
             # render time cancels out step by step).
             'added_by_ros_paired_median_ms': round(statistics.median(
                 (a - b) * 1e3 for a, b in zip(ros, local)), 3),
-            'sim_node_peak_rss_mb': round(rss, 1),
         }
+        if full is not None:
+            report[label]['sim_node_peak_rss_mb'] = round(rss, 1)
     print(json.dumps(report, indent=2))
 
 

@@ -30,16 +30,14 @@ OBSERVATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=His
                              depth=1, durability=DurabilityPolicy.VOLATILE)
 
 
-def image_msg(array: np.ndarray, encoding: str, header) -> Image:
-    """A sensor_msgs/Image holding `array` (HxW or HxWxC, contiguous)."""
-    msg = Image()
+def fill_image(msg: Image, array: np.ndarray, encoding: str, header) -> None:
+    """Write `array` (HxW or HxWxC) into the sensor_msgs/Image `msg`."""
     msg.header = header
     msg.height, msg.width = int(array.shape[0]), int(array.shape[1])
     msg.encoding = encoding
     msg.is_bigendian = 0
     msg.step = int(array.strides[0])
     msg.data = image_bytes(array)
-    return msg
 
 
 def image_bytes(array: np.ndarray) -> pyarray.array:
@@ -93,6 +91,7 @@ class SimNode(Node):
         self.create_service(SimReset, 'sim/reset', self.on_reset)
         self.create_service(SimStep, 'sim/step', self.on_step)
         self.create_service(GroundTruth, 'sim/ground_truth', self.on_ground_truth)
+        self.clock = self.get_clock()
         self.obs = None
         self.info = None
         self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
@@ -112,7 +111,7 @@ class SimNode(Node):
             response.ok, response.error = False, str(exc)
             return response
         response.ok = True
-        response.observation = self._observation_msg(False, request.with_depth, request.with_segmentation)
+        self._fill_observation(response.observation, False, request.with_depth, request.with_segmentation)
         response.task.scene = self.info['scene']
         self._publish(response.observation)
         return response
@@ -124,7 +123,7 @@ class SimNode(Node):
             response.ok, response.error = False, str(exc)
             return response
         response.ok = True
-        response.observation = self._observation_msg(False, request.with_depth, request.with_segmentation)
+        self._fill_observation(response.observation, False, request.with_depth, request.with_segmentation)
         response.task = task_description(self.env.task)
         self._publish(response.observation)
         return response
@@ -162,8 +161,8 @@ class SimNode(Node):
             obs, reward, terminated, truncated, info = self.env.step(action)
         except (ValueError, RuntimeError) as exc:
             response.ok, response.error = False, str(exc)
-            response.observation = self._observation_msg(self.env.done, request.with_depth,
-                                                          request.with_segmentation)
+            self._fill_observation(response.observation, self.env.done, request.with_depth,
+                                   request.with_segmentation)
             return response
         self.obs, self.info = obs, info
         response.ok = True
@@ -172,36 +171,38 @@ class SimNode(Node):
         response.success = bool(info['success'])
         response.goal_conditions_met = int(info['goal_conditions_met'])
         response.goal_conditions_total = int(info['goal_conditions_total'])
-        response.observation = self._observation_msg(terminated or truncated, request.with_depth,
-                                                     request.with_segmentation)
+        self._fill_observation(response.observation, terminated or truncated, request.with_depth,
+                               request.with_segmentation)
         self._publish(response.observation)
         return response
 
     # ------------------------------------------------------------------ messages
 
-    def _observation_msg(self, done: bool, with_depth: bool = True, with_segmentation: bool = True) -> Observation:
-        """The current observation; depth and segmentation only when asked for (they are 2/3 of the bytes)."""
-        msg = Observation()
-        msg.header.stamp = self.get_clock().now().to_msg()
+    def _fill_observation(self, msg: Observation, done: bool, with_depth: bool = True,
+                          with_segmentation: bool = True) -> None:
+        """Write the current observation into `msg` (the reply's own Observation, filled in place:
+        building a fresh one costs 0.08 ms per step after a 300x300 render has left the caches cold).
+        Depth and segmentation only when asked for (they are 2/3 of the bytes)."""
+        msg.header.stamp = self.clock.now().to_msg()
         msg.header.frame_id = 'agent_camera'
-        msg.rgb = image_msg(self.obs['rgb'], 'rgb8', msg.header)
+        fill_image(msg.rgb, self.obs['rgb'], 'rgb8', msg.header)
         if with_depth:
-            msg.depth = image_msg(self.obs['depth'], '32FC1', msg.header)
+            fill_image(msg.depth, self.obs['depth'], '32FC1', msg.header)
         if with_segmentation:
             # The id table only explains the segmentation, so it travels with it (0.15 ms per step).
-            msg.segmentation = image_msg(self.obs['segmentation'], '32SC1', msg.header)
+            fill_image(msg.segmentation, self.obs['segmentation'], '32SC1', msg.header)
             ids, names = self.info['instances']
             msg.instance_ids = pyarray.array('i', ids)
             msg.instance_object_ids = list(names)
-        x, y, rot, horizon = (float(v) for v in self.obs['pose'])
-        msg.pose = AgentPose(x=x, y=y, camera_height=CAMERA_HEIGHT, rotation_deg=rot, horizon_deg=horizon)
+        pose = msg.pose
+        pose.x, pose.y, pose.rotation_deg, pose.horizon_deg = (float(v) for v in self.obs['pose'])
+        pose.camera_height = CAMERA_HEIGHT
         msg.held_object = self.info['held_object']
         msg.last_action_success = bool(self.info['last_action_success'])
         msg.last_action_error = self.info['last_action_error']
         msg.step_count = int(self.info['step_count'])
         msg.failed_actions = int(self.info['failed_actions'])
         msg.done = bool(done)
-        return msg
 
     def _publish(self, msg: Observation) -> None:
         if self.publish_observations and self.observation_pub.get_subscription_count() > 0:

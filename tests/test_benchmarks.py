@@ -1,0 +1,64 @@
+"""Every benchmark script runs end to end on a tiny budget and prints the JSON its docs quote.
+
+The figures themselves are measured on a quiet machine (docs/benchmarks.md); these smoke tests only
+keep the scripts working, so that `./dialfred bench NAME` does not rot between measurements.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_bench(name: str, *args: str, timeout: float = 240) -> dict:
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / f'{name}.py'), *args], cwd=REPO,
+                          capture_output=True, text=True, timeout=timeout)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    out = proc.stdout
+    return json.loads(out[out.index('{'):])   # pybullet prints a banner line first
+
+
+def test_sim_step_reports_the_overhead_over_the_bare_render():
+    report = run_bench('sim_step', '--steps', '5', '--rounds', '1', '--resolutions', '64')
+    row = report['results']['64'] if '64' in report['results'] else next(iter(report['results'].values()))
+    assert row['step_ms'] > 0 and row['bare_render_ms'] > 0
+    assert 0 < row['ratio_bare_over_step'] <= 2
+
+
+def test_ros_step_reports_both_reply_forms_and_the_ros_floor():
+    report = run_bench('ros_step', '--resolution', '64', '--steps', '6')
+    for label in ('rgb_depth_segmentation', 'rgb_only', 'floor_empty_trigger'):
+        part = report[label]
+        assert part['ros_round_trip']['median_ms'] > 0 and part['in_process']['median_ms'] > 0
+        assert 'added_by_ros_paired_median_ms' in part
+    assert report['rgb_only']['sim_node_peak_rss_mb'] > 50
+
+
+def test_oracle_latency_answers_every_request():
+    report = run_bench('oracle_latency', '--requests', '30')
+    assert report['sequential']['invalid_replies'] == 0
+    assert report['pipelined']['requests_per_s'] > 0
+
+
+def test_oracle_fuzz_finds_no_crash_on_a_short_run():
+    report = run_bench('oracle_fuzz', '--requests', '60')
+    assert report['crashes'] == 0 and report['malformed_replies'] == 0 and report['oracle_alive_at_end']
+    assert report['passed'] is True
+
+
+def test_oracle_correctness_scores_every_question_kind():
+    report = run_bench('oracle_correctness', '--questions', '12')
+    assert report['questions'] == 12
+    assert report['location_receptacle']['n'] > 0 and report['appearance_colour']['n'] > 0
+
+
+@pytest.mark.parametrize('workers', [1, 2])
+def test_expert_replay_succeeds_on_the_first_tasks(workers):
+    report = run_bench('expert_replay', '--limit', '4', '--workers', str(workers))
+    assert report['tasks'] == 4 and report['success_rate'] == 100.0 and report['failures'] == []
