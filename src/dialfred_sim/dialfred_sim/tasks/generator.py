@@ -419,12 +419,18 @@ def cut_tasks(env, episode: Episode, rng: np.random.Generator, first_index: int,
         if any(c.kind == 'reachable' for c in goal):
             # Walking past the target can reach the goal before the expert's path ends; L* (for
             # PWSR) and the end pose are those of the first moment the goal holds.
+            reached = False
             for idx in range(start, end):
                 replay(world, episode.actions[idx:idx + 1])
                 done = idx + 1
                 if all(conditions_met(world, goal, world.render())):
-                    end = idx + 1
+                    end, reached = idx + 1, True
                     break
+            if not reached:
+                # The expert's path ends without enough of the target in reach (e.g. the object in
+                # hand hides it): the task could not be judged as stated. Skip the whole chunk.
+                k += len(chunk)
+                continue
         step_by_step, main = make_instructions(name, _phrases(chunk, nouns, preps), rng)
         first = next((p for p in chunk if p.kind != 'goto'), chunk[0])
         focus = first.receptacle or first.target
