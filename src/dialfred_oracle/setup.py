@@ -13,6 +13,6 @@ setup(
     ],
     install_requires=['setuptools'],
     zip_safe=False,
-    license='TODO',
+    license='MIT',
     entry_points={'console_scripts': ['node = dialfred_oracle.node:main']},
 )

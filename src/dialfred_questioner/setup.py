@@ -12,7 +12,7 @@ setup(
     ],
     install_requires=['setuptools'],
     zip_safe=False,
-    license='TODO',
+    license='MIT',
     # No console scripts yet: the package is filled in by a later issue.
     entry_points={'console_scripts': []},
 )

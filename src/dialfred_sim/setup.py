@@ -14,7 +14,7 @@ setup(
     install_requires=['setuptools'],
     zip_safe=False,
     description='DialFRED simulator node (pybullet world, ALFRED-style actions).',
-    license='TODO',
+    license='MIT',
     entry_points={
         'console_scripts': [
             'node = dialfred_sim.node:main',
