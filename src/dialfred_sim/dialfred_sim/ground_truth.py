@@ -83,19 +83,20 @@ class Snapshot:
 # ---------------------------------------------------------------------- facts
 
 def object_fact(world: World, obj: WorldObject) -> ObjectFact:
-    """The ground truth of one object of `world`."""
-    parent = world.objects.get(obj.parent) if obj.parent else None
-    x, y, z = obj.position    # the bottom centre of its footprint
+    """The ground truth of one object of `world`: the world's own ObjectState, flattened for the wire
+    (empty strings for "none") and with the parent's noun and preposition that answers need."""
+    state = world.object_state(obj.object_id)
+    parent = world.objects.get(state.parent) if state.parent else None
+    x, y, z = state.position    # the bottom centre of its footprint; a fact gives its box's centre
     return ObjectFact(
-        object_id=obj.object_id, type_name=obj.type_name, noun=obj.otype.noun,
+        object_id=state.object_id, type_name=state.type_name, noun=state.noun,
         position=(float(x), float(y), float(z) + obj.spec.size[2] / 2),
-        parent_id=parent.object_id if parent else '',
-        parent_type=parent.type_name if parent else '',
+        parent_id=state.parent or '', parent_type=state.parent_type or '',
         parent_noun=parent.otype.noun if parent else '',
         preposition=parent.otype.preposition if parent else '',
-        colour=obj.colour, material=obj.otype.material, pickupable=obj.otype.pickupable,
-        is_open=obj.is_open, is_on=obj.is_on, is_dirty=obj.is_dirty, is_sliced=obj.is_sliced,
-        temperature=obj.temperature, held=obj.held)
+        colour=state.colour, material=state.material, pickupable=state.pickupable,
+        is_open=state.is_open, is_on=state.is_on, is_dirty=state.is_dirty, is_sliced=state.is_sliced,
+        temperature=state.temperature, held=state.held)
 
 
 def task_object_ids(env) -> list[str]:
