@@ -120,6 +120,31 @@ def test_the_same_task_gives_the_same_first_frame():
         b.close()
 
 
+def test_moving_the_world_to_a_fresh_pybullet_client_changes_no_frame(monkeypatch):
+    """The env recycles its pybullet client every CLIENT_RECYCLE_BUILDS rooms (pybullet leaks a
+    little per body); frames, segmentation ids and the instance table stay those of a fresh env."""
+    import dialfred_sim.env as env_module
+    monkeypatch.setattr(env_module, 'CLIENT_RECYCLE_BUILDS', 2)
+    long_lived = DialfredEnv()
+    try:
+        for task_id in ('valid_unseen/000005', 'valid_seen/000040', 'valid_unseen/000300',
+                        'valid_unseen/000005', 'valid_seen/000041'):
+            fresh = DialfredEnv()
+            try:
+                o1, i1 = long_lived.reset(options={'task_id': task_id})
+                o2, i2 = fresh.reset(options={'task_id': task_id})
+                o1, *_, i1 = long_lived.step({'action': 'RotateLeft'})
+                o2, *_, i2 = fresh.step({'action': 'RotateLeft'})
+            finally:
+                fresh.close()
+            for key in ('rgb', 'depth', 'segmentation'):
+                assert np.array_equal(o1[key], o2[key]), (task_id, key)
+            assert i1['instances'] == i2['instances']
+        assert long_lived._builds == 5
+    finally:
+        long_lived.close()
+
+
 # ---------------------------------------------------------------------- near misses
 
 def test_an_object_on_the_wrong_receptacle_does_not_count(env):
