@@ -13,6 +13,7 @@ the tiny renderer tessellates finely (a 12-sided cylinder costs about 60% of pyb
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Sequence
 
@@ -61,6 +62,10 @@ def triangle_count(spec: ShapeSpec) -> int:
     return total
 
 
+# pybullet 3.2.7's createVisualShape never releases the vertex, index and normal lists it is given
+# (their reference counts stay raised), so each mesh is built once per process and the very same
+# lists are passed to every client.
+@functools.lru_cache(maxsize=None)
 def _cylinder_mesh(r: float, half_len: float) -> tuple[list, list, list]:
     n = cylinder_segments(r)
     verts, normals, idx = [], [], []
@@ -84,6 +89,7 @@ def _cylinder_mesh(r: float, half_len: float) -> tuple[list, list, list]:
     return verts, idx, normals
 
 
+@functools.lru_cache(maxsize=None)
 def _sphere_mesh(r: float) -> tuple[list, list, list]:
     lon, lat = sphere_segments(r)
     verts, normals, idx = [], [], []
