@@ -56,6 +56,8 @@ def main() -> None:
     ap.add_argument('--tasks', type=int, default=1000)
     ap.add_argument('--child', choices=['recycle', 'no-recycle'], help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.tasks < 2:
+        ap.error('--tasks must be at least 2 (growth is reported per half)')
     if args.child:
         print(json.dumps(measure(args.split, args.tasks, args.child == 'recycle')))
         return

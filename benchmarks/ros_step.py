@@ -84,6 +84,13 @@ def paired_times(resolution: int, steps: int, scene: str, seed: int, full: bool)
     return ros, local, rss
 
 
+def play_pattern(env, k: int) -> bool:
+    """Action k of PATTERN on `env` (interactions at the frame's centre); whether the episode ended."""
+    c = env.resolution // 2
+    _, _, terminated, truncated, _ = env.step({'action': PATTERN[k % len(PATTERN)], 'pixel': (c, c)})
+    return terminated or truncated
+
+
 class FloorServer(NodeProcess):
     """This script re-run as a bare Trigger service that steps its own env (see --serve-floor)."""
 
@@ -107,9 +114,7 @@ def serve_floor(spec: str) -> None:
     def on_step(request, response):
         k = state['k']
         state['k'] += 1
-        c = int(resolution) // 2
-        _, _, terminated, truncated, _ = env.step({'action': PATTERN[k % len(PATTERN)], 'pixel': (c, c)})
-        if terminated or truncated:
+        if play_pattern(env, k):
             env.reset(seed=int(seed) + k + 1, options={'scene': scene})
         response.success = True
         return response
@@ -136,14 +141,13 @@ def floor_times(resolution: int, steps: int, scene: str, seed: int):
     ros, local = [], []
     with Graph([server]) as graph:
         cli = graph.client(Trigger, '/floor/step')
-        c = resolution // 2
         for k in range(steps):
             t0 = time.perf_counter()
             graph.call(cli, Trigger.Request())
             t1 = time.perf_counter()
-            _, _, terminated, truncated, _ = env.step({'action': PATTERN[k % len(PATTERN)], 'pixel': (c, c)})
+            ended = play_pattern(env, k)
             t2 = time.perf_counter()
-            if terminated or truncated:
+            if ended:
                 env.reset(seed=seed + k + 1, options={'scene': scene})
             ros.append(t1 - t0)
             local.append(t2 - t1)

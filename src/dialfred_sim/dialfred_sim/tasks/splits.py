@@ -48,6 +48,19 @@ def episode_seed(split: str, index: int) -> int:
     return int(np.random.SeedSequence([SPLIT_CODES[split], index]).generate_state(1)[0])
 
 
+def play_episode(env, split: str, index: int, first_index: int, limit: int,
+                 scenes: Optional[list[str]] = None) -> Optional[dict]:
+    """Episode `index` of `split` with the tasks cut from it (ids from `first_index`, at most `limit`),
+    as a JSON-ready dict; None when its job was dropped. Episodes depend only on (split, index)."""
+    scenes = scenes or split_scenes(split)
+    seed = episode_seed(split, index)
+    episode = generate_episode(env, split, index, scenes[index % len(scenes)], seed)
+    if episode is None:
+        return None
+    tasks = cut_tasks(env, episode, np.random.default_rng(seed + 1), first_index, limit)
+    return episode_to_json(episode, tasks) if tasks else None
+
+
 def generate_split(split: str, size: Optional[int] = None, progress: bool = True,
                    shard: int = 0, shards: int = 1) -> Iterator[dict]:
     """Episodes of `split` (as JSON-ready dicts, each with its tasks) until `size` tasks exist.
@@ -61,14 +74,10 @@ def generate_split(split: str, size: Optional[int] = None, progress: bool = True
     n_tasks, index, t0 = 0, shard, time.monotonic()
     try:
         while n_tasks < size:
-            scene = scenes[index % len(scenes)]
-            seed = episode_seed(split, index)
-            episode = generate_episode(env, split, index, scene, seed)
-            if episode is not None:
-                tasks = cut_tasks(env, episode, np.random.default_rng(seed + 1), n_tasks, size - n_tasks)
-                if tasks:
-                    n_tasks += len(tasks)
-                    yield episode_to_json(episode, tasks)
+            row = play_episode(env, split, index, n_tasks, size - n_tasks, scenes)
+            if row is not None:
+                n_tasks += len(row['tasks'])
+                yield row
             index += shards
             if progress and index % 10 < shards:
                 rate = n_tasks / max(time.monotonic() - t0, 1e-9)
