@@ -12,7 +12,11 @@ with nothing. What it adds over the in-process step is the cost of any ROS servi
 (wake-ups, executors, DDS, caches left cold by the render); the rest of `/sim/step`'s overhead is the
 observation message itself. Prints JSON.
 
-    ./dialfred bench ros_step [--resolution 300] [--steps 300]
+    ./dialfred bench ros_step [--resolution 300] [--steps 300] [--cpu-dma-latency 0]
+
+`--cpu-dma-latency US` holds a Linux PM QoS request (/dev/cpu_dma_latency, root only) for the whole
+run, as real-time tuning guides do: with 0, idle CPUs poll instead of halting, so waking a process
+that waits for a reply costs less (on a VM, a halted vCPU is woken through the hypervisor).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import argparse
 import json
 import os
 import statistics
+import struct
 import sys
 import time
 from pathlib import Path
@@ -155,6 +160,14 @@ def floor_times(resolution: int, steps: int, scene: str, seed: int):
     return ros, local
 
 
+def hold_cpu_dma_latency(us: int) -> int:
+    """Ask the kernel to keep CPU wake-up latency at most `us` microseconds while the returned file
+    descriptor stays open (PermissionError unless root)."""
+    fd = os.open('/dev/cpu_dma_latency', os.O_WRONLY)
+    os.write(fd, struct.pack('i', us))
+    return fd
+
+
 def summary(times):
     ms = sorted(t * 1e3 for t in times)
     return {'median_ms': round(statistics.median(ms), 3), 'mean_ms': round(statistics.fmean(ms), 3),
@@ -167,6 +180,8 @@ def main() -> None:
     ap.add_argument('--steps', type=int, default=300)
     ap.add_argument('--scene', default='FloorPlan1')
     ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--cpu-dma-latency', type=int, metavar='US',
+                    help='hold a PM QoS CPU wake-up latency request of US microseconds during the run')
     ap.add_argument('--serve-floor', help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.serve_floor:
@@ -174,7 +189,13 @@ def main() -> None:
         return
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     use_private_ros_domain()
-    report = {'benchmark': 'ros_step', 'resolution': args.resolution, 'steps': args.steps, 'scene': args.scene}
+    report = {'benchmark': 'ros_step', 'resolution': args.resolution, 'steps': args.steps, 'scene': args.scene,
+              'cpu_dma_latency_us': args.cpu_dma_latency}
+    if args.cpu_dma_latency is not None:
+        try:
+            hold_cpu_dma_latency(args.cpu_dma_latency)   # released when this process exits
+        except OSError as e:
+            ap.error(f'--cpu-dma-latency needs write access to /dev/cpu_dma_latency: {e}')
     # The full observation (RGB + float32 depth + int32 segmentation) and the agent's view (RGB only:
     # what ALFRED/DialFRED agents observe; depth and segmentation are privileged, opt-in channels).
     for label, full in (('rgb_depth_segmentation', True), ('rgb_only', False), ('floor_empty_trigger', None)):

@@ -62,3 +62,16 @@ def test_oracle_correctness_scores_every_question_kind():
 def test_expert_replay_succeeds_on_the_first_tasks(workers):
     report = run_bench('expert_replay', '--limit', '4', '--workers', str(workers))
     assert report['tasks'] == 4 and report['success_rate'] == 100.0 and report['failures'] == []
+
+
+def test_cache_decay_times_every_wait():
+    report = run_bench('cache_decay', '--reps', '2', '--working-set-mb', '0.25')
+    rows = report['reread_after_wait']
+    assert set(rows) == {'0ms', '1ms', '3ms', '10ms', '30ms', '100ms'}
+    assert all(r['busy_wait_us'] > 0 and r['sleep_us'] > 0 for r in rows.values())
+
+
+def test_cache_decay_rejects_a_bad_budget():
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'cache_decay.py'), '--reps', '0'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and '--reps must be >= 1' in proc.stderr

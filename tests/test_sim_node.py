@@ -173,6 +173,12 @@ def test_the_node_shows_exactly_what_the_env_computes(sim, env):
     assert pose_of(obs) == tuple(float(v) for v in expected['pose'])
     ids, names = info['instances']
     assert list(obs.instance_ids) == ids and list(obs.instance_object_ids) == names
+    # Steps too: the node hands the frames' own buffers to rclpy (no copy), byte for byte.
+    for action in ('RotateLeft', 'MoveAhead', 'LookDown'):
+        obs = sim.step(action).observation
+        expected = env.step({'action': action, 'pixel': (0, 0)})[0]
+        for name in ('rgb', 'depth', 'segmentation'):
+            assert np.array_equal(image_array(getattr(obs, name)), expected[name]), (action, name)
 
 
 def test_rotate_and_move_ahead_change_the_pose(sim):
