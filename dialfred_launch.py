@@ -312,22 +312,26 @@ def run_nodes(args) -> int:
 
 
 def run_dialogue(args) -> int:
-    """Scripted integration run: on a few tasks, ask the oracle each question type and print the dialogue."""
+    """Scripted integration run: on a few tasks, ask the oracle each question type and print the
+    dialogue; with `--gif`, also save it as captioned frames (what the agent saw when it asked)."""
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
+    from dialfred_sim.agents import scale_pixel
     from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]
-    with Graph([sim_node(128), oracle_node(human=args.human)]) as graph:
+    film = []   # (frame, caption lines) for --gif
+    with Graph([sim_node(args.resolution), oracle_node(human=args.human)]) as graph:
         reset_cli = graph.client(SimReset, '/sim/reset')
         step_cli = graph.client(SimStep, '/sim/step')
         ask_cli = graph.client(OracleAnswer, '/oracle/answer')
 
-        def ask(qtype: str, noun: str) -> None:
+        def ask(qtype: str, noun: str, frame, title: str) -> None:
             request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
             reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0)   # a person takes time
             said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
             print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
+            film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
 
         for task in tasks:
             reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
@@ -336,23 +340,65 @@ def run_dialogue(args) -> int:
                 print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
                 return 1
             t = reply.task
+            frame = image_array(reply.observation.rgb)
+            title = f'{t.task_id} ({t.task_type}): "{t.instruction}"'
             print(f'\n{t.task_id} ({t.task_type}) in {t.scene}: "{t.instruction}"')
+            film.append((frame, [title, 'start']))
             # Ask about what the instruction names (the goto landmark comes first in object_nouns).
             named = [n for n in t.object_nouns if n in t.instruction.lower()]
             noun = (named or list(t.object_nouns) or [''])[0]
             for qtype in ('location', 'appearance', 'direction'):
-                ask(qtype, noun)
-            ask('location', 'unicorn')                  # not in the scene: the oracle says why
-            ask('colour', noun)                         # not a question type
+                ask(qtype, noun, frame, title)
+            ask('location', 'unicorn', frame, title)          # not in the scene: the oracle says why
+            ask('colour', noun, frame, title)                 # not a question type
             # Walk the expert's path but the last action, and ask for directions again.
-            for a in task.expert_actions[:-1]:
-                step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y),
+            def expert_step(k: int):
+                """The expert's action k (its pixel scaled from the task's frames to this node's)."""
+                a = task.expert_actions[k]
+                x, y = scale_pixel(a.x, a.y, task.resolution, args.resolution)
+                step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=x, y=y),
                                                             with_depth=False, with_segmentation=False))
-                if step.terminated:
+                target = f' at ({x}, {y})' if x >= 0 else ''
+                film.append((image_array(step.observation.rgb), [title, f'expert action {k + 1}: {a.action}{target}']))
+                return step
+
+            n = len(task.expert_actions)
+            for k in range(n - 1):
+                if expert_step(k).terminated:
                     break
-            print(f'  ... after {len(task.expert_actions) - 1} of the expert\'s {len(task.expert_actions)} actions:')
-            ask('direction', '')
+            print(f'  ... after {n - 1} of the expert\'s {n} actions:')
+            ask('direction', '', film[-1][0], title)
+            outcome = 'goal reached' if expert_step(n - 1).success else 'goal NOT reached'
+            print(f'  ... the expert\'s last action, {task.expert_actions[-1].action}: {outcome}')
+            film[-1][1].append(outcome)
+    if args.gif:
+        save_captioned_gif(film, Path(args.gif))
+        print(f'saved {len(film)} captioned frames to {args.gif}')
     return 0
+
+
+def save_captioned_gif(film, path: Path, width: int = 320, seconds_per_frame: float = 1.0) -> None:
+    """A GIF of (RGB frame, caption lines) pairs: each frame scaled to `width` with its lines under it."""
+    import textwrap
+
+    from PIL import Image, ImageDraw, ImageFont
+    font = ImageFont.load_default(size=12)
+    line_h, chars = 15, width // 6
+    wrapped = [[w for line in lines for w in textwrap.wrap(line, chars)] for _, lines in film]
+    panel = line_h * max(len(w) for w in wrapped) + 8
+    images, durations = [], []
+    for (frame, lines_in), lines in zip(film, wrapped):
+        # Answers stay up long enough to read; actions go by quickly.
+        durations.append(int(1000 * seconds_per_frame * (2.0 if len(lines_in) > 2 else 0.6)))
+        h = round(frame.shape[0] * width / frame.shape[1])
+        img = Image.new('RGB', (width, h + panel), (255, 255, 255))
+        img.paste(Image.fromarray(frame).resize((width, h), Image.BILINEAR), (0, 0))
+        draw = ImageDraw.Draw(img)
+        for k, line in enumerate(lines):
+            draw.text((4, h + 4 + k * line_h), line, fill=(20, 20, 20), font=font)
+        images.append(img.convert('P', palette=Image.ADAPTIVE, colors=128))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    images[0].save(path, save_all=True, append_images=images[1:], duration=durations, loop=0, optimize=True)
 
 
 def _interrupt(signum, frame):
@@ -375,6 +421,8 @@ def main(argv=None) -> int:
     dialogue.add_argument('--first', type=int, default=0, help='index of the first task')
     dialogue.add_argument('--tasks', type=int, default=3)
     dialogue.add_argument('--human', action='store_true', help='the oracle asks you in this terminal')
+    dialogue.add_argument('--resolution', type=int, default=128)
+    dialogue.add_argument('--gif', help='also save the dialogue as a GIF of captioned frames to this path')
     from dialfred_eval import ResultsFileError, add_eval_parser, run_eval_command
     add_eval_parser(sub)
     args = parser.parse_args(argv)
