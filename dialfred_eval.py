@@ -2,16 +2,21 @@
 """Evaluation through the node graph: an agent plays (a part of) a split on simulator nodes.
 
 `python dialfred_launch.py eval ...` runs `--workers` simulator nodes, each in its own namespace
-(/w0/sim/step, /w1/sim/step, ...), drives them all from this process with asynchronous calls,
+(/eval_<pid>/w0/sim/step, /eval_<pid>/w1/sim/step, ...), drives them all from this process with asynchronous calls,
 appends each episode's result to the JSON-lines file as it ends (a rerun skips the tasks already
 there), and prints SR / PWSR / GC / NQ overall and per task type; the summary also goes to
 <out without .jsonl>.summary.json.
+
+With `--questioner`, each worker also gets an oracle node in its namespace (.../w0/oracle/answer
+answers from .../w0/sim/ground_truth). Before every action the agent may ask it questions, which are counted (NQ,
+NQ_invalid).
 """
 
 from __future__ import annotations
 
 import collections
 import json
+import os
 import sys
 import time
 import warnings
@@ -19,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_launch import REPO, Graph, NodeDied, sim_node, sim_service  # noqa: F401
+from dialfred_launch import REPO, Graph, NodeDied, oracle_node, sim_node, sim_service  # noqa: F401
 
 @dataclass
 class EvalConfig:
@@ -27,6 +32,7 @@ class EvalConfig:
 
     split: str = 'valid_unseen'
     agent: str = 'expert'
+    questioner: str = ''                # '' = the agent asks nothing; else a dialfred_questioner baseline
     limit: Optional[int] = None
     workers: int = 2
     out: Optional[Path] = None          # default: out/eval/<split>_<agent>.jsonl
@@ -35,8 +41,13 @@ class EvalConfig:
     request_timeout: float = 120.0      # seconds one reset or step may take before the run gives up
 
     @property
+    def agent_name(self) -> str:
+        """The name results carry: the agent's, with its questioner's after a '+'."""
+        return f'{self.agent}+{self.questioner}' if self.questioner else self.agent
+
+    @property
     def results_path(self) -> Path:
-        return Path(self.out) if self.out else REPO / 'out' / 'eval' / f'{self.split}_{self.agent}.jsonl'
+        return Path(self.out) if self.out else REPO / 'out' / 'eval' / f'{self.split}_{self.agent_name}.jsonl'
 
     @property
     def summary_path(self) -> Path:
@@ -59,7 +70,7 @@ class EvalReport:
         c = self.config
         loop_s = self.wall_s - self.startup_s
         return {
-            'split': c.split, 'agent': c.agent, 'seed': c.seed, 'resolution': c.resolution, 'workers': c.workers,
+            'split': c.split, 'agent': c.agent_name, 'seed': c.seed, 'resolution': c.resolution, 'workers': c.workers,
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None},
@@ -69,19 +80,25 @@ class EvalReport:
         }
 
 
+MAX_QUESTIONS = 50     # per episode: an agent that asks more is stopped with an error
+
+
 class SimWorker:
     """One simulator node (in its own namespace) playing one episode at a time with its own agent,
     one request in flight. `begin` starts an episode; `advance` handles the reply that arrived and
-    either sends the next request or returns the episode's EpisodeResult."""
+    either sends the next request or returns the episode's EpisodeResult. With `oracle`, the agent's
+    questions go to the oracle node of the same namespace before it acts."""
 
-    def __init__(self, graph: Graph, namespace: str, agent, config: EvalConfig):
-        from dialfred_msgs.srv import SimReset, SimStep
+    def __init__(self, graph: Graph, namespace: str, agent, config: EvalConfig, oracle: bool = False):
+        from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
         self.reset_cli = graph.client(SimReset, sim_service(namespace, 'reset'))
         self.step_cli = graph.client(SimStep, sim_service(namespace, 'step'))
+        self.ask_cli = graph.client(OracleAnswer, f'{namespace.rstrip("/")}/oracle/answer') if oracle else None
         self.namespace, self.agent, self.config = namespace, agent, config
         self.future = None
         self.sent_at = 0.0
         self.task = None
+        self.pending = ''      # what the request in flight is: 'reset', 'step' or 'question'
 
     @property
     def busy(self) -> bool:
@@ -95,8 +112,9 @@ class SimWorker:
         self.started = time.monotonic()
         self.last_action, self.last_error = '', ''
         self.goal_conditions = (0, 0)
-        self.resetting = True
-        self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False))
+        self.questions, self.invalid_questions = 0, 0
+        self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False),
+                   'reset')
 
     def overdue(self) -> bool:
         return self.busy and time.monotonic() - self.sent_at > self.config.request_timeout
@@ -106,8 +124,9 @@ class SimWorker:
         reply, self.future = self.future.result(), None
         if reply is None:
             return self._result('error', error='the service call returned no reply')
-        if self.resetting:
-            self.resetting = False
+        if self.pending == 'question':
+            return self._after_answer(reply)
+        if self.pending == 'reset':
             if not reply.ok:
                 return self._result('error', error=reply.error)
             self.goal_conditions = (0, reply.task.goal_conditions_total)
@@ -129,16 +148,34 @@ class SimWorker:
         return self._act(obs)
 
     def _act(self, obs):
+        """Send the agent's next question to the oracle, or else its next action to the simulator."""
         from dialfred_msgs.msg import Action
-        from dialfred_msgs.srv import SimStep
+        from dialfred_msgs.srv import OracleAnswer, SimStep
+        if self.ask_cli is not None:
+            question = self.agent.ask(obs)
+            if question is not None:
+                if self.questions >= MAX_QUESTIONS:
+                    return self._result('error', obs, error=f'the agent asked more than {MAX_QUESTIONS} questions')
+                self.question, self.observation = question, obs
+                self._send(self.ask_cli, OracleAnswer.Request(question_type=question.question_type,
+                                                              object_noun=question.object_noun), 'question')
+                return None
         name, x, y = self.agent.act(obs)
         self.last_action = name
         self._send(self.step_cli, SimStep.Request(action=Action(action=name, x=int(x), y=int(y)),
-                                                  with_depth=False, with_segmentation=False))
+                                                  with_depth=False, with_segmentation=False), 'step')
         return None
 
-    def _send(self, cli, request) -> None:
+    def _after_answer(self, reply):
+        from dialfred_sim.agents import QA
+        self.questions += 1
+        self.invalid_questions += not reply.valid
+        self.agent.hear(QA(self.question, bool(reply.valid), reply.answer, reply.reason))
+        return self._act(self.observation)
+
+    def _send(self, cli, request, pending: str) -> None:
         self.sent_at = time.monotonic()
+        self.pending = pending
         self.future = cli.call_async(request)
 
     def _result(self, reason: str, obs=None, success: bool = False, error: str = ''):
@@ -149,7 +186,8 @@ class SimWorker:
             task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(success),
             goal_conditions_met=int(met), goal_conditions_total=int(total),
             steps=int(obs.step_count) if obs is not None else 0, expert_length=int(task.expert_length),
-            questions=0, failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
+            questions=self.questions, invalid_questions=self.invalid_questions,
+            failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
             error='' if success else (error or self.last_error), agent=self.agent.name, seed=self.config.seed,
             wall_s=round(time.monotonic() - self.started, 4))
 
@@ -171,8 +209,15 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
                     if queue:
                         w.begin(*queue.popleft())
             elif w.overdue():
-                raise TimeoutError(f'no reply from {w.namespace or "/"} sim node after '
+                node = 'oracle' if w.pending == 'question' else 'sim'
+                raise TimeoutError(f'no reply from {w.namespace or "/"} {node} node after '
                                    f'{w.config.request_timeout:.0f} s (task {w.task.task_id})')
+
+
+def run_namespace() -> str:
+    """The namespace of this run's nodes (/eval_<pid>): no other run, even in the same ROS domain,
+    can reach them or be reached by this one."""
+    return f'/eval_{os.getpid()}'
 
 
 class ResultsFileError(ValueError):
@@ -193,9 +238,9 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
     for w in caught:
         print(f'warning: {w.message}', file=sys.stderr)
     for r in existing:
-        if (r.split, r.agent, r.seed) != (config.split, config.agent, config.seed):
+        if (r.split, r.agent, r.seed) != (config.split, config.agent_name, config.seed):
             raise ResultsFileError(f'{path} holds results of split {r.split!r}, agent {r.agent!r}, seed {r.seed}, not '
-                             f'{config.split!r}, {config.agent!r}, {config.seed}: choose another --out')
+                             f'{config.split!r}, {config.agent_name!r}, {config.seed}: choose another --out')
     return results_by_task(existing, task_ids)
 
 
@@ -211,9 +256,16 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
     Results go to the JSON-lines file as each episode ends; tasks already there are skipped (resume).
     Writes the summary JSON next to it and returns the report of every selected task.
     """
+    from dialfred_questioner.baselines import make_questioner, with_questioner
     from dialfred_sim.agents import make_agent
     from dialfred_sim.metrics import append_result, summarize
     from dialfred_sim.tasks import load_split
+
+    def agent():
+        return with_questioner(make_agent(config.agent, config.resolution),
+                               make_questioner(config.questioner) if config.questioner else None)
+
+    agent()    # an unknown agent or questioner fails here, before any node starts
 
     t0 = time.monotonic()
     tasks = load_split(config.split)[:config.limit]
@@ -222,9 +274,12 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
     ran, startup_s = 0, 0.0
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
-        namespaces = [f'/w{k}' for k in range(n)]
-        with Graph([sim_node(config.resolution, ns, publish_observations=False) for ns in namespaces]) as graph:
-            workers = [SimWorker(graph, ns, make_agent(config.agent, config.resolution), config) for ns in namespaces]
+        namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
+        nodes = [sim_node(config.resolution, ns, publish_observations=False) for ns in namespaces]
+        if config.questioner:
+            nodes += [oracle_node(ns) for ns in namespaces]
+        with Graph(nodes) as graph:
+            workers = [SimWorker(graph, ns, agent(), config, oracle=bool(config.questioner)) for ns in namespaces]
             startup_s = time.monotonic() - t0
             with progress_bar(len(tasks), len(done), progress) as bar:
                 def record(result) -> None:
@@ -245,7 +300,7 @@ def print_report(report: EvalReport) -> None:
     from dialfred_sim.metrics import failures, format_table
     c, info = report.config, report.to_json()['this_run']
     rate = f', {info["episodes_per_s"]:.2f} episodes/s' if info['episodes_per_s'] else ''
-    print(f'{c.split}, {c.agent} agent, seed {c.seed}: {len(report.results)} tasks '
+    print(f'{c.split}, {c.agent_name} agent, seed {c.seed}: {len(report.results)} tasks '
           f'({report.ran} played now in {report.wall_s:.1f} s{rate})')
     print(format_table(report.summary))
     if c.agent == 'expert':
@@ -257,7 +312,8 @@ def print_report(report: EvalReport) -> None:
 
 
 def eval_config(args) -> EvalConfig:
-    return EvalConfig(split=args.split, agent=args.agent, limit=args.limit, workers=args.workers,
+    return EvalConfig(split=args.split, agent=args.agent, questioner=args.questioner or '', limit=args.limit,
+                      workers=args.workers,
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution)
 
 
@@ -277,9 +333,13 @@ def add_eval_parser(sub) -> None:
     ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table')
     ev.add_argument('--split', default='valid_unseen', choices=['train', 'valid_seen', 'valid_unseen'])
     ev.add_argument('--agent', default='expert', choices=['expert', 'random'])
+    ev.add_argument('--questioner', default=None, choices=['random', 'all'],
+                    help='ask the oracle (one oracle node per worker): random = one random question at the '
+                         'start; all = location + appearance of every instruction object, then direction')
     ev.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
     ev.add_argument('--workers', type=int, default=2, help='simulator nodes playing episodes in parallel')
-    ev.add_argument('--out', default=None, help='results file (default out/eval/<split>_<agent>.jsonl)')
+    ev.add_argument('--out', default=None,
+                    help='results file (default out/eval/<split>_<agent>[+<questioner>].jsonl)')
     ev.add_argument('--seed', type=int, default=0)
     ev.add_argument('--resolution', type=int, default=128)
     ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')

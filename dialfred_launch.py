@@ -9,13 +9,18 @@ reported with its exit code and the last lines it printed.
     python dialfred_launch.py demo [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/demo]
     python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
     python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
-    python dialfred_launch.py eval --split valid_unseen --agent expert|random [--limit N] [--workers 2]
-                                   [--out out/eval/<split>_<agent>.jsonl] [--seed 0] [--resolution 128]
+    python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all]
+                                   [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
+                                   [--seed 0] [--resolution 128]
 
-`eval` runs `--workers` simulator nodes, each in its own namespace (/w0/sim/step, /w1/sim/step, ...),
+`eval` runs `--workers` simulator nodes, each in its own namespace (/eval_<pid>/w0/sim/step, ...),
 drives them all from this process with asynchronous calls, appends each episode's result to the
 JSON-lines file as it ends (a rerun skips the tasks already there), and prints SR / PWSR / GC / NQ
-overall and per task type; the summary also goes to <out without .jsonl>.summary.json.
+overall and per task type; the summary also goes to <out without .jsonl>.summary.json. With
+`--questioner`, an oracle node per worker answers the agent's questions.
+
+`demo`, `dialogue` and `eval` run in a ROS domain of their own unless ROS_DOMAIN_ID is set; `nodes`
+runs in the caller's domain so that other terminals can reach it.
 """
 
 from __future__ import annotations
@@ -67,6 +72,25 @@ class NodeDied(RuntimeError):
     pass
 
 
+def _libc_prctl():
+    try:
+        import ctypes
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):   # pragma: no cover - not Linux
+        return None
+
+
+_PRCTL = _libc_prctl()
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In a new child (before exec): get SIGTERM when the launcher dies, however it dies, so that a
+    killed launcher or benchmark never leaves nodes running (they live in sessions of their own)."""
+    if _PRCTL is not None:
+        _PRCTL(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+
+
 @dataclass
 class NodeProcess:
     """One node executable running as a child process, its output kept for error reports."""
@@ -95,7 +119,7 @@ class NodeProcess:
         out = subprocess.PIPE if self.capture_output else None
         self.proc = subprocess.Popen(self.command(), stdin=self.stdin, stdout=out,
                                      stderr=subprocess.STDOUT if self.capture_output else None, text=True,
-                                     start_new_session=True)
+                                     start_new_session=True, preexec_fn=_die_with_parent)
         if self.capture_output:
             threading.Thread(target=self._drain, daemon=True).start()
 
@@ -428,6 +452,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     # Ctrl-C and SIGTERM both unwind through the Graph context, which stops every child.
     signal.signal(signal.SIGTERM, _interrupt)
+    if args.command != 'nodes':
+        # These jobs talk only to the nodes they start: a ROS domain of their own (unless the caller
+        # set ROS_DOMAIN_ID) keeps two runs on one machine from answering each other. `nodes` stays
+        # in the caller's domain, for other terminals to reach.
+        use_private_ros_domain()
     try:
         jobs = {'demo': run_demo, 'nodes': run_nodes, 'dialogue': run_dialogue, 'eval': run_eval_command}
         return jobs[args.command](args)

@@ -3,7 +3,8 @@ simulator nodes, two workers in their own namespaces driven from one client.
 
 Claims: the expert succeeds on every task it is run on; a run is a pure function of split, agent and
 seed; a results file resumes (a longer --limit, or a run interrupted by Ctrl-C) without redoing or
-losing an episode.
+losing an episode; with a questioner, the agent's questions reach an oracle node of its own worker
+and are counted; nodes never outlive a launcher that is killed.
 """
 
 from __future__ import annotations
@@ -258,3 +259,88 @@ def test_a_graph_that_fails_to_start_stops_the_nodes_it_started(monkeypatch):
         with Graph([node]):
             pass
     assert node.proc is not None and node.proc.poll() is not None
+
+
+# ---------------------------------------------------------------------------------------------- with a questioner
+
+def test_an_eval_with_a_questioner_asks_each_workers_oracle_and_counts_the_questions(tmp_path):
+    from dialfred_questioner.baselines import task_nouns
+    from dialfred_sim.tasks import load_split
+    report = evaluate(tmp_path / 'asking.jsonl', agent='expert', questioner='all', limit=6)
+    tasks = load_split(SPLIT)[:6]
+    asked = [2 * len(task_nouns(t)) + 1 for t in tasks]
+    assert [(r.task_id, r.success, r.agent) for r in report.results] == [(t.task_id, True, 'expert+all') for t in tasks]
+    # Every question reached an oracle that answered from its own simulator's state.
+    assert [(r.questions, r.invalid_questions) for r in report.results] == [(n, 0) for n in asked]
+    assert report.summary['overall']['NQ'] == pytest.approx(sum(asked) / 6)
+    assert report.summary['overall']['NQ_invalid'] == 0.0
+
+
+def test_the_default_results_file_names_the_questioner():
+    config = EvalConfig(split=SPLIT, agent='random', questioner='random')
+    assert config.agent_name == 'random+random'
+    assert config.results_path.name == 'valid_unseen_random+random.jsonl'
+    assert EvalConfig(split=SPLIT, agent='random').results_path.name == 'valid_unseen_random.jsonl'
+
+
+def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, monkeypatch):
+    import dialfred_eval
+    from dialfred_questioner import baselines
+    from dialfred_sim.agents import Question
+
+    class Chatty(baselines.AllQuestioner):
+        name = 'chatty'
+
+        def ask(self, observation, step):
+            return Question('direction')
+
+    monkeypatch.setitem(baselines.QUESTIONERS, 'chatty', Chatty)
+    report = evaluate(tmp_path / 'chatty.jsonl', agent='expert', questioner='chatty', limit=2, workers=1)
+    for r in report.results:
+        assert (r.end_reason, r.questions, r.steps) == ('error', dialfred_eval.MAX_QUESTIONS, 0)
+        assert f'more than {dialfred_eval.MAX_QUESTIONS} questions' in r.error
+
+
+def test_an_unknown_questioner_fails_before_any_node_starts(tmp_path):
+    with pytest.raises(ValueError, match="unknown questioner 'oracle'"):
+        evaluate(tmp_path / 'x.jsonl', questioner='oracle')
+    assert not (tmp_path / 'x.jsonl').exists()
+
+
+def test_each_run_has_a_namespace_of_its_own():
+    from dialfred_eval import run_namespace
+    assert run_namespace() == f'/eval_{os.getpid()}'
+
+
+# ---------------------------------------------------------------------------------------------- orphans
+
+def _running(pid: int) -> bool:
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+def test_a_node_does_not_outlive_a_launcher_that_is_killed(tmp_path):
+    script = tmp_path / 'start_and_wait.py'
+    script.write_text(
+        'import sys, time\n'
+        f'sys.path.insert(0, {str(REPO)!r})\n'
+        'from dialfred_launch import NodeProcess\n'
+        "node = NodeProcess('dialfred_sim', {'resolution': 16}, namespace='/orphan_test')\n"
+        'node.start()\n'
+        'print(node.proc.pid, flush=True)\n'
+        'time.sleep(600)\n')
+    launcher = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    try:
+        pid = int(launcher.stdout.readline())
+        assert _running(pid)
+        launcher.kill()                                   # SIGKILL: no cleanup code runs in the launcher
+        launcher.wait(10)
+        deadline = time.monotonic() + 30
+        while _running(pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _running(pid), 'the node outlived its launcher'
+    finally:
+        launcher.kill()

@@ -123,7 +123,7 @@ def test_the_summary_groups_by_task_type_in_the_papers_order():
     assert list(per_type) == [t for t in TASK_TYPES if t in per_type]
     assert per_type['Clean']['n'] == 2 and per_type['Clean']['SR'] == pytest.approx(50.0)
     assert per_type['Pick']['n'] == 2 and per_type['Pick']['SR'] == pytest.approx(100.0)
-    assert per_type['Pick & Move'] == {'n': 1, 'SR': 100.0, 'PWSR': 100.0, 'GC': 100.0, 'NQ': 0.0}
+    assert per_type['Pick & Move'] == {'n': 1, 'SR': 100.0, 'PWSR': 100.0, 'GC': 100.0, 'NQ': 0.0, 'NQ_invalid': 0.0}
 
 
 def test_the_paper_lists_25_task_types():

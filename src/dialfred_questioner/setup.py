@@ -13,6 +13,6 @@ setup(
     install_requires=['setuptools'],
     zip_safe=False,
     license='MIT',
-    # No console scripts yet: the package is filled in by a later issue.
+    # No node yet: the learned questioner and its node come with a later issue.
     entry_points={'console_scripts': []},
 )

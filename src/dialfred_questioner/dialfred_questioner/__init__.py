@@ -1,1 +1,5 @@
-"""DialFRED questioner: decides when and what to ask the oracle; filled by a later issue (the questioner model)."""
+"""DialFRED questioner: decides when and what to ask the oracle.
+
+`baselines` holds the questioners that need no training (random, all questions) and `with_questioner`,
+which gives any agent a questioner. The learned LSTM questioner comes with a later issue.
+"""

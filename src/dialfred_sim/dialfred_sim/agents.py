@@ -4,13 +4,19 @@ An agent is told the task at the start of an episode (`reset(task, seed)`) and t
 observation, names its next action (`act(observation) -> (action, x, y)`, ALFRED's action names, the
 target pixel in the simulator's frame; -1, -1 for actions without a target). The observation is
 whatever the driver has (the launcher passes the dialfred_msgs/Observation message); the two agents
-here do not look at it. The performer and the questioner of later issues are agents too:
-`make_agent` is where a new one gets its name.
+here do not look at it. The performer of a later issue is an agent too: `make_agent` is where a new
+one gets its name.
+
+An agent that talks (`DialogueAgent`) also has `ask(observation) -> Question | None`, called before
+every `act`: a question goes to the oracle and its answer comes back through `hear(qa)`, then `ask`
+is called again, until it returns None and the agent acts. `dialfred_questioner` gives any agent a
+questioner this way.
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from dataclasses import dataclass
+from typing import Any, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -19,6 +25,27 @@ ACTIONS = ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown', 'Pick
            'ToggleOn', 'ToggleOff', 'Slice', 'Stop')
 
 Decision = tuple[str, int, int]
+
+# The oracle's question types (dialfred_msgs/srv/OracleAnswer), in the paper's order.
+QUESTION_TYPES = ('location', 'appearance', 'direction')
+
+
+@dataclass(frozen=True)
+class Question:
+    """A question for the oracle: its type and the object it is about (direction questions name none)."""
+
+    question_type: str
+    object_noun: str = ''
+
+
+@dataclass(frozen=True)
+class QA:
+    """A question and what the oracle said: `answer` if `valid`, else `reason` why it could not answer."""
+
+    question: Question
+    valid: bool
+    answer: str = ''
+    reason: str = ''
 
 
 class Agent(Protocol):
@@ -29,6 +56,17 @@ class Agent(Protocol):
 
     def act(self, observation: Any) -> Decision:
         """The next action (name, x, y) given the latest observation."""
+
+
+@runtime_checkable
+class DialogueAgent(Agent, Protocol):
+    """An agent that may ask the oracle before it acts."""
+
+    def ask(self, observation: Any) -> Optional[Question]:
+        """A question to ask before the next action, or None to act now."""
+
+    def hear(self, qa: QA) -> None:
+        """The oracle's reply to the question just asked."""
 
 
 def episode_seed(run_seed: int, task_index: int) -> int:

@@ -2,8 +2,9 @@
 
 Per episode (Gao et al., 2022, after ALFRED): success s in {0, 1}; goal-condition fraction
 GC = met / total; path-weighted success p = s * L* / max(L*, L) with L* the expert's length and L the
-agent's steps; NQ the number of questions asked. `summarize` averages them overall and per task type
-(SR, PWSR and GC in percent, NQ as a mean count), in the task order of the paper's table.
+agent's steps; NQ the number of questions asked (NQ_invalid: those the oracle could not answer).
+`summarize` averages them overall and per task type (SR, PWSR and GC in percent, NQ and NQ_invalid
+as mean counts), in the task order of the paper's table.
 
 Results are kept one JSON object per line (`append_result`, `load_results`), written and synced
 episode by episode so that an interrupted evaluation loses nothing and can resume.
@@ -42,6 +43,7 @@ class EpisodeResult:
     expert_length: int
     questions: int = 0
     failed_actions: int = 0
+    invalid_questions: int = 0       # of `questions`, those the oracle could not answer
     end_reason: str = 'stop'
     error: str = ''
     agent: str = ''
@@ -96,7 +98,7 @@ class EpisodeResult:
 
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
-                'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str, 'seed': int,
+                'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str, 'seed': int,
                 'wall_s': float}
 
 
@@ -128,13 +130,14 @@ def end_reason(success: bool, last_action: str, failed_actions: int, truncated: 
 def _row(results: list[EpisodeResult]) -> dict:
     n = len(results)
     if n == 0:
-        return {'n': 0, 'SR': 0.0, 'PWSR': 0.0, 'GC': 0.0, 'NQ': 0.0}
+        return {'n': 0, 'SR': 0.0, 'PWSR': 0.0, 'GC': 0.0, 'NQ': 0.0, 'NQ_invalid': 0.0}
     return {
         'n': n,
         'SR': 100.0 * sum(r.success for r in results) / n,
         'PWSR': 100.0 * sum(r.path_weighted_success for r in results) / n,
         'GC': 100.0 * sum(r.gc for r in results) / n,
         'NQ': sum(r.questions for r in results) / n,
+        'NQ_invalid': sum(r.invalid_questions for r in results) / n,
     }
 
 
@@ -146,7 +149,8 @@ def type_order(task_type: str) -> tuple:
 def summarize(results: Iterable[EpisodeResult]) -> dict:
     """{'overall': row, 'per_type': {task_type: row}, 'end_reasons': {reason: count}}.
 
-    A row is {'n', 'SR', 'PWSR', 'GC' (percent), 'NQ' (mean questions per episode)}; per_type holds
+    A row is {'n', 'SR', 'PWSR', 'GC' (percent), 'NQ', 'NQ_invalid' (mean questions per episode, and
+    of those the ones the oracle could not answer)}; per_type holds
     the types present, in the paper's task order.
     """
     results = list(results)

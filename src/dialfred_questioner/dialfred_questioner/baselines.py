@@ -1,0 +1,138 @@
+"""Questioners that need no training, and how a questioner joins an agent (no ROS).
+
+A questioner decides what to ask the oracle and when: `ask(observation, step)` is called before each of
+the agent's actions (`step` = actions taken so far in the episode) and returns a `Question` or None;
+the oracle's reply comes back through `hear(qa)`. The paper's baselines that need no model:
+
+- `RandomQuestioner` ("random"): one random question at the beginning of the task. Its type is
+  uniform over location, appearance and direction; location and appearance questions name an object
+  of the instruction, drawn uniformly. (Paper, Table 4: "a questioner that asks a random question at
+  the beginning".)
+- `AllQuestioner` ("all"): at the beginning, a location and an appearance question about every object
+  of the instruction, then one direction question. This is the "instruction + all QAs" setting of
+  Table 3. The performer keeps the valid answers.
+
+`with_questioner(agent, questioner)` makes any performer agent a `dialfred_sim.agents.DialogueAgent`.
+The learned questioner (LSTM seq2seq, actor-critic fine-tuning) and the model-confusion questioner
+come with the performer they depend on.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Protocol
+
+import numpy as np
+
+from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question
+
+
+class Questioner(Protocol):
+    name: str
+
+    def reset(self, task: Any, seed: int) -> None:
+        """Start an episode of `task` (a dialfred_sim.tasks.Task); `seed` seeds any randomness."""
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        """A question before the agent's action number `step` + 1, or None."""
+
+    def hear(self, qa: QA) -> None:
+        """The oracle's reply to the question just asked."""
+
+
+def task_nouns(task: Any) -> list[str]:
+    """The objects a question may name: the nouns of the task's instruction, without repeats."""
+    return list(dict.fromkeys(n for n in task.object_nouns if n))
+
+
+class RandomQuestioner:
+    """One question at the beginning: a uniform type, and for location/appearance a uniform noun."""
+
+    name = 'random'
+
+    def __init__(self):
+        self._question: Optional[Question] = None
+
+    def reset(self, task: Any, seed: int) -> None:
+        rng = np.random.default_rng([seed, 1])       # a stream apart from the performer's seed
+        nouns = task_nouns(task)
+        types = QUESTION_TYPES if nouns else ('direction',)
+        qtype = types[int(rng.integers(len(types)))]
+        noun = '' if qtype == 'direction' else nouns[int(rng.integers(len(nouns)))]
+        self._question = Question(qtype, noun)
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        if step > 0:
+            return None
+        question, self._question = self._question, None
+        return question
+
+    def hear(self, qa: QA) -> None:
+        pass
+
+
+class AllQuestioner:
+    """At the beginning: location and appearance of every object of the instruction, then direction."""
+
+    name = 'all'
+
+    def __init__(self):
+        self._queue: list[Question] = []
+
+    def reset(self, task: Any, seed: int) -> None:
+        self._queue = [Question(t, n) for n in task_nouns(task) for t in ('location', 'appearance')]
+        self._queue.append(Question('direction'))
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        if step > 0 or not self._queue:
+            return None
+        return self._queue.pop(0)
+
+    def hear(self, qa: QA) -> None:
+        pass
+
+
+QUESTIONERS = {'random': RandomQuestioner, 'all': AllQuestioner}
+
+
+def make_questioner(name: str) -> Questioner:
+    """A new questioner by name (one per worker: questioners keep per-episode state)."""
+    try:
+        return QUESTIONERS[name]()
+    except KeyError:
+        raise ValueError(f'unknown questioner {name!r}; known: {", ".join(QUESTIONERS)}') from None
+
+
+class QuestioningAgent:
+    """A performer agent with a questioner: asks what the questioner asks, hands every QA to the
+    performer (if it listens: a `hear` method) and keeps the episode's dialogue in `dialogue`."""
+
+    def __init__(self, performer: Agent, questioner: Questioner):
+        self.performer, self.questioner = performer, questioner
+        self.name = f'{performer.name}+{questioner.name}'
+        self.dialogue: list[QA] = []
+        self._steps = 0
+
+    def reset(self, task: Any, seed: int) -> None:
+        self.performer.reset(task, seed)
+        self.questioner.reset(task, seed)
+        self.dialogue = []
+        self._steps = 0
+
+    def ask(self, observation: Any) -> Optional[Question]:
+        return self.questioner.ask(observation, self._steps)
+
+    def hear(self, qa: QA) -> None:
+        self.dialogue.append(qa)
+        self.questioner.hear(qa)
+        listen = getattr(self.performer, 'hear', None)
+        if listen is not None:
+            listen(qa)
+
+    def act(self, observation: Any) -> Decision:
+        self._steps += 1
+        return self.performer.act(observation)
+
+
+def with_questioner(agent: Agent, questioner: Optional[Questioner]) -> Agent:
+    """`agent` asking what `questioner` asks (the agent itself when there is no questioner)."""
+    return agent if questioner is None else QuestioningAgent(agent, questioner)
