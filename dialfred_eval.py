@@ -33,6 +33,8 @@ class EvalConfig:
     split: str = 'valid_unseen'
     agent: str = 'expert'
     questioner: str = ''                # '' = the agent asks nothing; else a dialfred_questioner baseline
+    perturb_type: str = ''              # the paper's ablation: the oracle withholds answers of this type ...
+    perturb_probability: float = 0.5    # ... with this probability
     limit: Optional[int] = None
     workers: int = 2
     out: Optional[Path] = None          # default: out/eval/<split>_<agent>.jsonl
@@ -46,8 +48,27 @@ class EvalConfig:
         return f'{self.agent}+{self.questioner}' if self.questioner else self.agent
 
     @property
+    def oracle(self) -> str:
+        """How the oracle answers, as results record it: '' exactly, 'location:0.5' perturbed."""
+        return f'{self.perturb_type}:{self.perturb_probability:g}' if self.perturb_type else ''
+
+    @property
     def results_path(self) -> Path:
-        return Path(self.out) if self.out else REPO / 'out' / 'eval' / f'{self.split}_{self.agent_name}.jsonl'
+        if self.out:
+            return Path(self.out)
+        perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
+        return REPO / 'out' / 'eval' / f'{self.split}_{self.agent_name}{perturbed}.jsonl'
+
+    def check(self) -> None:
+        """ValueError for settings that cannot run together."""
+        from dialfred_oracle.answers import QUESTION_TYPES
+        if self.perturb_type:
+            if not self.questioner:
+                raise ValueError('a perturbed oracle needs a questioner (--questioner)')
+            if self.perturb_type not in QUESTION_TYPES:
+                raise ValueError(f'--perturb-type must be one of {", ".join(QUESTION_TYPES)}, got {self.perturb_type!r}')
+            if not 0.0 <= self.perturb_probability <= 1.0:
+                raise ValueError(f'--perturb-probability must be in [0, 1], got {self.perturb_probability}')
 
     @property
     def summary_path(self) -> Path:
@@ -70,7 +91,7 @@ class EvalReport:
         c = self.config
         loop_s = self.wall_s - self.startup_s
         return {
-            'split': c.split, 'agent': c.agent_name, 'seed': c.seed, 'resolution': c.resolution, 'workers': c.workers,
+            'split': c.split, 'agent': c.agent_name, 'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution, 'workers': c.workers,
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None},
@@ -188,7 +209,8 @@ class SimWorker:
             steps=int(obs.step_count) if obs is not None else 0, expert_length=int(task.expert_length),
             questions=self.questions, invalid_questions=self.invalid_questions,
             failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
-            error='' if success else (error or self.last_error), agent=self.agent.name, seed=self.config.seed,
+            error='' if success else (error or self.last_error), agent=self.agent.name, oracle=self.config.oracle,
+            seed=self.config.seed,
             wall_s=round(time.monotonic() - self.started, 4))
 
 
@@ -238,9 +260,10 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
     for w in caught:
         print(f'warning: {w.message}', file=sys.stderr)
     for r in existing:
-        if (r.split, r.agent, r.seed) != (config.split, config.agent_name, config.seed):
-            raise ResultsFileError(f'{path} holds results of split {r.split!r}, agent {r.agent!r}, seed {r.seed}, not '
-                             f'{config.split!r}, {config.agent_name!r}, {config.seed}: choose another --out')
+        if (r.split, r.agent, r.oracle, r.seed) != (config.split, config.agent_name, config.oracle, config.seed):
+            raise ResultsFileError(f'{path} holds results of split {r.split!r}, agent {r.agent!r}, oracle {r.oracle!r}, '
+                                   f'seed {r.seed}, not {config.split!r}, {config.agent_name!r}, {config.oracle!r}, '
+                                   f'{config.seed}: choose another --out')
     return results_by_task(existing, task_ids)
 
 
@@ -266,6 +289,7 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
                                make_questioner(config.questioner) if config.questioner else None)
 
     agent()    # an unknown agent or questioner fails here, before any node starts
+    config.check()
 
     t0 = time.monotonic()
     tasks = load_split(config.split)[:config.limit]
@@ -277,7 +301,9 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
         nodes = [sim_node(config.resolution, ns, publish_observations=False) for ns in namespaces]
         if config.questioner:
-            nodes += [oracle_node(ns) for ns in namespaces]
+            withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
+                        'seed': config.seed} if config.perturb_type else {}
+            nodes += [oracle_node(ns, **withhold) for ns in namespaces]
         with Graph(nodes) as graph:
             workers = [SimWorker(graph, ns, agent(), config, oracle=bool(config.questioner)) for ns in namespaces]
             startup_s = time.monotonic() - t0
@@ -313,12 +339,18 @@ def print_report(report: EvalReport) -> None:
 
 def eval_config(args) -> EvalConfig:
     return EvalConfig(split=args.split, agent=args.agent, questioner=args.questioner or '', limit=args.limit,
+                      perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
                       workers=args.workers,
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution)
 
 
 def run_eval_command(args) -> int:
     config = eval_config(args)
+    try:
+        config.check()
+    except ValueError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     try:
         report = run_eval(config, progress=not args.no_progress)
     except KeyboardInterrupt:
@@ -336,6 +368,10 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--questioner', default=None, choices=['random', 'all'],
                     help='ask the oracle (one oracle node per worker): random = one random question at the '
                          'start; all = location + appearance of every instruction object, then direction')
+    ev.add_argument('--perturb-type', default=None, choices=['location', 'appearance', 'direction'],
+                    help="the paper's ablation: the oracle withholds answers of this type (\"I don't know.\")")
+    ev.add_argument('--perturb-probability', type=float, default=0.5,
+                    help='how often it withholds them (default 0.5, as in the paper)')
     ev.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
     ev.add_argument('--workers', type=int, default=2, help='simulator nodes playing episodes in parallel')
     ev.add_argument('--out', default=None,

@@ -9,7 +9,7 @@ import pytest
 
 from dialfred_oracle.answers import (DIRECTION_BINS, MAX_NOUN_CHARS, QUESTION_TYPES, STAY, TURN_AROUND, TURN_LEFT,
                                      TURN_RIGHT, GO_STRAIGHT, Answer, Perturbation, answer, check_answer,
-                                     direction_bin, question_text)
+                                     direction_bin, question_text, situation_key)
 from dialfred_oracle.colours import SHADE_MAX, SHADE_MIN, colour_name, measure_shade_range
 from dialfred_sim.ground_truth import (Appearance, ObjectFact, Snapshot, appearance, snapshot,
                                        task_object_ids)
@@ -257,24 +257,38 @@ def test_check_answer_catches_wrong_answers():
 # ---------------------------------------------------------------------- the perturbation ablation
 
 def test_perturbation_withholds_one_type_at_the_given_rate_deterministically():
+    keys = [f'valid_unseen/{k:06d}|apple|1.00,2.25,90,30' for k in range(20_000)]
     p = Perturbation('location', 0.5, seed=3)
-    draws = [p.withhold('location') for _ in range(20_000)]
+    draws = [p.withhold('location', key) for key in keys]
     assert abs(np.mean(draws) - 0.5) < 0.015
     same, other = Perturbation('location', 0.5, seed=3), Perturbation('location', 0.5, seed=4)
-    assert draws == [same.withhold('location') for _ in range(20_000)]
-    assert draws[:200] != [other.withhold('location') for _ in range(200)]
-    p.reset(3)
-    assert [p.withhold('location') for _ in range(100)] == draws[:100]
-    assert not any(p.withhold(q) for q in ('appearance', 'direction', 'bogus') for _ in range(500))
+    assert draws == [same.withhold('location', key) for key in reversed(keys)][::-1]   # order does not matter
+    assert draws[:200] != [other.withhold('location', key) for key in keys[:200]]
+    # The same question in the same situation: the same treatment, however often it is asked.
+    assert len({p.withhold('location', keys[0]) for _ in range(50)}) == 1
+    assert not any(p.withhold(q, key) for q in ('appearance', 'direction', 'bogus') for key in keys[:500])
     rare = Perturbation('app', 0.2, seed=0)
-    assert abs(np.mean([rare.withhold('appearance') for _ in range(20_000)]) - 0.2) < 0.015
-    assert not any(Perturbation().withhold(q) for q in QUESTION_TYPES for _ in range(100))
-    assert all(Perturbation('', 1.0).withhold(q) for q in QUESTION_TYPES)
-    withheld = Perturbation('direction', 1.0).apply(Answer(True, TURN_LEFT, question_type='direction'))
-    assert not withheld.valid and 'withheld' in withheld.reason
+    assert abs(np.mean([rare.withhold('appearance', key) for key in keys]) - 0.2) < 0.015
+    assert not any(Perturbation().withhold(q, key) for q in QUESTION_TYPES for key in keys[:100])
+    assert all(Perturbation('', 1.0).withhold(q, 'k') for q in QUESTION_TYPES)
+    answered = Answer(True, TURN_LEFT, question_type='direction')
+    withheld = Perturbation('direction', 1.0).apply(answered, 'k')
+    assert withheld.valid and withheld.text == "I don't know." and withheld.reason == ''
+    assert Perturbation('location', 1.0).apply(answered, 'k') is answered
     for bad in ({'question_type': 'colour'}, {'probability': 1.5}, {'probability': -0.1}):
         with pytest.raises(ValueError):
             Perturbation(**bad)
+
+
+def test_a_questions_situation_is_its_task_its_words_and_the_agents_pose(env, valid_unseen):
+    task = valid_unseen[0]
+    env.reset(options={'task': task})
+    snap = snapshot(env)
+    key = situation_key(snap, 'loc', 'The Apple?')
+    assert key == situation_key(snap, 'location', 'apple')              # aliases and wording do not matter
+    assert key != situation_key(snap, 'appearance', 'apple') and key.startswith(task.task_id + '|')
+    env.step({'action': 'RotateLeft'})
+    assert situation_key(snapshot(env), 'location', 'apple') != key      # the agent turned
 
 
 # ---------------------------------------------------------------------- colour names from pixels

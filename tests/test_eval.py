@@ -344,3 +344,30 @@ def test_a_node_does_not_outlive_a_launcher_that_is_killed(tmp_path):
         assert not _running(pid), 'the node outlived its launcher'
     finally:
         launcher.kill()
+
+
+def test_a_perturbed_oracle_withholds_one_type_and_the_results_say_so(tmp_path, monkeypatch):
+    from dialfred_questioner import baselines
+    heard = []
+    real_hear = baselines.QuestioningAgent.hear
+    monkeypatch.setattr(baselines.QuestioningAgent, 'hear', lambda self, qa: (heard.append(qa), real_hear(self, qa)))
+    path = tmp_path / 'withheld.jsonl'
+    report = evaluate(path, agent='expert', questioner='all', limit=3, perturb_type='location', perturb_probability=1.0)
+    assert all(r.success and r.oracle == 'location:1' and r.invalid_questions == 0 for r in report.results)
+    kinds = {q.question.question_type for q in heard}
+    assert kinds == {'location', 'appearance', 'direction'}
+    for qa in heard:
+        assert qa.valid and (qa.answer == "I don't know.") == (qa.question.question_type == 'location'), qa
+    with pytest.raises(ValueError, match="oracle 'location:1'.*choose another --out"):
+        evaluate(path, agent='expert', questioner='all', limit=3)       # the exact oracle: another run
+
+
+def test_a_perturbed_oracle_needs_a_questioner_and_a_known_type():
+    for bad, match in (({'perturb_type': 'location'}, 'needs a questioner'),
+                       ({'perturb_type': 'colour', 'questioner': 'all'}, 'must be one of'),
+                       ({'perturb_type': 'location', 'questioner': 'all', 'perturb_probability': 2.0}, r'\[0, 1\]')):
+        with pytest.raises(ValueError, match=match):
+            EvalConfig(split=SPLIT, agent='random', **bad).check()
+    config = EvalConfig(split=SPLIT, agent='random', questioner='all', perturb_type='direction')
+    assert config.oracle == 'direction:0.5'
+    assert config.results_path.name == 'valid_unseen_random+all_withhold-direction-0.5.jsonl'

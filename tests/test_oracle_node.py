@@ -93,17 +93,31 @@ def test_without_a_simulator_the_oracle_says_so():
 
 
 def test_the_perturbation_withholds_about_half_of_one_type_reproducibly():
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import SimStep
+    from dialfred_sim.tasks import get_task
+
     def run():
-        with Graph([sim_node(128, namespace='/p'),
+        """The location and appearance of the task's object, asked in 48 situations: 4 tasks, 12 poses each."""
+        loc, app, again = [], [], []
+        with Graph([sim_node(64, namespace='/p'),
                     oracle_node(namespace='/p', perturb_type='location', perturb_probability=0.5, seed=3)]) as g:
-            assert g.call(g.client(SimReset, '/p/sim/reset'), SimReset.Request(task_id=TASK)).ok
+            reset_cli, step_cli = g.client(SimReset, '/p/sim/reset'), g.client(SimStep, '/p/sim/step')
             cli = g.client(OracleAnswer, '/p/oracle/answer')
-            loc = [ask(g, 'location', task_noun(), cli).answer for _ in range(200)]
-            app = [ask(g, 'appearance', task_noun(), cli).answer for _ in range(20)]
-        return loc, app
-    loc, app = run()
+            for task_id in (TASK, 'valid_unseen/000010', 'valid_unseen/000020', 'valid_unseen/000030'):
+                assert g.call(reset_cli, SimReset.Request(task_id=task_id, with_depth=False)).ok
+                noun = get_task(task_id).object_nouns[0]
+                for k in range(12):
+                    action = 'RotateLeft' if k % 4 else 'LookUp' if k % 8 else 'LookDown'
+                    assert g.call(step_cli, SimStep.Request(action=Action(action=action), with_depth=False)).ok
+                    loc.append(ask(g, 'location', noun, cli).answer)
+                    again.append(ask(g, 'location', noun, cli).answer)
+                    app.append(ask(g, 'appearance', noun, cli).answer)
+        return loc, app, again
+    loc, app, again = run()
     withheld = sum(a == "I don't know." for a in loc) / len(loc)
-    assert 0.38 < withheld < 0.62
+    assert 0.25 < withheld < 0.75
+    assert again == loc                                      # asking again in the same place does not help
     assert not any(a == "I don't know." for a in app)       # other types are untouched
     assert run()[0] == loc                                    # same seed, same answers withheld
 

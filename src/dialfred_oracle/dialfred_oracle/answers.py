@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import re
+import zlib
 from dataclasses import dataclass, replace
 from typing import Optional
 
@@ -42,7 +43,7 @@ STAY = "You don't need to move."
 _MOVE_FOR_BIN = {'in front of you': GO_STRAIGHT, 'to your front left': GO_STRAIGHT, 'to your front right': GO_STRAIGHT,
                  'to your left': TURN_LEFT, 'to your right': TURN_RIGHT, 'to your rear left': TURN_AROUND,
                  'behind you': TURN_AROUND, 'to your rear right': TURN_AROUND}
-WITHHELD = 'withheld by the perturbation ablation'
+WITHHELD = "I don't know."   # a withheld answer: the question was fine, the oracle does not say
 _ARTICLES = ('the ', 'a ', 'an ')
 
 
@@ -285,9 +286,13 @@ def check_answer(snapshot: Snapshot, ans: Answer) -> dict[str, Optional[bool]]:
 # ---------------------------------------------------------------------- the paper's ablation
 
 class Perturbation:
-    """Withhold answers of one question type with probability `probability` (the paper's
-    ablation uses 0.5), drawn from a generator seeded with `seed`. question_type '' means every
-    type; probability 0 never withholds."""
+    """Withhold answers of one question type with probability `probability` (the paper's ablation
+    uses 0.5). question_type '' means every type; probability 0 never withholds.
+
+    Whether a question is withheld is a pure function of `seed` and the question's `key` (the node
+    uses the task, the question and the agent's pose): the same question in the same situation gets
+    the same treatment, whichever process asks it, in whatever order, and asking again does not get
+    an answer out of a withholding oracle."""
 
     def __init__(self, question_type: str = '', probability: float = 0.0, seed: int = 0):
         qtype = _question_type(question_type) if question_type else ''
@@ -295,22 +300,25 @@ class Perturbation:
             raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES} or ""')
         if not 0.0 <= float(probability) <= 1.0:
             raise ValueError(f'probability must be in [0, 1], got {probability!r}')
-        self.question_type, self.probability = qtype, float(probability)
-        self.reset(seed)
+        self.question_type, self.probability, self.seed = qtype, float(probability), int(seed)
 
-    def reset(self, seed: int) -> None:
-        """Start the draws again from `seed`."""
-        self._rng = np.random.default_rng(seed)
-
-    def withhold(self, question_type: str) -> bool:
-        """Whether to withhold this answer. Draws only for the perturbed type."""
+    def withhold(self, question_type: str, key: str) -> bool:
+        """Whether to withhold the answer to this question (type `question_type`, identified by `key`)."""
         qtype = _question_type(question_type)
         if qtype is None or self.probability <= 0.0 or self.question_type not in ('', qtype):
             return False
-        return bool(self._rng.random() < self.probability)
+        digest = zlib.crc32(f'{qtype}|{key}'.encode('utf-8'))
+        return bool(np.random.default_rng([self.seed, digest]).random() < self.probability)
 
-    def apply(self, ans: Answer) -> Answer:
-        """`ans`, or an invalid answer saying it was withheld."""
-        if ans.valid and self.withhold(ans.question_type):
-            return replace(ans, valid=False, text='', reason=WITHHELD)
+    def apply(self, ans: Answer, key: str) -> Answer:
+        """`ans`, or, when withheld, a valid "I don't know." (the question itself was fine)."""
+        if ans.valid and self.withhold(ans.question_type, key):
+            return replace(ans, text=WITHHELD, reason='')
         return ans
+
+
+def situation_key(snapshot: Snapshot, question_type: str, object_noun: str) -> str:
+    """What makes two questions the same for `Perturbation`: the task, the question, the agent's pose."""
+    x, y, rotation, horizon = snapshot.agent
+    return (f'{snapshot.task_id}|{_question_type(question_type)}|{_normalise(object_noun)}|'
+            f'{x:.2f},{y:.2f},{rotation:.0f},{horizon:.0f}')

@@ -5,7 +5,9 @@ the simulator node over ROS (`sim/ground_truth`; no memory is shared between the
 rules live in `answers.py`; this node only converts messages. Parameters:
 
 - `perturb_type`, `perturb_probability`, `seed`: withhold answers of one question type with this
-  probability (the paper's ablation used 50%), seeded; a withheld answer is a valid "I don't know."
+  probability (the paper's ablation used 50%); a withheld answer is a valid "I don't know." Which
+  ones are withheld depends only on the seed, the task, the question and the agent's pose
+  (`answers.Perturbation`), so runs repeat exactly, and asking again in the same place does not help.
 - `human`: ask a person in the terminal instead (the simulator's answer is shown as a suggestion;
   an empty line accepts it), as a robot running this stack would ask its human.
 - `log_file`: append every question and answer as a JSON line.
@@ -30,9 +32,9 @@ from rclpy.node import Node
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
 
-from .answers import MAX_NOUN_CHARS, QUESTION_ALIASES, QUESTION_TYPES, Answer, Perturbation, answer, question_text
+from .answers import (MAX_NOUN_CHARS, QUESTION_ALIASES, QUESTION_TYPES, Answer, Perturbation, answer,
+                      question_text, situation_key)
 
-WITHHELD = "I don't know."
 
 
 class SimulatorUnavailable(RuntimeError):
@@ -112,9 +114,10 @@ class OracleNode(Node):
         result = answer(snap, qtype, noun)
         if result.valid and qtype == 'appearance' and result.object_id:
             result = answer(self.ground_truth([result.object_id]), qtype, noun)
-        if result.valid and self.perturbation.withhold(qtype):
-            # The paper's ablation: the human does not know (the question itself was fine).
-            return Answer(True, WITHHELD, reason='', question_type=qtype, object_noun=noun)
+        # The paper's ablation: the human does not know (the question itself was fine).
+        withheld = self.perturbation.apply(result, situation_key(snap, qtype, noun))
+        if withheld is not result:
+            return withheld
         if self.human and result.valid:
             result = self.ask_person(qtype, noun, result)
         return result

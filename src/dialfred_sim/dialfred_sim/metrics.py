@@ -47,6 +47,7 @@ class EpisodeResult:
     end_reason: str = 'stop'
     error: str = ''
     agent: str = ''
+    oracle: str = ''                 # '' = exact answers; 'location:0.5' = withholding that type that often
     seed: int = 0
     wall_s: float = 0.0
 
@@ -98,7 +99,7 @@ class EpisodeResult:
 
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
-                'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str, 'seed': int,
+                'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str, 'oracle': str, 'seed': int,
                 'wall_s': float}
 
 
