@@ -10,7 +10,8 @@ import pytest
 from dialfred_oracle.answers import (DIRECTION_BINS, MAX_NOUN_CHARS, QUESTION_TYPES, STAY, TURN_AROUND, TURN_LEFT,
                                      TURN_RIGHT, GO_STRAIGHT, Answer, Perturbation, answer, check_answer,
                                      direction_bin, question_text, situation_key)
-from dialfred_oracle.colours import SHADE_MAX, SHADE_MIN, colour_name, measure_shade_range
+from dialfred_oracle.colours import (SHADE_MAX, SHADE_MIN, _nearest_shaded_colour, colour_name, measure_shade_range,
+                                     pixel_labels)
 from dialfred_sim.ground_truth import (Appearance, ObjectFact, Snapshot, appearance, snapshot,
                                        task_object_ids)
 from dialfred_sim.tasks import load_split
@@ -304,6 +305,16 @@ def test_every_shade_of_every_palette_colour_keeps_its_name():
         for s in np.linspace(0.6, 0.99, 14):
             assert colour_name(np.floor(base * s)[None].astype(np.uint8)) == name, (name, s)
     assert colour_name(np.zeros((0, 3), np.uint8)) is None
+
+
+def test_labelling_each_distinct_colour_once_gives_every_pixel_its_own_label():
+    rng = np.random.default_rng(0)
+    palette = rng.integers(0, 256, size=(30, 3)).astype(np.uint8)
+    pixels = palette[rng.integers(0, 30, size=400)]          # repeats, as a flat-shaded mask has
+    labels, dist = pixel_labels(pixels)
+    direct_labels, direct_dist = _nearest_shaded_colour(pixels)
+    assert np.array_equal(labels, direct_labels) and np.allclose(dist, direct_dist)
+    assert len(pixel_labels(np.zeros((0, 3), np.uint8))[0]) == 0
 
 
 def test_the_main_colour_outvotes_fixed_colour_details():

@@ -59,7 +59,20 @@ def reference_table() -> tuple[np.ndarray, np.ndarray]:
 
 def pixel_labels(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per pixel, (index of the nearest palette colour, its Lab distance). pixels: (N, 3) RGB."""
-    lab = srgb_to_lab(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
+    pixels = np.asarray(pixels).reshape(-1, 3)
+    if pixels.dtype == np.uint8:
+        # A flat-shaded object shows a few dozen distinct colours in hundreds of pixels: label each
+        # distinct colour once (about 40x less work for the oracle's 400-pixel samples).
+        codes = pixels.astype(np.int64) @ np.array([1 << 16, 1 << 8, 1])
+        distinct, index = np.unique(codes, return_inverse=True)
+        rgb = np.stack([distinct >> 16, (distinct >> 8) & 255, distinct & 255], axis=1)
+        labels, dist = _nearest_shaded_colour(rgb)
+        return labels[index.reshape(-1)], dist[index.reshape(-1)]
+    return _nearest_shaded_colour(pixels)
+
+
+def _nearest_shaded_colour(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    lab = srgb_to_lab(np.asarray(pixels, dtype=np.float64))
     refs, labels = reference_table()
     d2 = ((lab[:, None, :] - refs[None, :, :]) ** 2).sum(-1)
     nearest = d2.argmin(1)
