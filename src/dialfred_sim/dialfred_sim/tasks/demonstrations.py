@@ -1,0 +1,258 @@
+"""Rendered expert demonstrations of a split: what the agent sees along the expert's path, with the
+expert's actions, ready for imitation learning (no ROS).
+
+    ./dialfred env python3 -m dialfred_sim.tasks.demonstrations valid_unseen --resolution 64 --workers 2
+
+replays every task's expert in `DialfredEnv` at the given resolution and writes to
+`~/.cache/dialfred/demonstrations/<split>_<resolution>/` (or `--out`):
+
+- `frames.npy`: uint8 [F, R, R, 3], a standard .npy file (`np.load(..., mmap_mode='r')`). For each
+  task, n + 1 frames: the frame before each of its n expert actions, then the frame after the last
+  (n + 1 rows are kept per task of expert length n; fewer are used if the goal holds early).
+- `tasks.jsonl`: one line per task, in split order. It holds `task_id`, `task_type`, `instruction`,
+  `step_instructions`, `object_nouns`, `first_frame` and `actions`, which are
+  `[name, x, y, target type]` with x, y = -1 and target '' for moves. It also holds `success` (the
+  task's goal held at the end) and `failed_actions`.
+- `meta.json`: split, resolution, tasks, frames, success rate and build time.
+
+The expert's pixels were chosen in 128x128 frames. At another resolution each pixel is scaled, and
+if the scaled pixel misses the expert's target, the nearest pixel that shows the target is used
+instead. Frames are written as tasks are played. Finished tasks go to `done-<worker>.txt` only after
+their frames are on disk, so an interrupted build resumes where it stopped. The same split and
+resolution always give the same bytes, with any number of workers. `load_demonstrations` reads a
+finished build.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from .splits import SPLIT_SIZES, load_split
+
+CACHE_ENV = 'DIALFRED_DEMO_DIR'
+SYNC_EVERY = 25        # tasks between pushes of frames, then their done records, to disk
+
+
+def default_dir(split: str, resolution: int) -> Path:
+    root = Path(os.environ.get(CACHE_ENV) or Path.home() / '.cache' / 'dialfred' / 'demonstrations')
+    return root / f'{split}_{resolution}'
+
+
+def frame_offsets(tasks) -> list[int]:
+    """Index of each task's first frame in frames.npy (each task has expert length + 1 frames)."""
+    offsets, n = [], 0
+    for t in tasks:
+        offsets.append(n)
+        n += len(t.expert_actions) + 1
+    return offsets + [n]
+
+
+def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) -> tuple[int, int]:
+    """The pixel for the expert's interaction `action` in the current frame: its pixel scaled to the
+    env's resolution, or the nearest pixel showing the action's target when the scaled one misses it."""
+    from ..agents import scale_pixel
+    x, y = scale_pixel(action.x, action.y, task_resolution, env.resolution)
+    target = env.world.objects.get(action.target) if action.target else None
+    if x < 0 or target is None or segmentation[y, x] == target.body:
+        return x, y
+    ys, xs = np.nonzero(segmentation == target.body)
+    if len(xs) == 0:
+        return x, y
+    k = int(np.argmin((xs - x) ** 2 + (ys - y) ** 2))
+    return int(xs[k]), int(ys[k])
+
+
+def play_demonstration(env, task, frames: np.ndarray) -> dict:
+    """Replay `task`'s expert in `env`, writing its len(actions) + 1 frames into `frames` (a view of that
+    many rows); the task's record for tasks.jsonl."""
+    obs, _ = env.reset(options={'task': task})
+    actions, failed, success = [], 0, False
+    for k, a in enumerate(task.expert_actions):
+        frames[k] = obs['rgb']
+        x, y = expert_pixel(env, a, task.resolution, obs['segmentation'])
+        target = env.world.objects[a.target].type_name if a.target in env.world.objects else ''
+        actions.append([a.action, x, y, target])
+        obs, _, terminated, truncated, info = env.step({'action': a.action, 'pixel': (x, y)})
+        failed += not info['last_action_success']
+        success = bool(info['success'])
+        if terminated or truncated:     # the goal held early (the rows left over stay zero)
+            break
+    frames[len(actions)] = obs['rgb']
+    return {'task_id': task.task_id, 'task_type': task.task_type, 'instruction': task.instruction,
+            'step_instructions': list(task.step_instructions), 'object_nouns': list(task.object_nouns),
+            'actions': actions, 'success': success, 'failed_actions': failed}
+
+
+def _done_records(out: Path) -> dict[int, dict]:
+    """{task index: record} from every done-*.txt; a line cut off by an interruption is skipped."""
+    done = {}
+    for path in sorted(out.glob('done-*.txt')):
+        for line in path.read_text().splitlines():
+            try:
+                row = json.loads(line)
+                done[int(row['index'])] = row['record']
+            except (ValueError, KeyError, TypeError):
+                continue
+    return done
+
+
+def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int) -> None:
+    from ..env import DialfredEnv
+    out = Path(out)
+    tasks = load_split(split)[:limit]
+    offsets = frame_offsets(tasks)
+    done = _done_records(out)
+    frames = np.load(out / 'frames.npy', mmap_mode='r+')
+    env = DialfredEnv(resolution=resolution)
+    pending = []
+    log_path = out / f'done-{shard}.txt'
+    cut_off = log_path.exists() and log_path.stat().st_size > 0 and not log_path.read_bytes().endswith(b'\n')
+    with open(log_path, 'a') as log:
+        if cut_off:
+            log.write('\n')            # never glue a record onto a line an interruption cut off
+        def sync() -> None:
+            frames.flush()                      # the frames first, then the records that vouch for them
+            log.writelines(json.dumps(row, separators=(',', ':')) + '\n' for row in pending)
+            log.flush()
+            os.fsync(log.fileno())
+            pending.clear()
+
+        for k in range(shard, len(tasks), shards):
+            if k in done:
+                continue
+            record = play_demonstration(env, tasks[k], frames[offsets[k]:offsets[k + 1]])
+            pending.append({'index': k, 'record': record})
+            if len(pending) >= SYNC_EVERY:
+                sync()
+        sync()
+    env.close()
+
+
+def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] = None, workers: int = 1,
+                         limit: Optional[int] = None, progress: bool = True) -> dict:
+    """Render the expert demonstrations of `split` (its first `limit` tasks) into `out`; resumes a build
+    that was interrupted. Returns the contents of meta.json."""
+    t0 = time.monotonic()
+    if resolution < 16:
+        raise ValueError(f'resolution must be at least 16, got {resolution}')
+    out = Path(out) if out else default_dir(split, resolution)
+    out.mkdir(parents=True, exist_ok=True)
+    tasks = load_split(split)[:limit]
+    offsets = frame_offsets(tasks)
+    shape = (offsets[-1], resolution, resolution, 3)
+    frames_path = out / 'frames.npy'
+    started = (out / 'build.json').exists() and json.loads((out / 'build.json').read_text())
+    plan = {'split': split, 'resolution': resolution, 'tasks': len(tasks), 'frames': offsets[-1]}
+    if started != plan or not frames_path.exists():
+        for stale in [frames_path, out / 'meta.json', out / 'tasks.jsonl', *out.glob('done-*.txt')]:
+            stale.unlink(missing_ok=True)
+        np.lib.format.open_memmap(frames_path, mode='w+', dtype=np.uint8, shape=shape).flush()
+        (out / 'build.json').write_text(json.dumps(plan) + '\n')
+    elif (out / 'meta.json').exists():
+        return json.loads((out / 'meta.json').read_text())       # already complete
+    workers = max(1, min(workers, len(tasks)))
+    args = [(split, resolution, str(out), limit, k, workers) for k in range(workers)]
+    if workers == 1:
+        _run_with_progress(None, args, out, len(tasks), progress)
+    else:
+        with multiprocessing.get_context('spawn').Pool(workers) as pool:
+            _run_with_progress(pool, args, out, len(tasks), progress)
+    done = _done_records(out)
+    missing = [k for k in range(len(tasks)) if k not in done]
+    if missing:
+        raise RuntimeError(f'{len(missing)} tasks were not rendered (first: {tasks[missing[0]].task_id})')
+    with open(out / 'tasks.jsonl', 'w') as f:
+        for k in range(len(tasks)):
+            f.write(json.dumps({**done[k], 'first_frame': offsets[k]}, separators=(',', ':')) + '\n')
+    successes = sum(done[k]['success'] for k in range(len(tasks)))
+    meta = {**plan, 'success_rate': round(successes / max(len(tasks), 1), 5),
+            'failed_tasks': [done[k]['task_id'] for k in range(len(tasks)) if not done[k]['success']],
+            'seconds_this_run': round(time.monotonic() - t0, 1), 'workers': workers,
+            'frames_bytes': int(np.prod(shape))}
+    (out / 'meta.json').write_text(json.dumps(meta, indent=1) + '\n')
+    return meta
+
+
+def _run_with_progress(pool, args, out: Path, total: int, progress: bool) -> None:
+    from tqdm import tqdm
+    with tqdm(total=total, initial=len(_done_records(out)), unit='task', file=sys.stderr,
+              disable=not progress, dynamic_ncols=True) as bar:
+        if pool is None:
+            _worker(*args[0])
+        else:
+            result = pool.starmap_async(_worker, args)
+            while not result.ready():
+                result.wait(1.0)
+                bar.n = len(_done_records(out))
+                bar.refresh()
+            result.get()                # re-raises a worker's exception
+        bar.n = len(_done_records(out))
+        bar.refresh()
+
+
+@dataclass
+class Demonstrations:
+    """A finished build: `frames` (read-only memmap) and `tasks` (the records of tasks.jsonl)."""
+
+    frames: np.ndarray
+    tasks: list[dict]
+    meta: dict
+
+    def __len__(self) -> int:
+        return len(self.tasks)
+
+    def frames_of(self, k: int) -> np.ndarray:
+        """The n + 1 frames of task k (a view: nothing is read until it is used)."""
+        first = self.tasks[k]['first_frame']
+        return self.frames[first:first + len(self.tasks[k]['actions']) + 1]
+
+
+def load_demonstrations(path: Path) -> Demonstrations:
+    """Open a build made by `build_demonstrations`; FileNotFoundError if it is missing or unfinished."""
+    path = Path(path)
+    if not (path / 'meta.json').exists():
+        raise FileNotFoundError(f'no finished demonstrations in {path} (meta.json is written last); '
+                                'run python -m dialfred_sim.tasks.demonstrations')
+    meta = json.loads((path / 'meta.json').read_text())
+    tasks = [json.loads(line) for line in (path / 'tasks.jsonl').read_text().splitlines()]
+    frames = np.load(path / 'frames.npy', mmap_mode='r')
+    if len(tasks) != meta['tasks'] or frames.shape[0] != meta['frames']:
+        raise ValueError(f'{path}: tasks.jsonl or frames.npy do not match meta.json')
+    return Demonstrations(frames, tasks, meta)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description='Render the expert demonstrations of a split (frames + actions).')
+    ap.add_argument('split', choices=sorted(SPLIT_SIZES))
+    ap.add_argument('--resolution', type=int, default=128)
+    ap.add_argument('--workers', type=int, default=1, help='processes, each playing every n-th task')
+    ap.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
+    ap.add_argument('--out', default=None, help='output folder (default: ~/.cache/dialfred/demonstrations/'
+                                                 '<split>_<resolution>, or $DIALFRED_DEMO_DIR/...)')
+    ap.add_argument('--no-progress', action='store_true')
+    args = ap.parse_args(argv)
+    try:
+        meta = build_demonstrations(args.split, args.resolution, Path(args.out) if args.out else None,
+                                    args.workers, args.limit, progress=not args.no_progress)
+    except ValueError as exc:
+        ap.error(str(exc))
+    except KeyboardInterrupt:
+        print('interrupted: the same command resumes', file=sys.stderr)
+        return 130
+    print(json.dumps({k: v for k, v in meta.items() if k != 'failed_tasks'} |
+                     {'failed_tasks': len(meta['failed_tasks'])}))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
