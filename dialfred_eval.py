@@ -2,14 +2,14 @@
 """Evaluation through the node graph: an agent plays (a part of) a split on simulator nodes.
 
 `python dialfred_launch.py eval ...` runs `--workers` simulator nodes, each in its own namespace
-(/eval_<pid>/w0/sim/step, /eval_<pid>/w1/sim/step, ...), drives them all from this process with asynchronous calls,
-appends each episode's result to the JSON-lines file as it ends (a rerun skips the tasks already
-there), and prints SR / PWSR / GC / NQ overall and per task type; the summary also goes to
-<out without .jsonl>.summary.json.
+(/eval_<pid>/w0/sim/step, /eval_<pid>/w1/sim/step, ...), drives them all from this process with
+asynchronous calls, appends each episode's result to the JSON-lines file as it ends (a rerun skips
+the tasks already there), and prints SR / PWSR / GC / NQ overall and per task type; the summary also
+goes to <out without .jsonl>.summary.json.
 
 With `--questioner`, each worker also gets an oracle node in its namespace (.../w0/oracle/answer
-answers from .../w0/sim/ground_truth). Before every action the agent may ask it questions, which are counted (NQ,
-NQ_invalid).
+answers from .../w0/sim/ground_truth). Before every action the agent may ask it questions, which
+are counted (NQ, NQ_invalid).
 """
 
 from __future__ import annotations
@@ -91,7 +91,8 @@ class EvalReport:
         c = self.config
         loop_s = self.wall_s - self.startup_s
         return {
-            'split': c.split, 'agent': c.agent_name, 'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution, 'workers': c.workers,
+            'split': c.split, 'agent': c.agent_name, 'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
+            'workers': c.workers,
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None},

@@ -99,8 +99,8 @@ class EpisodeResult:
 
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
-                'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str, 'oracle': str, 'seed': int,
-                'wall_s': float}
+                'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
+                'oracle': str, 'seed': int, 'wall_s': float}
 
 
 def _has_type(value, want: type) -> bool:
