@@ -59,14 +59,23 @@ class EvalConfig:
         perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
         return REPO / 'out' / 'eval' / f'{self.split}_{self.agent_name}{perturbed}.jsonl'
 
+    def make_agent(self):
+        """A new agent as configured (ValueError for an unknown agent or questioner)."""
+        from dialfred_questioner.baselines import make_questioner, with_questioner
+        from dialfred_sim.agents import make_agent
+        return with_questioner(make_agent(self.agent, self.resolution),
+                               make_questioner(self.questioner) if self.questioner else None)
+
     def check(self) -> None:
-        """ValueError for settings that cannot run together."""
+        """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
         from dialfred_oracle.answers import QUESTION_TYPES
+        self.make_agent()
         if self.perturb_type:
             if not self.questioner:
                 raise ValueError('a perturbed oracle needs a questioner (--questioner)')
             if self.perturb_type not in QUESTION_TYPES:
-                raise ValueError(f'--perturb-type must be one of {", ".join(QUESTION_TYPES)}, got {self.perturb_type!r}')
+                raise ValueError(f'--perturb-type must be one of {", ".join(QUESTION_TYPES)}, '
+                                 f'got {self.perturb_type!r}')
             if not 0.0 <= self.perturb_probability <= 1.0:
                 raise ValueError(f'--perturb-probability must be in [0, 1], got {self.perturb_probability}')
 
@@ -210,8 +219,8 @@ class SimWorker:
             steps=int(obs.step_count) if obs is not None else 0, expert_length=int(task.expert_length),
             questions=self.questions, invalid_questions=self.invalid_questions,
             failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
-            error='' if success else (error or self.last_error), agent=self.agent.name, oracle=self.config.oracle,
-            seed=self.config.seed,
+            error='' if success else (error or self.last_error), agent=self.config.agent_name,
+            oracle=self.config.oracle, seed=self.config.seed,
             wall_s=round(time.monotonic() - self.started, 4))
 
 
@@ -262,8 +271,9 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
         print(f'warning: {w.message}', file=sys.stderr)
     for r in existing:
         if (r.split, r.agent, r.oracle, r.seed) != (config.split, config.agent_name, config.oracle, config.seed):
-            raise ResultsFileError(f'{path} holds results of split {r.split!r}, agent {r.agent!r}, oracle {r.oracle!r}, '
-                                   f'seed {r.seed}, not {config.split!r}, {config.agent_name!r}, {config.oracle!r}, '
+            raise ResultsFileError(f'{path} holds results of split {r.split!r}, agent {r.agent!r}, '
+                                   f'oracle {r.oracle!r}, seed {r.seed}, not {config.split!r}, {config.agent_name!r}, '
+                                   f'{config.oracle!r}, '
                                    f'{config.seed}: choose another --out')
     return results_by_task(existing, task_ids)
 
@@ -280,17 +290,10 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
     Results go to the JSON-lines file as each episode ends; tasks already there are skipped (resume).
     Writes the summary JSON next to it and returns the report of every selected task.
     """
-    from dialfred_questioner.baselines import make_questioner, with_questioner
-    from dialfred_sim.agents import make_agent
     from dialfred_sim.metrics import append_result, summarize
     from dialfred_sim.tasks import load_split
 
-    def agent():
-        return with_questioner(make_agent(config.agent, config.resolution),
-                               make_questioner(config.questioner) if config.questioner else None)
-
-    agent()    # an unknown agent or questioner fails here, before any node starts
-    config.check()
+    config.check()    # an unknown agent or questioner, or a bad setting, fails here before any node starts
 
     t0 = time.monotonic()
     tasks = load_split(config.split)[:config.limit]
@@ -306,7 +309,8 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
                         'seed': config.seed} if config.perturb_type else {}
             nodes += [oracle_node(ns, **withhold) for ns in namespaces]
         with Graph(nodes) as graph:
-            workers = [SimWorker(graph, ns, agent(), config, oracle=bool(config.questioner)) for ns in namespaces]
+            workers = [SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
+                       for ns in namespaces]
             startup_s = time.monotonic() - t0
             with progress_bar(len(tasks), len(done), progress) as bar:
                 def record(result) -> None:
@@ -365,10 +369,13 @@ def run_eval_command(args) -> int:
 def add_eval_parser(sub) -> None:
     ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table')
     ev.add_argument('--split', default='valid_unseen', choices=['train', 'valid_seen', 'valid_unseen'])
-    ev.add_argument('--agent', default='expert', choices=['expert', 'random'])
-    ev.add_argument('--questioner', default=None, choices=['random', 'all'],
+    ev.add_argument('--agent', default='expert',
+                    help='expert, random, or your own class as package.module:ClassName (on the Python path; '
+                         'made as ClassName(resolution=R), with reset(task, seed) and act(observation))')
+    ev.add_argument('--questioner', default=None,
                     help='ask the oracle (one oracle node per worker): random = one random question at the '
-                         'start; all = location + appearance of every instruction object, then direction')
+                         'start; all = location + appearance of every instruction object, then direction; '
+                         'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')
     ev.add_argument('--perturb-type', default=None, choices=['location', 'appearance', 'direction'],
                     help="the paper's ablation: the oracle withholds answers of this type (\"I don't know.\")")
     ev.add_argument('--perturb-probability', type=float, default=0.5,

@@ -371,3 +371,70 @@ def test_a_perturbed_oracle_needs_a_questioner_and_a_known_type():
     config = EvalConfig(split=SPLIT, agent='random', questioner='all', perturb_type='direction')
     assert config.oracle == 'direction:0.5'
     assert config.results_path.name == 'valid_unseen_random+all_withhold-direction-0.5.jsonl'
+
+
+# ---------------------------------------------------------------------------------------------- your own agent
+
+MY_AGENTS = '''
+from dialfred_sim.agents import Question
+
+
+class WalkThenStop:
+    """Two steps ahead, then Stop."""
+
+    name = 'walker'
+
+    def __init__(self, resolution=128):
+        self.resolution = resolution
+
+    def reset(self, task, seed):
+        self.steps = 0
+
+    def act(self, observation):
+        self.steps += 1
+        return ('MoveAhead', -1, -1) if self.steps <= 2 else ('Stop', -1, -1)
+
+
+class AskForDirections:
+    name = 'directions'
+
+    def reset(self, task, seed):
+        self.asked = False
+
+    def ask(self, observation, step):
+        return Question('direction') if step == 0 and not self.asked else None
+
+    def hear(self, qa):
+        self.asked = True
+
+
+class NotAnAgent:
+    pass
+'''
+
+
+def test_your_own_agent_and_questioner_run_by_module_and_class_name(tmp_path, monkeypatch):
+    (tmp_path / 'my_agents.py').write_text(MY_AGENTS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    report = evaluate(tmp_path / 'mine.jsonl', agent='my_agents:WalkThenStop', questioner='my_agents:AskForDirections',
+                      limit=3, workers=1)
+    for r in report.results:
+        assert r.agent == 'my_agents:WalkThenStop+my_agents:AskForDirections' and r.questions == 1
+        assert r.end_reason in ('stop', 'success') and r.steps <= 3
+    # The same run resumes from its file (the agent's name in the results is the one it was run by).
+    assert evaluate(tmp_path / 'mine.jsonl', agent='my_agents:WalkThenStop', questioner='my_agents:AskForDirections',
+                    limit=3, workers=1).ran == 0
+
+
+@pytest.mark.parametrize('agent, message', [
+    ('no_such_module_here:Agent', "cannot import 'no_such_module_here'"),
+    ('my_agents:Missing', "has no class 'Missing'"),
+    ('my_agents:NotAnAgent', 'lacks reset, act'),
+    ('walker', "unknown agent 'walker'"),
+])
+def test_an_agent_that_cannot_be_made_is_refused_before_any_node_starts(tmp_path, monkeypatch, agent, message):
+    (tmp_path / 'my_agents.py').write_text(MY_AGENTS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ValueError, match=message):
+        evaluate(tmp_path / 'bad.jsonl', agent=agent)
+    assert not (tmp_path / 'bad.jsonl').exists()

@@ -23,7 +23,7 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question
+from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, load_class
 
 
 class Questioner(Protocol):
@@ -95,11 +95,13 @@ QUESTIONERS = {'random': RandomQuestioner, 'all': AllQuestioner}
 
 
 def make_questioner(name: str) -> Questioner:
-    """A new questioner by name (one per worker: questioners keep per-episode state)."""
-    try:
+    """A new questioner (one per worker: questioners keep per-episode state): 'random', 'all', or your
+    own class as 'package.module:ClassName', constructed without arguments."""
+    if name in QUESTIONERS:
         return QUESTIONERS[name]()
-    except KeyError:
-        raise ValueError(f'unknown questioner {name!r}; known: {", ".join(QUESTIONERS)}') from None
+    if ':' not in name:
+        raise ValueError(f'unknown questioner {name!r}; known: {", ".join(QUESTIONERS)}, or package.module:ClassName')
+    return load_class(name, 'questioner', ('reset', 'ask', 'hear'))()
 
 
 class QuestioningAgent:

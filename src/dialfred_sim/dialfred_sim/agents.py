@@ -5,7 +5,7 @@ observation, names its next action (`act(observation) -> (action, x, y)`, ALFRED
 target pixel in the simulator's frame; -1, -1 for actions without a target). The observation is
 whatever the driver has (the launcher passes the dialfred_msgs/Observation message); the two agents
 here do not look at it. The performer of a later issue is an agent too: `make_agent` is where a new
-one gets its name.
+one gets its name, and any class of yours works as 'package.module:ClassName'.
 
 An agent that talks (`DialogueAgent`) also has `ask(observation) -> Question | None`, called before
 every `act`: a question goes to the oracle and its answer comes back through `hear(qa)`, then `ask`
@@ -15,6 +15,7 @@ questioner this way.
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from typing import Any, Optional, Protocol, runtime_checkable
 
@@ -131,9 +132,30 @@ class RandomAgent:
 AGENTS = {'expert': ExpertAgent, 'random': RandomAgent}
 
 
-def make_agent(name: str, resolution: int = 128) -> Agent:
-    """A new agent by name (one per worker: agents keep per-episode state)."""
+def load_class(spec: str, kind: str = 'agent', methods: tuple[str, ...] = ('reset', 'act')) -> type:
+    """The class named by 'package.module:ClassName' (a module on the Python path), checked to have
+    `methods`; ValueError saying what is wrong otherwise."""
+    module_name, _, class_name = spec.partition(':')
+    if not module_name or not class_name:
+        raise ValueError(f'{kind} {spec!r} is neither a known name nor of the form package.module:ClassName')
     try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:           # a broken module of the user's: say which and why
+        raise ValueError(f'cannot import {module_name!r} for {kind} {spec!r}: {exc!r}') from None
+    cls = getattr(module, class_name, None)
+    if not isinstance(cls, type):
+        raise ValueError(f'{module_name!r} has no class {class_name!r} (for {kind} {spec!r})')
+    missing = [m for m in methods if not callable(getattr(cls, m, None))]
+    if missing:
+        raise ValueError(f'{kind} class {spec!r} lacks {", ".join(missing)}')
+    return cls
+
+
+def make_agent(name: str, resolution: int = 128) -> Agent:
+    """A new agent (one per worker: agents keep per-episode state): 'expert', 'random', or your own
+    class as 'package.module:ClassName', constructed as ClassName(resolution=...)."""
+    if name in AGENTS:
         return AGENTS[name](resolution=resolution)
-    except KeyError:
-        raise ValueError(f'unknown agent {name!r}; known: {", ".join(AGENTS)}') from None
+    if ':' not in name:
+        raise ValueError(f'unknown agent {name!r}; known: {", ".join(AGENTS)}, or package.module:ClassName')
+    return load_class(name)(resolution=resolution)
