@@ -440,7 +440,8 @@ def main(argv=None) -> int:
     demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
     nodes = sub.add_parser('nodes', help='start the node graph and keep it running')
     nodes.add_argument('--resolution', type=int, default=128)
-    dialogue = sub.add_parser('dialogue', help='ask the oracle each question type on a few tasks and print the dialogue')
+    dialogue = sub.add_parser('dialogue',
+                              help='ask the oracle each question type on a few tasks and print the dialogue')
     dialogue.add_argument('--split', default='valid_unseen')
     dialogue.add_argument('--first', type=int, default=0, help='index of the first task')
     dialogue.add_argument('--tasks', type=int, default=3)

@@ -22,11 +22,11 @@ from typing import Optional
 
 import numpy as np
 
+from dialfred_sim.agents import QUESTION_TYPES
 from dialfred_sim.ground_truth import ObjectFact, Snapshot
 
 from .colours import colour_name
 
-QUESTION_TYPES = ('location', 'appearance', 'direction')
 QUESTION_ALIASES = {'loc': 'location', 'app': 'appearance', 'dir': 'direction'}   # the questioner's tokens
 MAX_NOUN_CHARS = 64
 SAME_PLACE_M = 0.125         # the expert's end is "here" on the same grid point (steps are 0.25 m) ...
