@@ -183,9 +183,14 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     return meta
 
 
+def _count_done(out: Path) -> int:
+    """Finished tasks so far, for the progress bar (lines, without parsing them)."""
+    return sum(path.read_bytes().count(b'\n') for path in out.glob('done-*.txt'))
+
+
 def _run_with_progress(pool, args, out: Path, total: int, progress: bool) -> None:
     from tqdm import tqdm
-    with tqdm(total=total, initial=len(_done_records(out)), unit='task', file=sys.stderr,
+    with tqdm(total=total, initial=_count_done(out), unit='task', file=sys.stderr,
               disable=not progress, dynamic_ncols=True) as bar:
         if pool is None:
             _worker(*args[0])
@@ -193,10 +198,10 @@ def _run_with_progress(pool, args, out: Path, total: int, progress: bool) -> Non
             result = pool.starmap_async(_worker, args)
             while not result.ready():
                 result.wait(1.0)
-                bar.n = len(_done_records(out))
+                bar.n = min(_count_done(out), total)
                 bar.refresh()
             result.get()                # re-raises a worker's exception
-        bar.n = len(_done_records(out))
+        bar.n = min(_count_done(out), total)
         bar.refresh()
 
 
