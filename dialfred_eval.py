@@ -111,7 +111,7 @@ class EvalReport:
         }
 
 
-MAX_QUESTIONS = 50     # per episode: an agent that asks more is stopped with an error
+MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
 
 
 class SimWorker:
@@ -144,6 +144,7 @@ class SimWorker:
         self.last_action, self.last_error = '', ''
         self.goal_conditions = (0, 0)
         self.questions, self.invalid_questions = 0, 0
+        self.asked_in_a_row = 0
         self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False),
                    'reset')
 
@@ -185,14 +186,16 @@ class SimWorker:
         if self.ask_cli is not None:
             question = self.agent.ask(obs)
             if question is not None:
-                if self.questions >= MAX_QUESTIONS:
-                    return self._result('error', obs, error=f'the agent asked more than {MAX_QUESTIONS} questions')
+                if self.asked_in_a_row >= MAX_QUESTIONS:
+                    return self._result('error', obs, error=f'the agent asked more than {MAX_QUESTIONS} questions '
+                                                             'without acting')
+                self.asked_in_a_row += 1
                 self.question, self.observation = question, obs
                 self._send(self.ask_cli, OracleAnswer.Request(question_type=question.question_type,
                                                               object_noun=question.object_noun), 'question')
                 return None
         name, x, y = self.agent.act(obs)
-        self.last_action = name
+        self.last_action, self.asked_in_a_row = name, 0
         self._send(self.step_cli, SimStep.Request(action=Action(action=name, x=int(x), y=int(y)),
                                                   with_depth=False, with_segmentation=False), 'step')
         return None
@@ -375,6 +378,7 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--questioner', default=None,
                     help='ask the oracle (one oracle node per worker): random = one random question at the '
                          'start; all = location + appearance of every instruction object, then direction; '
+                         'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
                          'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')
     ev.add_argument('--perturb-type', default=None, choices=['location', 'appearance', 'direction'],
                     help="the paper's ablation: the oracle withholds answers of this type (\"I don't know.\")")

@@ -298,7 +298,7 @@ def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, mon
     report = evaluate(tmp_path / 'chatty.jsonl', agent='expert', questioner='chatty', limit=2, workers=1)
     for r in report.results:
         assert (r.end_reason, r.questions, r.steps) == ('error', dialfred_eval.MAX_QUESTIONS, 0)
-        assert f'more than {dialfred_eval.MAX_QUESTIONS} questions' in r.error
+        assert f'more than {dialfred_eval.MAX_QUESTIONS} questions without acting' in r.error
 
 
 def test_an_unknown_questioner_fails_before_any_node_starts(tmp_path):
@@ -438,3 +438,10 @@ def test_an_agent_that_cannot_be_made_is_refused_before_any_node_starts(tmp_path
     with pytest.raises(ValueError, match=message):
         evaluate(tmp_path / 'bad.jsonl', agent=agent)
     assert not (tmp_path / 'bad.jsonl').exists()
+
+
+def test_the_confusion_questioner_asks_before_every_action_of_the_always_unsure_random_agent(tmp_path):
+    report = evaluate(tmp_path / 'confused.jsonl', agent='random', questioner='confusion', limit=4, workers=1)
+    for r in report.results:
+        assert r.agent == 'random+confusion' and r.invalid_questions == 0
+        assert r.questions == r.steps > 0                     # one question before each action

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections import Counter
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from dialfred_questioner.baselines import (AllQuestioner, QuestioningAgent, RandomQuestioner, make_questioner,
@@ -99,3 +100,52 @@ def test_the_random_questioner_asks_about_the_shipped_tasks_nouns():
     for k, t in enumerate(tasks):
         (step, q), = questions_of(RandomQuestioner(), t, seed=k, steps=2)
         assert step == 0 and (q.object_noun in t.object_nouns or q.question_type == 'direction')
+
+
+class Performer(ExpertAgent):
+    """An expert whose confidence the test sets."""
+
+    def __init__(self, probabilities):
+        super().__init__(128)
+        self.probabilities = probabilities
+
+    def action_probabilities(self, observation):
+        return self.probabilities
+
+
+def test_the_confusion_questioner_asks_once_before_each_action_the_performer_is_unsure_of():
+    from dialfred_questioner.baselines import ModelConfusionQuestioner
+    unsure = np.array([0.4, 0.3] + [0.3 / 11] * 11)          # top two 0.1 apart: confused at epsilon 0.5
+    sure = np.array([0.9, 0.05] + [0.05 / 11] * 11)
+    performer = Performer(unsure)
+    agent = with_questioner(performer, ModelConfusionQuestioner())
+    assert agent.name == 'expert+confusion'
+    agent.reset(task(), seed=5)
+    q = agent.ask(None)
+    assert q is not None and (q.object_noun in ('fridge', 'apple') or q.question_type == 'direction')
+    agent.hear(QA(q, True, 'said'))
+    assert agent.ask(None) is None                           # one question per action
+    agent.act(None)
+    performer.probabilities = sure
+    assert agent.ask(None) is None                           # sure: no question
+    agent.act(None)
+    performer.probabilities = unsure
+    assert agent.ask(None) is not None
+    # Seeded: the same episode seed gives the same questions.
+    def first_question(seed):
+        a = with_questioner(Performer(unsure), ModelConfusionQuestioner())
+        a.reset(task(), seed)
+        return a.ask(None)
+    assert [first_question(s) for s in range(20)] == [first_question(s) for s in range(20)]
+    assert len({first_question(s) for s in range(40)}) > 2
+
+
+def test_the_confusion_questioner_needs_a_performer_that_shows_its_probabilities():
+    from dialfred_questioner.baselines import ModelConfusionQuestioner
+    with pytest.raises(ValueError, match="needs a performer with action_probabilities"):
+        with_questioner(ExpertAgent(), ModelConfusionQuestioner())
+    with pytest.raises(ValueError, match='epsilon'):
+        ModelConfusionQuestioner(epsilon=1.5)
+    from dialfred_sim.agents import RandomAgent
+    uniform = RandomAgent().action_probabilities(None)
+    assert uniform.shape == (13,) and np.isclose(uniform.sum(), 1.0)   # the random agent is always unsure

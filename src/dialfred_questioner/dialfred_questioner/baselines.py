@@ -11,10 +11,14 @@ the oracle's reply comes back through `hear(qa)`. The paper's baselines that nee
 - `AllQuestioner` ("all"): at the beginning, a location and an appearance question about every object
   of the instruction, then one direction question. This is the "instruction + all QAs" setting of
   Table 3. The performer keeps the valid answers.
+- `ModelConfusionQuestioner` ("confusion"): before any action about which the performer is unsure
+  (its two most likely actions differ by less than epsilon = 0.5 in probability), one random
+  question. This is the paper's "random MC" baseline; it needs a performer that exposes
+  `action_probabilities(observation)`.
 
 `with_questioner(agent, questioner)` makes any performer agent a `dialfred_sim.agents.DialogueAgent`.
-The learned questioner (LSTM seq2seq, actor-critic fine-tuning) and the model-confusion questioner
-come with the performer they depend on.
+The learned questioner (LSTM seq2seq, actor-critic fine-tuning) comes with the performer it is
+trained against.
 """
 
 from __future__ import annotations
@@ -91,7 +95,56 @@ class AllQuestioner:
         pass
 
 
-QUESTIONERS = {'random': RandomQuestioner, 'all': AllQuestioner}
+class ModelConfusionQuestioner:
+    """Asks when the performer is unsure: before an action whose two most likely choices differ by less
+    than `epsilon` in probability (the paper's model-confusion criterion, epsilon = 0.5 there), one
+    random question as `RandomQuestioner` draws it. At most one question per action.
+
+    The performer must expose `action_probabilities(observation)`: its probabilities over
+    `dialfred_sim.agents.ACTIONS` for the action it is about to choose."""
+
+    name = 'confusion'
+
+    def __init__(self, epsilon: float = 0.5):
+        if not 0.0 <= epsilon <= 1.0:
+            raise ValueError(f'epsilon must be in [0, 1], got {epsilon}')
+        self.epsilon = epsilon
+        self.performer: Optional[Agent] = None
+        self._rng = np.random.default_rng(0)
+        self._nouns: list[str] = []
+        self._asked_at = -1
+
+    def attach(self, performer: Agent) -> None:
+        if not callable(getattr(performer, 'action_probabilities', None)):
+            raise ValueError(f'the confusion questioner needs a performer with action_probabilities(); '
+                             f'{performer.name!r} has none')
+        self.performer = performer
+
+    def reset(self, task: Any, seed: int) -> None:
+        self._rng = np.random.default_rng([seed, 2])
+        self._nouns = task_nouns(task)
+        self._asked_at = -1
+
+    def confused(self, observation: Any) -> bool:
+        p = np.sort(np.asarray(self.performer.action_probabilities(observation), dtype=float))[::-1]
+        return len(p) < 2 or p[0] - p[1] < self.epsilon
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        if self.performer is None:
+            raise RuntimeError('attach() the performer before asking')
+        if self._asked_at == step or not self.confused(observation):
+            return None
+        self._asked_at = step
+        types = QUESTION_TYPES if self._nouns else ('direction',)
+        qtype = types[int(self._rng.integers(len(types)))]
+        noun = '' if qtype == 'direction' else self._nouns[int(self._rng.integers(len(self._nouns)))]
+        return Question(qtype, noun)
+
+    def hear(self, qa: QA) -> None:
+        pass
+
+
+QUESTIONERS = {'random': RandomQuestioner, 'all': AllQuestioner, 'confusion': ModelConfusionQuestioner}
 
 
 def make_questioner(name: str) -> Questioner:
@@ -110,6 +163,9 @@ class QuestioningAgent:
 
     def __init__(self, performer: Agent, questioner: Questioner):
         self.performer, self.questioner = performer, questioner
+        attach = getattr(questioner, 'attach', None)
+        if attach is not None:         # a questioner that watches the performer (model confusion)
+            attach(performer)
         self.name = f'{performer.name}+{questioner.name}'
         self.dialogue: list[QA] = []
         self._steps = 0

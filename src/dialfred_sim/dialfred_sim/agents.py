@@ -123,6 +123,10 @@ class RandomAgent:
     def reset(self, task: Any, seed: int = 0) -> None:
         self._rng = np.random.default_rng(seed)
 
+    def action_probabilities(self, observation: Any = None) -> np.ndarray:
+        """Uniform over ACTIONS: the random agent is always unsure (see the confusion questioner)."""
+        return np.full(len(ACTIONS), 1.0 / len(ACTIONS))
+
     def act(self, observation: Any = None) -> Decision:
         action = ACTIONS[int(self._rng.integers(len(ACTIONS)))]
         x, y = (int(v) for v in self._rng.integers(self.resolution, size=2))
