@@ -9,7 +9,7 @@ reported with its exit code and the last lines it printed.
     python dialfred_launch.py demo [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/demo]
     python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
     python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
-    python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all]
+    python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
                                    [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
                                    [--seed 0] [--resolution 128]
 
