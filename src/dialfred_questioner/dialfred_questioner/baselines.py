@@ -48,6 +48,14 @@ def task_nouns(task: Any) -> list[str]:
     return list(dict.fromkeys(n for n in task.object_nouns if n))
 
 
+def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:
+    """A uniform question type; for location and appearance, a uniform noun of `nouns` (only
+    direction questions when there is none)."""
+    types = QUESTION_TYPES if nouns else ('direction',)
+    qtype = types[int(rng.integers(len(types)))]
+    return Question(qtype, '' if qtype == 'direction' else nouns[int(rng.integers(len(nouns)))])
+
+
 class RandomQuestioner:
     """One question at the beginning: a uniform type, and for location/appearance a uniform noun."""
 
@@ -57,12 +65,8 @@ class RandomQuestioner:
         self._question: Optional[Question] = None
 
     def reset(self, task: Any, seed: int) -> None:
-        rng = np.random.default_rng([seed, 1])       # a stream apart from the performer's seed
-        nouns = task_nouns(task)
-        types = QUESTION_TYPES if nouns else ('direction',)
-        qtype = types[int(rng.integers(len(types)))]
-        noun = '' if qtype == 'direction' else nouns[int(rng.integers(len(nouns)))]
-        self._question = Question(qtype, noun)
+        # A stream apart from the performer's, which is seeded with `seed` itself.
+        self._question = random_question(np.random.default_rng([seed, 1]), task_nouns(task))
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
         if step > 0:
@@ -135,10 +139,7 @@ class ModelConfusionQuestioner:
         if self._asked_at == step or not self.confused(observation):
             return None
         self._asked_at = step
-        types = QUESTION_TYPES if self._nouns else ('direction',)
-        qtype = types[int(self._rng.integers(len(types)))]
-        noun = '' if qtype == 'direction' else self._nouns[int(self._rng.integers(len(self._nouns)))]
-        return Question(qtype, noun)
+        return random_question(self._rng, self._nouns)
 
     def hear(self, qa: QA) -> None:
         pass
