@@ -36,7 +36,6 @@ from .answers import (MAX_NOUN_CHARS, QUESTION_ALIASES, QUESTION_TYPES, Answer, 
                       question_text, situation_key)
 
 
-
 class SimulatorUnavailable(RuntimeError):
     pass
 
