@@ -489,6 +489,24 @@ def test_a_stove_knob_lights_its_burner_and_heats_the_kettle_on_it(env):
     assert not knob.is_on and not burner.is_on
 
 
+@pytest.mark.parametrize('switch_on, switch_off', [('burner', 'knob'), ('knob', 'burner'), ('burner', 'burner')])
+def test_a_stove_knob_and_its_burner_are_one_switch(env, switch_on, switch_off):
+    """Turning the burner itself on turns its knob too, so either can turn it off again."""
+    w = kitchen(env)
+    knob = first_of(env, 'StoveKnob')
+    burner = w.objects[knob.controls]
+    parts = {'knob': knob, 'burner': burner}
+    kettle = spawn_on(env, 'Kettle', burner.object_id)
+    ok(env, 'ToggleOn', face(env, parts[switch_on].object_id))
+    assert knob.is_on and burner.is_on and kettle.temperature == HOT
+    other = parts['knob' if switch_on == 'burner' else 'burner']
+    fails(env, 'ToggleOn', face(env, other.object_id), match=rf'^{other.object_id} is already on$')
+    ok(env, 'ToggleOff', face(env, parts[switch_off].object_id))
+    assert not knob.is_on and not burner.is_on
+    other = parts['knob' if switch_off == 'burner' else 'burner']
+    fails(env, 'ToggleOff', face(env, other.object_id), match=rf'^{other.object_id} is already off$')
+
+
 def test_putting_on_a_lit_burner_heats(env):
     w = kitchen(env)
     knob = first_of(env, 'StoveKnob')
@@ -711,6 +729,98 @@ def test_malformed_actions_raise_value_error_and_change_nothing(env, action):
     assert np.array_equal(env.render(), frame)
     _, _, _, info = act(env, 'RotateRight')
     assert info['step_count'] == 2 and info['failed_actions'] == 0
+
+
+# A pixel is two integers. Anything else is a caller's bug that used to be coerced silently (3.9 -> 3,
+# '3' -> 3, True -> 1) or to escape as OverflowError (inf).
+NOT_A_PIXEL = [
+    pytest.param((3.9, 5.9), id='floats'),
+    pytest.param((3.0, 5.0), id='whole-floats'),
+    pytest.param(('3', '5'), id='digit-strings'),
+    pytest.param('35', id='a-string'),
+    pytest.param((True, False), id='bools'),
+    pytest.param((float('inf'), 3), id='inf'),
+    pytest.param((float('nan'), 3), id='nan'),
+    pytest.param(np.array([3.5, 5.0]), id='float-array'),
+    pytest.param({3, 5}, id='a-set'),
+    pytest.param(7, id='one-number'),
+]
+
+
+@pytest.mark.parametrize('pixel', NOT_A_PIXEL)
+def test_a_pixel_that_is_not_two_integers_is_a_value_error_naming_it(env, pixel):
+    reset(env, KITCHEN)
+    before, frame = snapshot(env), env.render().copy()
+    with pytest.raises(ValueError, match=r'Pickup needs a target pixel \(x, y\) of two integers, got ') as caught:
+        env.step({'action': 'Pickup', 'pixel': pixel})
+    assert repr(pixel) in str(caught.value)
+    assert snapshot(env) == before and np.array_equal(env.render(), frame)
+    assert env.steps == 0 and env.failures == 0 and not env.done
+
+
+@pytest.mark.parametrize('pixel', [(3, 5), [3, 5], np.array([3, 5]), (np.int32(3), np.int64(5))])
+def test_a_pixel_may_be_any_pair_of_python_or_numpy_integers(env, pixel):
+    reset(env, KITCHEN)
+    _, _, _, info = act(env, 'Pickup', pixel)
+    assert info['step_count'] == 1     # taken as an action (it may fail: there may be nothing there)
+
+
+BAD_LIMITS = [
+    pytest.param({'max_steps': 0}, ValueError, id='max_steps-0'),
+    pytest.param({'max_steps': -5}, ValueError, id='max_steps-negative'),
+    pytest.param({'max_failures': 0}, ValueError, id='max_failures-0'),
+    pytest.param({'max_steps': 2.5}, TypeError, id='max_steps-float'),
+    pytest.param({'max_steps': '100'}, TypeError, id='max_steps-string'),
+    pytest.param({'max_failures': True}, TypeError, id='max_failures-bool'),
+    pytest.param({'max_failures': None}, TypeError, id='max_failures-none'),
+    pytest.param({'dirty_probability': 1.5}, ValueError, id='dirty_probability-above-1'),
+    pytest.param({'dirty_probability': float('nan')}, ValueError, id='dirty_probability-nan'),
+    pytest.param({'dirty_probability': '0.2'}, TypeError, id='dirty_probability-string'),
+]
+
+
+@pytest.mark.parametrize('kwargs, error', BAD_LIMITS)
+def test_episode_limits_must_be_positive_integers(make_env, kwargs, error):
+    name, value = next(iter(kwargs.items()))
+    with pytest.raises(error, match=rf'^{name} must .*got {re.escape(repr(value))}'):
+        make_env(**kwargs)
+
+
+BAD_RESET_OPTIONS = [
+    pytest.param({'task_id': 12}, TypeError, r"task_id must be a string .*got 12 \(int\)", id='task_id-int'),
+    pytest.param({'task_id': ''}, ValueError, r"task_id must name a task .*got ''", id='task_id-empty'),
+    pytest.param({'task_id': None}, TypeError, r'task_id must be a string .*got None', id='task_id-none'),
+    pytest.param({'task_id': 'valid_unseen/999999'}, ValueError, r"unknown task_id 'valid_unseen/999999'",
+                 id='task_id-unknown'),
+    pytest.param({'task': None}, TypeError, r'task must be a dialfred_sim.tasks.Task, got None', id='task-none'),
+    pytest.param({'task': 'valid_unseen/000012'}, TypeError, r"task must be .*got 'valid_unseen/000012'",
+                 id='task-a-string'),
+    pytest.param({'task_id': 'valid_unseen/000012', 'scene': 'FloorPlan1'}, ValueError,
+                 r"give 'task_id' or 'task' alone", id='task-and-scene'),
+    pytest.param({'scene': 7}, TypeError, r"scene must be a string .*got 7", id='scene-int'),
+    pytest.param({'scene': ''}, ValueError, r"unknown scene ''", id='scene-empty'),
+    pytest.param({'scene': 'FloorPlan99'}, ValueError, r"unknown scene 'FloorPlan99'", id='scene-unknown'),
+    pytest.param({'taskid': 'valid_unseen/000012'}, ValueError, r"unknown reset option\(s\) 'taskid'",
+                 id='misspelt-key'),
+    pytest.param({'dirty_probability': -0.1}, ValueError, r'dirty_probability must be in \[0, 1\], got -0.1',
+                 id='dirty_probability-negative'),
+    pytest.param(['scene', 'FloorPlan1'], TypeError, r'options must be a dict', id='options-a-list'),
+]
+
+
+@pytest.mark.parametrize('options, error, message', BAD_RESET_OPTIONS)
+def test_bad_reset_options_are_a_clear_error_and_change_nothing(env, options, error, message):
+    reset(env, KITCHEN)
+    act(env, 'RotateLeft')
+    before, frame = snapshot(env), env.render().copy()
+    rng_state = env.np_random.bit_generator.state
+    with pytest.raises(error, match=message):
+        env.reset(seed=5, options=options)
+    assert snapshot(env) == before and np.array_equal(env.render(), frame)
+    assert env.np_random.bit_generator.state == rng_state      # not even reseeded
+    assert env.task is None and env.steps == 1 and not env.done
+    _, _, _, info = act(env, 'RotateRight')                    # the episode goes on
+    assert info['step_count'] == 2 and info['scene'] == KITCHEN
 
 
 def test_navigation_ignores_the_pixel(env):

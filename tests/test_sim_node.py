@@ -399,6 +399,20 @@ def test_a_task_reset_describes_the_task_and_the_expert_reaches_its_goal(task_si
     assert step.goal_conditions_met == step.goal_conditions_total == len(task.goal)
 
 
+def test_a_task_counts_only_the_goal_conditions_left_to_do_at_its_start(task_sim):
+    """A Heat task's goal is hot + in hand + microwave closed; the last two hold at the start, so the
+    reset and every step report 1 condition to achieve, and stopping at once achieves none."""
+    from dialfred_sim.tasks import load_split
+    graph, reset_cli, step_cli = task_sim
+    task = next(t for t in load_split('valid_unseen') if t.task_type == 'Heat')
+    reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id))
+    assert reply.ok, reply.error
+    assert len(task.goal) == 3 and reply.task.goal_conditions_total == 1
+    step = graph.call(step_cli, SimStep.Request(action=Action(action='Stop')))
+    assert step.ok and step.terminated and not step.success
+    assert (step.goal_conditions_met, step.goal_conditions_total) == (0, 1)
+
+
 def test_free_exploration_has_no_goal(task_sim):
     graph, reset_cli, step_cli = task_sim
     assert graph.call(reset_cli, SimReset.Request(scene='FloorPlan1', seed=0)).ok

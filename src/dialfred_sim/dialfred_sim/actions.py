@@ -196,6 +196,19 @@ def open_close(world: World, obj: WorldObject, want_open: bool) -> ActionResult:
     return ActionResult(True, target=oid)
 
 
+def switched_together(world: World, obj: WorldObject) -> list[WorldObject]:
+    """The toggleable objects that are one switch with `obj`: a stove knob and the burner it controls
+    are on or off together, whichever of the two is toggled (a faucet and its basin are not: the
+    basin has no on/off state)."""
+    linked = [obj]
+    controlled = world.objects.get(obj.controls) if obj.controls else None
+    if controlled is not None and controlled.otype.toggleable:
+        linked.append(controlled)
+    linked += [o for o in world.objects.values()
+               if o.controls == obj.object_id and o.otype.toggleable and o not in linked]
+    return linked
+
+
 def toggle(world: World, obj: WorldObject, want_on: bool) -> ActionResult:
     oid = obj.object_id
     if not obj.otype.toggleable:
@@ -205,9 +218,8 @@ def toggle(world: World, obj: WorldObject, want_on: bool) -> ActionResult:
         return _fail(f'{oid} is already {"on" if want_on else "off"}', oid)
     if want_on and obj.type_name == 'Microwave' and obj.is_open:
         return _fail(f'{oid} is open; close it before turning it on', oid)
-    obj.is_on = want_on
-    if controlled is not None and controlled.otype.toggleable:
-        controlled.is_on = want_on    # a stove knob lights its burner
+    for switch in switched_together(world, obj):   # a stove knob lights its burner, and back
+        switch.is_on = want_on
     if want_on:
         heater = controlled if controlled is not None and controlled.type_name == 'StoveBurner' else obj
         if obj.type_name == 'Faucet' and controlled is not None:

@@ -58,8 +58,9 @@ def image_bytes(array: np.ndarray) -> pyarray.array:
     return data
 
 
-def task_description(task) -> TaskDescription:
-    """The TaskDescription message of a tasks.Task."""
+def task_description(task, goal_conditions_total: int) -> TaskDescription:
+    """The TaskDescription message of a tasks.Task; `goal_conditions_total` is the env's count of the
+    conditions left to achieve at the task's start (info['goal_conditions_total'])."""
     t = TaskDescription()
     t.task_id, t.task_type, t.scene, t.split = task.task_id, task.task_type, task.scene, task.split
     t.instruction, t.step_instructions = task.instruction, list(task.step_instructions)
@@ -67,7 +68,7 @@ def task_description(task) -> TaskDescription:
     i, j, rot, horizon = task.expert_end_pose
     t.expert_end_pose = AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
                                   rotation_deg=float(rot), horizon_deg=float(horizon))
-    t.goal_conditions_total = len(task.goal)
+    t.goal_conditions_total = int(goal_conditions_total)
     return t
 
 
@@ -134,7 +135,7 @@ class SimNode(Node):
             return response
         response.ok = True
         self._fill_observation(response.observation, False, request.with_depth, request.with_segmentation)
-        response.task = task_description(self.env.task)
+        response.task = task_description(self.env.task, self.info['goal_conditions_total'])
         self._publish(response.observation)
         return response
 
@@ -153,7 +154,7 @@ class SimNode(Node):
                                    rotation_deg=float(rot), horizon_deg=float(horizon))
         if self.env.task is not None:
             response.has_task = True
-            response.task = task_description(self.env.task)
+            response.task = task_description(self.env.task, self.info['goal_conditions_total'])
         response.task_nouns = list(snap.task_objects)
         response.task_object_ids = list(snap.task_objects.values())
         response.objects = [object_fact_msg(f) for f in snap.objects.values()]
