@@ -161,6 +161,174 @@ def test_move_ahead_into_furniture_fails_naming_it(env):
     pytest.fail('no pose facing furniture')
 
 
+# ---------------------------------------------------------------------------------------------- open doors
+
+UNSEEN_KITCHEN = 'FloorPlan10'     # the room of issue 10: 4 free points within 0.075 m of an open door
+
+
+def openables(env):
+    return sorted((o for o in env.world.objects.values() if o.fixture and o.otype.openable
+                   and o.spec.articulation is not None), key=lambda o: o.object_id)
+
+
+def test_no_free_grid_point_is_within_the_agents_radius_of_an_open_door(env):
+    from dialfred_sim.world.open_parts import clearance
+    reset(env, UNSEEN_KITCHEN)
+    w = env.world
+    doors = openables(env)
+    assert {o.type_name for o in doors} >= {'Fridge', 'Cabinet', 'Microwave'}
+    for door in doors:
+        w.set_open(door, True)
+    free = w.free_floor()
+    taken = w.layout.navigable - free
+    assert len(taken) >= 4 and free
+    for door in doors:
+        outlines = w.open_part_outlines(door)
+        assert min(clearance(i * GRID, j * GRID, outlines) for i, j in free) >= AGENT_RADIUS, door.object_id
+    for i, j in taken:
+        assert w.open_blocker(i, j) is not None
+        with pytest.raises(ValueError, match=r'is taken by the open '):
+            env.teleport(i, j, 0, 30)
+
+
+def test_an_open_fridge_door_blocks_the_agent_and_closing_it_clears_the_way(env):
+    w = kitchen(env)
+    fridge = first_of(env, 'Fridge')
+    ok(env, 'Open', face(env, fridge.object_id))
+    free = w.free_floor()
+    for (i, j) in sorted(w.layout.navigable - free):
+        for rot, (di, dj) in HEADING.items():
+            if (i - di, j - dj) in free and w.open_blocker(i, j) == fridge.object_id:
+                env.teleport(i - di, j - dj, rot, 0)
+                fails(env, 'MoveAhead', match=rf'^MoveAhead blocked by {fridge.object_id}, which is open$')
+                fridge_px = env.pixel_of(fridge.object_id)
+                if fridge_px is None or distance_at(env, fridge_px) > REACH:
+                    continue
+                ok(env, 'Close', fridge_px)
+                ok(env, 'MoveAhead')
+                assert agent_pose(env)[:2] == (i, j)
+                return
+    pytest.fail('no free point next to the open door, facing it with the fridge in reach')
+
+
+def test_a_door_does_not_open_into_the_agent(env):
+    """Opening fails, changing nothing, where the door would swing into the agent on its way open."""
+    w = kitchen(env)
+    fridge = first_of(env, 'Fridge')
+    in_the_way = [(i, j) for i, j in sorted(w.layout.navigable) if w.would_hit_agent(fridge, i, j)]
+    assert in_the_way
+    for i, j in in_the_way:
+        for rot in HEADING:
+            for hor in (0, 15, 30, 45, 60):
+                env.teleport(i, j, rot, hor)
+                px = env.pixel_of(fridge.object_id)
+                if px is not None and distance_at(env, px) <= REACH:
+                    fails(env, 'Open', px, match=rf'^{fridge.object_id} would hit you as it opens; step back first$')
+                    assert not fridge.is_open
+                    ok(env, 'Open', face(env, fridge.object_id))
+                    assert fridge.is_open and not w.would_hit_agent(fridge)
+                    return
+    pytest.fail('the fridge is never in reach from where its door would hit the agent')
+
+
+# ---------------------------------------------------------------------------------------------- the hand
+
+def _carried_box(obj):
+    rect = footprint(obj.position, obj.yaw, obj.spec.size)
+    return rect, obj.position[2], obj.position[2] + obj.spec.size[2]
+
+
+def _passes_into(env, obj):
+    """What the held object's box overlaps: 'the wall', a fixture id, or None."""
+    w = env.world
+    rect, z0, z1 = _carried_box(obj)
+    lay = w.layout
+    if rect[0] < -1e-6 or rect[1] < -1e-6 or rect[2] > lay.width + 1e-6 or rect[3] > lay.depth + 1e-6:
+        return 'the wall'
+    for fx in lay.fixtures:
+        r = footprint(fx.position, fx.yaw, fx.spec.size)
+        if (rect[0] < r[2] - 1e-6 and r[0] < rect[2] - 1e-6 and rect[1] < r[3] - 1e-6 and r[1] < rect[3] - 1e-6
+                and z0 < fx.position[2] + fx.spec.size[2] - 1e-6 and fx.position[2] < z1 - 1e-6):
+            return fx.object_id
+    return None
+
+
+def test_a_held_object_stays_in_the_room_and_out_of_the_furniture(env):
+    """Issue 10: a bread carried towards a wall ended 0.17 m outside the room. On every free point
+    and heading of the room the hand now draws it back until it is clear."""
+    reset(env, UNSEEN_KITCHEN)
+    w = env.world
+    bread = spawn_held(env, 'Bread')
+    drawn_back = 0
+    for i, j in sorted(w.layout.navigable):
+        for rot in HEADING:
+            env.teleport(i, j, rot, 30)
+            assert _passes_into(env, bread) is None, (i, j, rot, bread.position)
+            a = w.agent
+            ahead = (bread.position[0] - a.x) * math.cos(math.radians(rot)) + \
+                (bread.position[1] - a.y) * math.sin(math.radians(rot))
+            drawn_back += ahead < 0.42 - 1e-6
+    assert drawn_back > 0        # the hand did have to draw back somewhere
+
+
+def test_a_held_object_is_carried_at_full_reach_where_there_is_room(env):
+    reset(env, KITCHEN)
+    apple = spawn_held(env, 'Apple')
+    w = env.world
+    for i, j in sorted(w.layout.navigable):
+        for rot in HEADING:
+            env.teleport(i, j, rot, 30)
+            ahead = (apple.position[0] - w.agent.x) * math.cos(math.radians(rot)) + \
+                (apple.position[1] - w.agent.y) * math.sin(math.radians(rot))
+            if ahead == pytest.approx(0.42):
+                assert apple.position[2] == pytest.approx(0.95)
+                return
+    pytest.fail('the apple is never carried at full reach')
+
+
+def _wall_approach(env):
+    """(i, j, rot): a free point from which one step ahead lands on the free point nearest a wall,
+    facing that wall."""
+    w = env.world
+    nav = w.layout.navigable
+    for i, j in sorted(nav):
+        for rot, (di, dj) in HEADING.items():
+            a, b = (i + di, j + dj), (i + 2 * di, j + 2 * dj)
+            x, y = b[0] * GRID, b[1] * GRID
+            outside = x <= 0 or y <= 0 or x >= w.layout.width or y >= w.layout.depth
+            if a in nav and outside and not _near_furniture(env, a[0] * GRID, a[1] * GRID, 0.7):
+                return i, j, rot
+    raise AssertionError('no free approach to a wall')
+
+
+def test_a_baseball_bat_cannot_be_carried_into_the_wall(env):
+    """A bat is longer than the agent is wide: facing the wall from the nearest point there is no
+    room to hold it. The step that would push it through the wall fails and changes nothing."""
+    kitchen(env)
+    i, j, rot = _wall_approach(env)
+    env.teleport(i, j, rot, 30)
+    bat = spawn_held(env, 'BaseballBat')
+    assert _passes_into(env, bat) is None
+    fails(env, 'MoveAhead', match=rf'^MoveAhead blocked: the {bat.object_id} in hand would pass into the wall$')
+    apple = spawn_on(env, 'Apple', counter(env).object_id)
+    env.world.remove(bat.object_id)
+    env.world.hold(apple)
+    rerender(env)
+    ok(env, 'MoveAhead')                  # an apple fits: the hand draws it back instead
+    assert _passes_into(env, apple) is None
+
+
+def test_turning_to_face_the_wall_with_a_bat_in_hand_fails(env):
+    kitchen(env)
+    i, j, rot = _wall_approach(env)
+    di, dj = HEADING[rot]
+    env.teleport(i + di, j + dj, (rot + 90) % 360, 30)     # on the point nearest the wall, beside it
+    bat = spawn_held(env, 'BaseballBat')
+    if env.world.carry_spot(bat, i + di, j + dj, (rot + 90) % 360)[0] is None:
+        pytest.skip('no room for the bat beside the wall either')
+    fails(env, 'RotateRight', match=rf'^RotateRight blocked: the {bat.object_id} in hand would pass into the wall$')
+
+
 def test_rotate_left_turns_90_degrees_counter_clockwise_and_right_clockwise(env):
     reset(env, KITCHEN)
     i, j, _ = free_ahead_pose(env)
@@ -343,8 +511,9 @@ def test_put_places_the_object_on_the_shelf_the_agent_points_at(env):
     from dialfred_sim.world.scene import _to_local
     w = kitchen(env)
     fridge = first_of(env, 'Fridge')
-    ok(env, 'Open', face(env, fridge.object_id))
+    ok(env, 'Open', face(env, fridge.object_id))      # from where its door cannot hit the agent
     apple = spawn_held(env, 'Apple')
+    face(env, fridge.object_id)                        # then step up to the open fridge
     _, depth, seg = env._frame
     ys, xs = np.nonzero(seg == fridge.body)
     shelves: dict[int, list] = {}

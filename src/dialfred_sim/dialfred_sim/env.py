@@ -175,7 +175,8 @@ class DialfredEnv(gym.Env):
         """Put the agent on grid point (i, j) facing `rotation` degrees with camera pitch `horizon`.
 
         For experts, tests and tools (not an agent action; it does not count as a step). ValueError
-        if the point is not free floor or the pose is off the action grid. Returns the observation.
+        if the point is not free floor (furniture, walls, an open door) or the pose is off the action
+        grid or leaves no room for the object in hand. Returns the observation.
         """
         if self._frame is None:
             raise RuntimeError('teleport() before reset()')
@@ -184,6 +185,14 @@ class DialfredEnv(gym.Env):
         if rotation % 90 or not HORIZON_MIN <= horizon <= HORIZON_MAX or horizon % 15:
             raise ValueError(f'rotation must be a multiple of 90 and horizon a multiple of 15 in '
                              f'[{HORIZON_MIN:g}, {HORIZON_MAX:g}], got {rotation}, {horizon}')
+        door = self.world.open_blocker(i, j)
+        if door is not None:
+            raise ValueError(f'grid point ({i}, {j}) is taken by the open {door}')
+        if self.world.held is not None:
+            spot, hit = self.world.carry_spot(self.world.objects[self.world.held], i, j, int(rotation) % 360)
+            if spot is None:
+                raise ValueError(f'no room at ({i}, {j}, {rotation}) for the {self.world.held} in hand: '
+                                 f'it would pass into {hit}')
         a = self.world.agent
         a.i, a.j, a.rotation, a.horizon = int(i), int(j), int(rotation) % 360, float(horizon)
         self.world.update_held_pose()
