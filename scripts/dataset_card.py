@@ -142,6 +142,42 @@ def job_type_table(stats: dict[str, dict]) -> list[str]:
     return markdown_table(['ALFRED job type (episodes)', *stats], rows, 'l' + 'r' * len(stats))
 
 
+# How the evaluation scores an episode, GC's definition beside ALFRED's.
+METRICS_SECTION = [
+    '## Metrics',
+    '',
+    '`dialfred_sim/metrics.py` scores an evaluated episode as the paper does (after ALFRED), with one'
+    ' change to GC:',
+    '',
+    '- **SR**: a task succeeds when every goal condition holds; the episode ends at that moment.',
+    "- **PWSR**: success weighted by path length, s L* / max(L*, L), with L* the expert's length and "
+    "L the agent's steps.",
+    "- **GC** (goal-condition success). ALFRED's is the fraction of the goal's conditions that hold "
+    'at the end of the episode. Ours is the fraction of the conditions **that did not hold when the '
+    "task started** that hold at the end (`dialfred_sim.tasks.goals.goal_progress`). ALFRED's "
+    'episodes start in a fresh room, where hardly any condition holds yet. A DialFRED task starts '
+    "where the previous task of its episode ended, and there some do. A Heat task's goal is [the "
+    'object is hot, it is in hand, the microwave is closed], and the object is in hand and the '
+    "microwave closed when the task starts. Counted ALFRED's way, an agent that stops at once scored "
+    'GC 66.7% on every Clean, Cool and Heat task and 50% on Open & Pick & Close and Open & Put & '
+    "Close: 6.3% over valid_unseen as it was shipped before issue 10, near the random agent's 7.8%. "
+    "And the expert's GC fell from 2/3 to 0/3 while it put the object into the microwave. Counted our"
+    " way, doing nothing scores 0 on every task, and GC never falls along the expert's path "
+    '(`./dialfred bench expert_gc`, every task of both valid splits).',
+    '  - GC 100% does not mean success. Success also needs the conditions that held at the start to '
+    'hold at the end. An agent that heats the apple and leaves it in the microwave has made the one '
+    'change the task asked for (GC 1/1), but it has not finished the task (the apple is not in hand).',
+    '  - Undoing a condition that held at the start costs success, never GC.',
+    '  - Every generated task has at least one condition left to do (the generator drops a task whose'
+    ' goal already holds). A hand-made task with none scores GC = its success (0 or 1).',
+    "  - The simulator reports both numbers: `info['goal_conditions_met']` and "
+    "`info['goal_conditions_total']` in the Gymnasium env, the same fields in the `/sim/step` reply, "
+    'and `goal_conditions_total` in the task description of the `/sim/reset` reply.',
+    '- **NQ**: questions asked per task (NQ_invalid: those the oracle could not answer).',
+    '',
+]
+
+
 def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[Task]) -> str:
     """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples."""
     present = ', '.join(f'`{name}`' for name in stats)
@@ -184,6 +220,7 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         '- **Rooms.** As in ALFRED, valid_unseen uses rooms never seen in train (FloorPlan'
         + ', '.join(map(str, VALID_UNSEEN_SCENES)) + ') and valid_seen reuses train\'s rooms.',
         '',
+        *METRICS_SECTION,
         '## Summary per split',
         '',
         f'Splits present when this card was written: {present}.',

@@ -75,3 +75,10 @@ def test_cache_decay_rejects_a_bad_budget():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'cache_decay.py'), '--reps', '0'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and '--reps must be >= 1' in proc.stderr
+
+
+def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks():
+    report = run_bench('expert_gc', '--limit', '12')
+    assert report['tasks'] == 12 and report['expert_failures'] == []
+    assert report['gc_nonzero_or_nothing_to_do_at_start'] == [] and report['falls'] == []
+    assert sum(row['n'] for row in report['per_type'].values()) == 12
