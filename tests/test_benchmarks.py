@@ -82,3 +82,9 @@ def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks()
     assert report['tasks'] == 12 and report['expert_failures'] == []
     assert report['gc_nonzero_or_nothing_to_do_at_start'] == [] and report['falls'] == []
     assert sum(row['n'] for row in report['per_type'].values()) == 12
+
+
+def test_split_physics_finds_every_shipped_valid_episode_allowed():
+    report = run_bench('split_physics', '--split', 'valid_unseen', '--limit', '6')
+    assert report['episodes'] == 6 and report['tasks'] > 0
+    assert report['episodes_refused'] == 0 and report['refused'] == [] and report['reasons'] == {}

@@ -176,6 +176,29 @@ def test_an_unknown_task_id_is_a_clear_error():
         get_task('nonsense')
 
 
+def test_a_task_the_world_cannot_rebuild_is_a_clear_error_not_a_crash():
+    """A split made under older rules (an expert path through an open door) cannot be set up: reset
+    says which task and step, and the env asks for a new reset instead of playing a broken state."""
+    from dataclasses import replace
+    from dialfred_sim.tasks.schema import ExpertAction
+    task = get_task('valid_unseen/000005')
+    episode = replace(task.episode, actions=[ExpertAction('Pickup', 1, 1, 'NoSuchThing_0', (0.0, 0.0, 0.0)),
+                                             *task.episode.actions])
+    broken = replace(task, episode=episode, start=task.start + 1, end=task.end + 1)
+    env = DialfredEnv(resolution=64)
+    try:
+        env.reset(options={'task': task})
+        with pytest.raises(ValueError, match=r'^task valid_unseen/000005 cannot be set up in this simulator: '
+                                             r'replay step 0: NoSuchThing_0 does not exist'):
+            env.reset(options={'task': broken})
+        with pytest.raises(RuntimeError, match='before reset'):
+            env.step('MoveAhead')
+        _, info = env.reset(options={'task': task})         # and it recovers
+        assert info['task_id'] == task.task_id
+    finally:
+        env.close()
+
+
 def test_the_same_task_gives_the_same_first_frame():
     a, b = DialfredEnv(), DialfredEnv()
     try:

@@ -103,7 +103,9 @@ class DialfredEnv(gym.Env):
         {'dirty_probability': p} overrides the constructor's; {'task_id': 'valid_unseen/000012'} (or
         {'task': Task}) starts that DialFRED task (the seed is then the task's, and no other option
         may be given). Bad options raise TypeError (wrong type) or ValueError (unknown key, scene or
-        task, a value out of range) and change nothing."""
+        task, a value out of range) and change nothing. A task whose start state the world refuses
+        to rebuild (its split made under older rules) raises ValueError after the room was rebuilt:
+        the env then needs a new reset."""
         options = _check_options(options)     # TypeError / ValueError before anything changes
         if 'task' in options:
             return self._reset_to_task(options['task'])
@@ -151,7 +153,15 @@ class DialfredEnv(gym.Env):
         super().reset(seed=episode.seed)
         self._build(room_layout(episode.scene), self.dirty_probability)
         apply_setup(self.world, episode.setup)
-        replay(self.world, episode.actions[:task.start])
+        try:
+            replay(self.world, episode.actions[:task.start])
+        except RuntimeError as exc:
+            # The task's split was made under other rules (before a physics change): its start state
+            # cannot be rebuilt. The room is half built, so the env needs a new reset.
+            self.task, self.goal_met, self.goal_met_at_start = None, [], []
+            self._frame, self.done = None, True
+            raise ValueError(f'task {task.task_id} cannot be set up in this simulator: {exc}; its split '
+                             'predates the simulator\'s rules and must be regenerated') from None
         a = self.world.agent
         a.i, a.j, a.rotation, a.horizon = task.start_pose
         self.world.update_held_pose()

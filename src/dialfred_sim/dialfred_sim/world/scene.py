@@ -131,7 +131,8 @@ class World:
         self._projection = client.computeProjectionMatrixFOV(FOV_DEG, width / height, NEAR, FAR)
         self._counts: dict[str, int] = {}
         self._fixture_bodies: dict[str, int] = {}      # the current room's furniture, kept for its next episode
-        self._carry_cache: dict[tuple, tuple] = {}     # carry_spot per (object, pose), for this episode
+        self._carry_cache: dict[tuple, tuple] = {}     # carry_spot per (size, pose), for this room
+        self._outline_cache: dict[tuple, list] = {}    # open_part_outlines per (object, pose, fraction)
 
     # ------------------------------------------------------------------ building
 
@@ -152,7 +153,7 @@ class World:
         self.layout = layout
         self.objects, self.body_to_object = {}, {}
         self.held = None
-        self._carry_cache = {}
+        self._carry_cache, self._outline_cache = {}, {}
         self._counts = {}
         if not reuse:
             self.structure_bodies, self._fixture_bodies = {}, {}
@@ -349,10 +350,11 @@ class World:
     def carry_spot(self, obj: WorldObject, i: int, j: int, rotation: int) -> tuple[Optional[tuple], str]:
         """(spot, '') where the agent on (i, j) facing `rotation` would carry `obj` (and what it
         carries), clear of the walls and fixtures; (None, what it would hit) if there is no room (hand.py)."""
-        key = (obj.object_id, i, j, rotation % 360)
+        # what it carries (an apple on a plate) adds to its height
+        height = obj.spec.size[2] + max((o.spec.size[2] for o in self.descendants(obj)), default=0.0)
+        size = (obj.spec.size[0], obj.spec.size[1], height)
+        key = (size, i, j, rotation % 360)
         if key not in self._carry_cache:
-            height = obj.spec.size[2] + max((o.spec.size[2] for o in self.descendants(obj)), default=0.0)
-            size = (obj.spec.size[0], obj.spec.size[1], height)
             self._carry_cache[key] = carry_spot(solids_of(self.layout.scene), i * GRID, j * GRID, rotation, size)
         return self._carry_cache[key]
 
@@ -396,7 +398,10 @@ class World:
     def open_part_outlines(self, obj: WorldObject, fraction: float = 1.0) -> list:
         """Floor outlines of `obj`'s door, lid or drawer opened to `fraction`, where they reach the
         agent's height (see open_parts)."""
-        return footprints(moving_part_boxes(obj.spec, obj.position, obj.yaw, fraction))
+        key = (obj.object_id, obj.position, obj.yaw, fraction)
+        if key not in self._outline_cache:
+            self._outline_cache[key] = footprints(moving_part_boxes(obj.spec, obj.position, obj.yaw, fraction))
+        return self._outline_cache[key]
 
     def open_blocker(self, i: int, j: int) -> Optional[str]:
         """The open object whose door or drawer stands where an agent on grid point (i, j) would."""
