@@ -100,7 +100,8 @@ class EvalReport:
         c = self.config
         loop_s = self.wall_s - self.startup_s
         return {
-            'split': c.split, 'agent': c.agent_name, 'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
+            'split': c.split, 'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
+            'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
             'workers': c.workers,
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
@@ -153,6 +154,7 @@ class SimWorker:
 
     def advance(self):
         """Handle the finished request: the next request is sent, or the episode's result returned."""
+        from dialfred_sim.agents import task_view
         reply, self.future = self.future.result(), None
         if reply is None:
             return self._result('error', error='the service call returned no reply')
@@ -161,8 +163,8 @@ class SimWorker:
         if self.pending == 'reset':
             if not reply.ok:
                 return self._result('error', error=reply.error)
-            self.goal_conditions = (0, reply.task.goal_conditions_total)
-            self.agent.reset(self.task, self.episode_seed)
+            self.goal_conditions = (0, reply.goal_conditions_total)
+            self.agent.reset(task_view(self.agent, self.task), self.episode_seed)   # the public view, unless privileged
             return self._act(reply.observation)
         return self._after_step(reply)
 
@@ -224,7 +226,7 @@ class SimWorker:
             failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
             error='' if success else (error or self.last_error), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed,
-            wall_s=round(time.monotonic() - self.started, 4))
+            wall_s=round(time.monotonic() - self.started, 4), privileged=bool(getattr(self.agent, 'privileged', False)))
 
 
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
@@ -334,7 +336,9 @@ def print_report(report: EvalReport) -> None:
     from dialfred_sim.metrics import failures, format_table
     c, info = report.config, report.to_json()['this_run']
     rate = f', {info["episodes_per_s"]:.2f} episodes/s' if info['episodes_per_s'] else ''
-    print(f'{c.split}, {c.agent_name} agent, seed {c.seed}: {len(report.results)} tasks '
+    privileged = (' (PRIVILEGED: given the expert\'s plan; a reference, not a benchmark result)'
+                  if any(r.privileged for r in report.results) else '')
+    print(f'{c.split}, {c.agent_name} agent{privileged}, seed {c.seed}: {len(report.results)} tasks '
           f'({report.ran} played now in {report.wall_s:.1f} s{rate})')
     print(format_table(report.summary))
     if c.agent == 'expert':

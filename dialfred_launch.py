@@ -201,7 +201,8 @@ class Graph:
 
     def client(self, srv_type, name: str, timeout: float = 30.0):
         """A client for service `name`, once it is available; NodeDied if a node dies meanwhile."""
-        cli = self.client_node.create_client(srv_type, name)
+        from dialfred_sim.ros_util import SERVICE_QOS
+        cli = self.client_node.create_client(srv_type, name, qos_profile=SERVICE_QOS)
         deadline = time.monotonic() + timeout
         while not cli.wait_for_service(timeout_sec=0.1):
             self.check()
@@ -363,10 +364,10 @@ def run_dialogue(args) -> int:
             if not reply.ok:
                 print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
                 return 1
-            t = reply.task
+            t = reply.task     # the public view; this job, like the checker, knows the type from its split
             frame = image_array(reply.observation.rgb)
-            title = f'{t.task_id} ({t.task_type}): "{t.instruction}"'
-            print(f'\n{t.task_id} ({t.task_type}) in {t.scene}: "{t.instruction}"')
+            title = f'{t.task_id} ({task.task_type}): "{t.instruction}"'
+            print(f'\n{t.task_id} ({task.task_type}) in {t.scene}: "{t.instruction}"')
             film.append((frame, [title, 'start']))
             # Ask about what the instruction names (the goto landmark comes first in object_nouns).
             named = [n for n in t.object_nouns if n in t.instruction.lower()]

@@ -379,24 +379,32 @@ def task_sim():
         yield graph, graph.client(SimReset, '/tasks/sim/reset'), graph.client(SimStep, '/tasks/sim/step')
 
 
-def test_a_task_reset_describes_the_task_and_the_expert_reaches_its_goal(task_sim):
+def test_a_task_reset_tells_only_the_public_task_and_the_expert_reaches_its_goal(task_sim):
+    from dialfred_msgs.srv import GroundTruth
     from dialfred_sim.tasks import get_task
     graph, reset_cli, step_cli = task_sim
     task = get_task('valid_unseen/000003')
     reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id))
     assert reply.ok, reply.error
     t = reply.task
-    assert (t.task_id, t.task_type, t.scene, t.split) == (task.task_id, task.task_type, task.scene, 'valid_unseen')
-    assert t.instruction == task.instruction and list(t.step_instructions) == task.step_instructions
-    assert t.expert_length == task.expert_length and t.goal_conditions_total == len(task.goal) > 0
-    assert t.expert_end_pose.x == task.expert_end_pose[0] * 0.25
+    assert (t.task_id, t.scene, t.split, t.instruction) == (task.task_id, task.scene, 'valid_unseen', task.instruction)
+    assert list(t.object_nouns) == task.object_nouns
+    # Whoever resets learns nothing of the solution: no type, step plan, expert length or end pose.
+    assert not {'task_type', 'step_instructions', 'expert_length', 'expert_end_pose'} & set(t.get_fields_and_field_types())
+    assert reply.goal_conditions_total > 0
+    # The oracle's privileged channel has them.
+    truth = graph.call(graph.client(GroundTruth, '/tasks/sim/ground_truth'), GroundTruth.Request())
+    key = truth.answer_key
+    assert (key.task_type, list(key.step_instructions)) == (task.task_type, task.step_instructions)
+    assert key.expert_length == task.expert_length and key.goal_conditions_total == len(task.goal)
+    assert key.expert_end_pose.x == task.expert_end_pose[0] * 0.25
     for k, a in enumerate(task.expert_actions):
         step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y)))
         assert step.ok and step.observation.last_action_success, step.observation.last_action_error
         if step.terminated:
             break
     assert step.success and step.terminated and step.reward == 1.0
-    assert step.goal_conditions_met == step.goal_conditions_total == len(task.goal)
+    assert step.goal_conditions_met == step.goal_conditions_total == reply.goal_conditions_total
 
 
 def test_free_exploration_has_no_goal(task_sim):
