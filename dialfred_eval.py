@@ -113,6 +113,7 @@ class EvalReport:
 
 
 MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
+RESEND_AFTER_S = 10.0  # a reset or question unanswered this long is sent again (see SimWorker.resend_if_lost)
 
 
 class SimWorker:
@@ -210,9 +211,21 @@ class SimWorker:
         return self._act(self.observation)
 
     def _send(self, cli, request, pending: str) -> None:
-        self.sent_at = time.monotonic()
+        self.sent_at = self.last_sent = time.monotonic()
         self.pending = pending
+        self.request, self.cli = request, cli
         self.future = cli.call_async(request)
+
+    def resend_if_lost(self) -> bool:
+        """Send a reset or question again that got no reply in RESEND_AFTER_S (a request sent while a
+        restarted node is not yet discovered is lost; both may be repeated: a reset starts the same
+        episode, a question gets the same answer). Steps are never repeated: they change the world."""
+        if self.pending not in ('reset', 'question') or time.monotonic() - self.last_sent < RESEND_AFTER_S:
+            return False
+        self.cli.remove_pending_request(self.future)
+        self.last_sent = time.monotonic()
+        self.future = self.cli.call_async(self.request)
+        return True
 
     def _result(self, reason: str, obs=None, success: bool = False, error: str = ''):
         from dialfred_sim.metrics import EpisodeResult
@@ -245,6 +258,8 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
                     on_result(result)
                     if queue:
                         w.begin(*queue.popleft())
+            elif w.busy and w.resend_if_lost():
+                continue
             elif w.overdue():
                 node = 'oracle' if w.pending == 'question' else 'sim'
                 raise TimeoutError(f'no reply from {w.namespace or "/"} {node} node after '
