@@ -148,3 +148,31 @@ def test_the_experts_results_are_marked_privileged(tmp_path):
 def test_a_users_class_cannot_make_itself_privileged(cheaters):
     with pytest.raises(ValueError, match='says it is privileged'):
         make_agent('cheaters:SelfProclaimedExpert')
+
+
+def test_an_unanswered_reset_is_sent_again_but_a_step_never_is(monkeypatch):
+    import dialfred_eval
+
+    class Future:
+        def done(self):
+            return False
+
+    class Client:
+        def __init__(self):
+            self.sent, self.removed = [], 0
+
+        def call_async(self, request):
+            self.sent.append(request)
+            return Future()
+
+        def remove_pending_request(self, future):
+            self.removed += 1
+
+    worker = dialfred_eval.SimWorker.__new__(dialfred_eval.SimWorker)
+    cli = Client()
+    monkeypatch.setattr(dialfred_eval, 'RESEND_AFTER_S', 0.0)
+    for pending, resent in (('reset', True), ('question', True), ('step', False)):
+        cli.sent.clear()
+        worker._send(cli, pending, pending)
+        assert worker.resend_if_lost() is resent
+        assert cli.sent == [pending, pending] if resent else cli.sent == [pending]
