@@ -69,7 +69,7 @@ class PerformerAgent:
         self._embeddings: list[torch.Tensor] = []     # [d] per past step
         self._grids: list[torch.Tensor] = []          # [C, d] per past step
         self._previous_actions: list[int] = [START]
-        self._pending: Optional[tuple] = None        # (observation id, step, dialogue length, outputs)
+        self._pending: Optional[tuple] = None        # (observation, (step, dialogue length), outputs)
 
     def reset(self, task: Any, seed: int = 0) -> None:
         """Start an episode of `task` (a PublicTask: only its instruction is read)."""
@@ -88,12 +88,12 @@ class PerformerAgent:
 
     @torch.inference_mode()
     def _outputs(self, observation: Any) -> tuple[torch.Tensor, torch.Tensor, int]:
-        """(action logits [13], pointer logits [C], frame size) for the current step and observation."""
+        """(action logits [13], pointer logits [C], (height, width), frame embedding, grid) for the current step and observation."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
-        key = (id(observation), self.step, len(self.dialogue))
-        if self._pending is not None and self._pending[0] == key:
-            return self._pending[1]
+        key = (self.step, len(self.dialogue))
+        if self._pending is not None and self._pending[0] is observation and self._pending[1] == key:
+            return self._pending[2]
         rgb = observation_rgb(observation)
         emb, grid = self.model.encode_frames(frame_tensor(rgb, self.config.resolution)[None])
         lang = self.language_input()
@@ -104,8 +104,8 @@ class PerformerAgent:
         action_logits, pointer_logits = self.model.decode(
             ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
             embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
-        result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[1], emb[0], grid[0])
-        self._pending = (key, result)
+        result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid[0])
+        self._pending = (observation, key, result)
         return result
 
     def action_probabilities(self, observation: Any) -> np.ndarray:
@@ -115,11 +115,11 @@ class PerformerAgent:
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
         in the observation's frame."""
-        action_logits, pointer_logits, width, emb, grid = self._outputs(observation)
+        action_logits, pointer_logits, (height, width), emb, grid = self._outputs(observation)
         action = int(action_logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
-            x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width)
+            x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width, height)
         self._embeddings.append(emb)
         self._grids.append(grid)
         self._previous_actions.append(action)

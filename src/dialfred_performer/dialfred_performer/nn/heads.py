@@ -41,11 +41,13 @@ class PointerHead(nn.Module):
         return torch.einsum('...d,...cd->...c', self.query(h), self.key(grid)) * self.scale
 
 
-def cell_centre_pixel(cell: int, grid_size: int, frame_size: int) -> tuple[int, int]:
-    """The pixel (x, y) at the centre of grid cell `cell` (row-major) in a frame_size x frame_size frame."""
+def cell_centre_pixel(cell: int, grid_size: int, width: int, height: int | None = None) -> tuple[int, int]:
+    """The pixel (x, y) at the centre of grid cell `cell` (row-major) in a width x height frame
+    (square if no height)."""
+    height = width if height is None else height
     row, col = divmod(int(cell), grid_size)
-    size = frame_size / grid_size
-    return min(frame_size - 1, int((col + 0.5) * size)), min(frame_size - 1, int((row + 0.5) * size))
+    return (min(width - 1, int((col + 0.5) * width / grid_size)),
+            min(height - 1, int((row + 0.5) * height / grid_size)))
 
 
 def pixel_cell(x: int, y: int, grid_size: int, frame_size: int) -> int:
