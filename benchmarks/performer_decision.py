@@ -7,6 +7,7 @@ the model's resolution. Prints JSON.
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 
@@ -19,10 +20,10 @@ from dialfred_performer.preprocess import Vocabulary
 from dialfred_sim.agents import QA, Question
 from dialfred_sim.tasks import PublicTask
 
-REPEATS = 5
-
-
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--repeats', type=int, default=5, help='episodes of 60 steps')
+    REPEATS = ap.parse_args().repeats
     torch.set_num_threads(1)
     torch.manual_seed(0)
     config = PerformerConfig()

@@ -7,6 +7,10 @@ probabilities sum to 1 and are the distribution `act` chooses from; a QA heard c
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -57,3 +61,11 @@ def test_an_image_message_gives_the_same_frame_as_the_array():
     rgb = np.random.default_rng(0).integers(0, 256, (32, 48, 3), dtype=np.uint8)
     assert np.array_equal(observation_rgb(SimpleNamespace(rgb=image_message(rgb))), rgb)
     assert np.array_equal(observation_rgb({'rgb': rgb}), rgb)
+
+
+def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():
+    script = Path(__file__).resolve().parents[1] / 'benchmarks' / 'performer_decision.py'
+    proc = subprocess.run([sys.executable, str(script), '--repeats', '1'], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    report = json.loads(proc.stdout[proc.stdout.index('{'):])
+    assert report['threads'] == 1 and set(report['ms_per_step_median']) == {'step_1', 'step_20', 'step_60'}

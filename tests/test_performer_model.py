@@ -9,7 +9,6 @@ model, and a missing, corrupt or mismatched one is refused with a clear message.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import pytest
 import torch
