@@ -165,19 +165,28 @@ def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, ou
     demo = load_demonstrations(demonstrations_dir)
     env = DialfredEnv(resolution=demo.meta['resolution'])
     out = Path(out) if out else demonstrations_dir / DIALOGUES_FILE
-    lines = []
-    for task in demo.tasks[:limit]:
-        env.reset(options={'task_id': task['task_id']})
-        n = len(task['actions'])
-        ask_at = sorted({0, n // 2})
-        qas = []
-        for step in range(n + 1):
-            if step in ask_at:
-                qas += oracle_qas(env, task['object_nouns'], step)
-            if step < n:
-                name, x, y, _ = task['actions'][step]
-                env.step({'action': name, 'pixel': (x, y)})
-        lines.append(json.dumps({'task_id': task['task_id'], 'qas': [qa_to_dict(a) for a in qas]}))
+    lines = [dialogue_line(task, task_dialogue(env, task)) for task in demo.tasks[:limit]]
     env.close()
-    out.write_text('\n'.join(lines) + '\n')
+    out.write_text(''.join(lines))
     return out
+
+
+def task_dialogue(env, task: dict) -> list[AskedQA]:
+    """The oracle's QAs for one task record of tasks.jsonl: `env` (a DialfredEnv at the
+    demonstrations' resolution) replays the recorded actions, asked at step 0 and step n // 2."""
+    env.reset(options={'task_id': task['task_id']})
+    n = len(task['actions'])
+    ask_at = sorted({0, n // 2})
+    qas = []
+    for step in range(n + 1):
+        if step in ask_at:
+            qas += oracle_qas(env, task['object_nouns'], step)
+        if step < n:
+            name, x, y, _ = task['actions'][step]
+            env.step({'action': name, 'pixel': (x, y)})
+    return qas
+
+
+def dialogue_line(task: dict, qas: Sequence[AskedQA]) -> str:
+    """One line of dialogues.jsonl (with its newline)."""
+    return json.dumps({'task_id': task['task_id'], 'qas': [qa_to_dict(a) for a in qas]}) + '\n'
