@@ -2,6 +2,9 @@
 
 ROS-free core: `preprocess` (instruction + dialogue -> tokens, frames -> tensors; the one path of
 training and evaluation), `nn/` (one module per part), `model` (PerformerConfig, Performer, loss,
-checkpoints), `data` (demonstrations + dialogues as padded batches), `agent` (PerformerAgent).
-The training entry point and the ROS node come with the rest of issue 11.
+checkpoints), `data` (demonstrations + dialogues as padded batches), `agent` (PerformerAgent),
+`prepare` (a split's demonstrations, dialogues.jsonl and vocabulary: `./dialfred prepare-performer`),
+`train` (the training entry point, `TrainConfig` is its command line: `./dialfred train-performer`),
+`cli` (a config dataclass as argparse), `curves` (metrics.jsonl -> curves.png). The ROS node comes
+with the rest of issue 11.
 """

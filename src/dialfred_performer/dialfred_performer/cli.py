@@ -53,8 +53,8 @@ def _default(f: dataclasses.Field) -> Any:
     return f.default_factory() if f.default is dataclasses.MISSING else f.default
 
 
-def parser_for(cls, description: str = '') -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=description or (cls.__doc__ or '').split('\n\n')[0],
+def parser_for(cls, description: str = '', prog: Optional[str] = None) -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog=prog, description=description or (cls.__doc__ or '').split('\n\n')[0],
                                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     seen: dict[str, tuple] = {}
     for path, f, tp in flat_fields(cls):
@@ -62,7 +62,7 @@ def parser_for(cls, description: str = '') -> argparse.ArgumentParser:
         if name in seen:
             raise TypeError(f'{cls.__name__}: {".".join(path)} and {".".join(seen[name])} would both be {name}')
         seen[name] = path
-        help_text = f.metadata.get('help', '')
+        help_text = f.metadata.get('help') or (f'the field {".".join(path)} of the config' if len(path) > 1 else '')
         if tp is bool:
             ap.add_argument(name, dest='.'.join(path), action=argparse.BooleanOptionalAction,
                             default=_default(f), help=help_text)
@@ -85,10 +85,11 @@ def build(cls, values: dict[str, Any], prefix: tuple[str, ...] = ()):
     return cls(**kwargs)
 
 
-def parse(cls: type[C], argv: Optional[Sequence[str]] = None, description: str = '') -> C:
+def parse(cls: type[C], argv: Optional[Sequence[str]] = None, description: str = '',
+          prog: Optional[str] = None) -> C:
     """The config of the command line `argv` (default: sys.argv[1:]); exits with a usage error
     (status 2) naming the problem when a value is not acceptable."""
-    ap = parser_for(cls, description)
+    ap = parser_for(cls, description, prog)
     ns = ap.parse_args(argv)
     try:
         return build(cls, vars(ns))

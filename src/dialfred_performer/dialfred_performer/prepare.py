@@ -182,7 +182,7 @@ def prepare(config: PrepareConfig) -> dict:
 
 
 def main(argv: Optional[list[str]] = None) -> int:
-    config = parse(PrepareConfig, argv)
+    config = parse(PrepareConfig, argv, prog='python -m dialfred_performer.prepare')
     print(json.dumps(prepare(config)))
     return 0
 

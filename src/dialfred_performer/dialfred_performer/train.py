@@ -442,7 +442,7 @@ def train(cfg: TrainConfig) -> dict:
 
 
 def main(argv: Optional[list[str]] = None) -> int:
-    cfg = parse(TrainConfig, argv)
+    cfg = parse(TrainConfig, argv, prog=f'python -m {MODULE}')
     try:
         summary = train(cfg)
     except (FileNotFoundError, ValueError) as exc:
