@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import resource
 import sys
 import time
 from dataclasses import dataclass
@@ -161,23 +162,31 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     return out
 
 
+def _clock() -> tuple[float, float]:
+    """(wall seconds, CPU seconds of this process and its finished children)."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.monotonic(), own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def prepare(config: PrepareConfig) -> dict:
-    """Run the three stages for `config` (each skipped when complete); the report."""
+    """Run the three stages for `config` (each skipped when complete); the report, with each stage's
+    wall and CPU seconds (CPU: this process and its workers; on a shared machine the better measure)."""
     folder = config.folder
     report = {'split': config.split, 'resolution': config.resolution, 'workers': config.workers,
               'folder': str(folder)}
-    t0 = time.monotonic()
+    c0 = _clock()
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
                                 limit=config.limit or None, progress=config.progress)
-    t1 = time.monotonic()
+    c1 = _clock()
     write_dialogues(folder, config.workers, config.progress)
-    t2 = time.monotonic()
+    c2 = _clock()
     vocab = build_vocabulary(folder)
     vocab.save(folder / VOCABULARY_FILE)
-    t3 = time.monotonic()
+    c3 = _clock()
+    stages = {'demonstrations': (c0, c1), 'dialogues': (c1, c2), 'vocabulary': (c2, c3)}
     report.update(tasks=meta['tasks'], frames=meta['frames'], vocabulary=len(vocab),
-                  seconds={'demonstrations': round(t1 - t0, 1), 'dialogues': round(t2 - t1, 1),
-                           'vocabulary': round(t3 - t2, 1)})
+                  seconds={k: round(b[0] - a[0], 1) for k, (a, b) in stages.items()},
+                  cpu_seconds={k: round(b[1] - a[1], 1) for k, (a, b) in stages.items()})
     return report
 
 

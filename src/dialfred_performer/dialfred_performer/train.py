@@ -36,9 +36,10 @@ import torch
 
 from dialfred_sim.tasks.demonstrations import default_dir
 
-from .cli import arg, command_line, ensure_malloc_settings, parse
+from .cli import MALLOC_SETTINGS, arg, command_line, ensure_malloc_settings, parse
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
+from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
 from .model import Performer, PerformerConfig, load_checkpoint, performer_loss, save_checkpoint
 from .prepare import VOCABULARY_FILE
 from .preprocess import Vocabulary
@@ -220,72 +221,6 @@ def make_optimizer(model: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Opti
                               {'params': rest, 'weight_decay': 0.0}], lr=cfg.lr)
 
 
-# ---------------------------------------------------------------------- metrics
-
-STAT_KEYS = ('steps', 'targets', 'action_ce', 'pointer_ce', 'action_correct', 'pointer_correct', 'episodes')
-
-
-def batch_stats(outputs: dict, batch: dict) -> dict:
-    """Sums over a batch: cross-entropies and correct predictions (action over valid steps, pointer
-    over steps with a target)."""
-    import torch.nn.functional as F
-    valid, has = batch['step_valid'], batch['target_cells'] >= 0
-    a_logits, p_logits = outputs['action_logits'].detach()[valid], outputs['pointer_logits'].detach()[has]
-    a_target, p_target = batch['actions'][valid], batch['target_cells'][has]
-    return {'steps': int(valid.sum()), 'targets': int(has.sum()),
-            'action_ce': float(F.cross_entropy(a_logits, a_target, reduction='sum')),
-            'pointer_ce': float(F.cross_entropy(p_logits, p_target, reduction='sum')) if len(p_target) else 0.0,
-            'action_correct': int((a_logits.argmax(-1) == a_target).sum()),
-            'pointer_correct': int((p_logits.argmax(-1) == p_target).sum()) if len(p_target) else 0,
-            'episodes': int(valid.shape[0])}
-
-
-def summarize(stats: dict, pointer_weight: float) -> dict:
-    steps, targets = max(stats['steps'], 1), max(stats['targets'], 1)
-    action, pointer = stats['action_ce'] / steps, stats['pointer_ce'] / targets
-    return {'loss': action + pointer_weight * pointer, 'action_loss': action, 'pointer_loss': pointer,
-            'action_accuracy': stats['action_correct'] / steps,
-            'pointer_accuracy': stats['pointer_correct'] / targets if stats['targets'] else None,
-            'steps': stats['steps'], 'episodes': stats['episodes']}
-
-
-def to_device(batch: dict, device: torch.device) -> dict:
-    return {k: v.to(device, non_blocking=True) if torch.is_tensor(v) else v for k, v in batch.items()}
-
-
-@torch.no_grad()
-def evaluate(model: Performer, ds: DemonstrationDataset, items: list[int], cfg: TrainConfig,
-             device: torch.device) -> dict:
-    """Validation: loss, action and pointer accuracy over `items` of `ds` (eval mode, no RNG used)."""
-    was_training = model.training
-    model.eval()
-    total = dict.fromkeys(STAT_KEYS, 0)
-    lengths = Data.item_lengths(ds, items)
-    order = [items[k] for k in np.argsort(lengths, kind='stable')]
-    for b in range(0, len(order), cfg.batch_size):
-        batch = to_device(collate([ds[i] for i in order[b:b + cfg.batch_size]]), device)
-        for k, v in batch_stats(model(batch), batch).items():
-            total[k] += v
-    model.train(was_training)
-    return summarize(total, cfg.pointer_weight)
-
-
-class MetricsLog:
-    """metrics.jsonl: appended a line at a time; on resume, lines after the checkpoint are dropped."""
-
-    def __init__(self, path: Path, keep_until: Optional[int]):
-        self.path = path
-        if keep_until is None:
-            path.write_text('')
-        elif path.exists():
-            kept = [line for line in path.read_text().splitlines() if line and json.loads(line)['update'] <= keep_until]
-            path.write_text(''.join(line + '\n' for line in kept))
-
-    def write(self, row: dict) -> None:
-        with open(self.path, 'a') as f:
-            f.write(json.dumps(row) + '\n')
-
-
 # ---------------------------------------------------------------------- checkpoints
 
 @dataclass
@@ -369,7 +304,8 @@ def train(cfg: TrainConfig) -> dict:
 
     def validate_and_draw() -> None:
         if data.val is not None and data.val_items:
-            val = evaluate(model, data.val, data.val_items, cfg, device)
+            val = evaluate(model, data.val, data.val_items, Data.item_lengths(data.val, data.val_items),
+                           cfg.batch_size, cfg.pointer_weight, device)
             log.write({'kind': 'val', 'update': progress.update, 'epoch': progress.epoch, **val})
             last['val'] = val
             if val['loss'] < progress.best_val_loss:
@@ -426,6 +362,7 @@ def train(cfg: TrainConfig) -> dict:
             checkpoint(f'epoch-{progress.epoch:03d}.pt', full=False)
             checkpoint()
             bar.set_description(f'epoch {min(progress.epoch + 1, cfg.epochs)}/{cfg.epochs}')
+            t_window = time.monotonic()                      # frames/s of training only
     finished = progress.update >= total or progress.epoch >= cfg.epochs
     if finished and progress.batch_in_epoch and session_updates:   # max_updates ended it inside an epoch
         validate_and_draw()
@@ -437,7 +374,8 @@ def train(cfg: TrainConfig) -> dict:
     return {'finished': finished, 'updates': progress.update, 'epoch': progress.epoch, 'total_updates': total,
             'session_updates': session_updates, 'session_seconds': round(seconds, 2),
             'frames_per_s': round(frames_seen / max(seconds, 1e-9), 2), 'device': str(device),
-            'threads': torch.get_num_threads(), 'train_episodes': len(data.train_items),
+            'threads': torch.get_num_threads(), 'malloc_settings': all(k in os.environ for k in MALLOC_SETTINGS),
+            'train_episodes': len(data.train_items),
             'val_episodes': len(data.val_items), 'val': last.get('val'), 'out': str(out)}
 
 
