@@ -11,7 +11,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
+import re
 import shlex
+import subprocess
+from pathlib import Path
 
 import pytest
 import torch
@@ -102,7 +106,7 @@ def test_bad_config_values_get_a_clear_error(capsys):
         with pytest.raises(SystemExit) as exit_info:
             parse(TrainConfig, argv)
         assert exit_info.value.code == 2
-        assert pytest.importorskip('re').search(message, capsys.readouterr().err), argv
+        assert re.search(message, capsys.readouterr().err), argv
     with pytest.raises(ValueError, match='dropout must be in'):
         TrainConfig(model=PerformerConfig(dropout=1.0))
 
@@ -157,3 +161,15 @@ def test_batches_cover_every_episode_once_and_the_schedule_warms_up_then_decays(
     f = [lr_factor(u, 4, 20, 0.1) for u in range(20)]
     assert f[:4] == [0.25, 0.5, 0.75, 1.0] and f[4] == 1.0 and all(a >= b for a, b in zip(f[4:], f[5:]))
     assert lr_factor(20, 4, 20, 0.1) == pytest.approx(0.1)
+
+
+def test_the_entry_script_runs_training_with_the_malloc_settings(folder, tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    env = {k: v for k, v in os.environ.items() if not k.startswith('MALLOC_')}
+    run = subprocess.run([str(root / 'dialfred'), 'train-performer', '--demonstrations', str(folder), '--out',
+                          str(tmp_path / 'run'), '--max-updates', '1', '--batch-size', '2', '--d-model', '32',
+                          '--heads', '2', '--layers', '1', '--ff', '64', '--threads', '1', '--no-progress'],
+                         capture_output=True, text=True, env=env, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    summary = json.loads(run.stdout.strip().splitlines()[-1])
+    assert summary['updates'] == 1 and summary['malloc_settings'] and (tmp_path / 'run' / 'last.pt').is_file()
