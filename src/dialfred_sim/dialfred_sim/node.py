@@ -8,9 +8,11 @@ node only converts messages. Bad requests get ok=false and an error text, and th
 from __future__ import annotations
 
 import array as pyarray
+import sys
 
 import numpy as np
 import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -21,6 +23,7 @@ from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
 from .ground_truth import snapshot
+from .tasks.splits import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
 from .ros_util import make_executor, spin_forever
@@ -91,7 +94,12 @@ class SimNode(Node):
         self.declare_parameter('max_steps', 1000)
         self.declare_parameter('max_failures', 10)
         self.declare_parameter('publish_observations', True)
+        self.declare_parameter('tasks_file', '', ParameterDescriptor(
+            description='a split file of your own (e.g. a test_unseen split): /sim/reset task ids are looked up '
+                        "there first, then in the shipped splits; '' = shipped splits only", read_only=True))
         p = self.get_parameter
+        # Read once, at start: a missing or malformed file stops the node here with the reason.
+        self.tasks_file = read_tasks_file(p('tasks_file').value) if p('tasks_file').value else None
         scene = p('scene').value or None
         self.default_seed = int(p('seed').value)
         self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
@@ -104,7 +112,8 @@ class SimNode(Node):
         self.clock = self.get_clock()
         self.obs = None
         self.info = None
-        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
+        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}'
+                               + (f', tasks of {self.tasks_file.path}' if self.tasks_file else ''))
 
     # ------------------------------------------------------------------ services
 
@@ -128,7 +137,8 @@ class SimNode(Node):
 
     def _reset_to_task(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
         try:
-            self.obs, self.info = self.env.reset(options={'task_id': request.task_id})
+            task = resolve_task(request.task_id, self.tasks_file)
+            self.obs, self.info = self.env.reset(options={'task': task})
         except (ValueError, FileNotFoundError) as exc:
             response.ok, response.error = False, str(exc)
             return response
@@ -225,7 +235,12 @@ class SimNode(Node):
 
 def main(args=None):
     rclpy.init(args=args)
-    node = SimNode()
+    try:
+        node = SimNode()
+    except (FileNotFoundError, ValueError) as exc:      # a bad tasks_file
+        print(f'dialfred_sim node: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     executor = make_executor()
     executor.add_node(node)
     try:
