@@ -314,7 +314,8 @@ def check_tasks_record(config: EvalConfig, has_results: bool) -> None:
                 else f'tasks of the shipped split {config.split!r}')
         wanted = f'tasks file {source.path} (sha256 {source.sha256[:12]}...)' if source else \
             f'the shipped split {config.split!r}'
-        raise ResultsFileError(f'{config.results_path} holds results of {held}, not of {wanted}: choose another --out')
+        raise ResultsFileError(f'{config.results_path} holds results of {held}, not of {wanted}: '
+                               'choose another --out')
     if not has_results:
         if source:
             record_path.parent.mkdir(parents=True, exist_ok=True)
@@ -404,7 +405,8 @@ def print_report(report: EvalReport) -> None:
 
 
 def eval_config(args) -> EvalConfig:
-    return EvalConfig(split=args.split or 'valid_unseen', agent=args.agent, questioner=args.questioner or '', limit=args.limit,
+    return EvalConfig(split=args.split or 'valid_unseen',
+                      agent=args.agent, questioner=args.questioner or '', limit=args.limit,
                       perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
                       workers=args.workers,
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
