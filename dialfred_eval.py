@@ -10,6 +10,10 @@ goes to <out without .jsonl>.summary.json.
 With `--questioner`, each worker also gets an oracle node in its namespace (.../w0/oracle/answer
 answers from .../w0/sim/ground_truth). Before every action the agent may ask it questions, which
 are counted (NQ, NQ_invalid).
+
+With `--tasks PATH` (a split file of your own, such as a sealed test split) instead of `--split`,
+every simulator node reads that file (its `tasks_file` parameter), and <out without .jsonl>.tasks.json
+records the file's path and sha256: results of another file are refused, never mixed in.
 """
 
 from __future__ import annotations
