@@ -125,7 +125,8 @@ class EvalReport:
         loop_s = self.wall_s - self.startup_s
         return {
             'split': c.split, 'tasks_file': c.tasks_source.describe() if c.tasks_source else None,
-            'agent': c.agent_name, 'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
+            'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
+            'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
             'workers': c.workers,
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
@@ -137,6 +138,7 @@ class EvalReport:
 
 
 MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
+RESEND_AFTER_S = 10.0  # a reset or question unanswered this long is sent again (see SimWorker.resend_if_lost)
 
 
 class SimWorker:
@@ -178,6 +180,7 @@ class SimWorker:
 
     def advance(self):
         """Handle the finished request: the next request is sent, or the episode's result returned."""
+        from dialfred_sim.agents import task_view
         reply, self.future = self.future.result(), None
         if reply is None:
             return self._result('error', error='the service call returned no reply')
@@ -186,8 +189,8 @@ class SimWorker:
         if self.pending == 'reset':
             if not reply.ok:
                 return self._result('error', error=reply.error)
-            self.goal_conditions = (0, reply.task.goal_conditions_total)
-            self.agent.reset(self.task, self.episode_seed)
+            self.goal_conditions = (0, reply.goal_conditions_total)
+            self.agent.reset(task_view(self.agent, self.task), self.episode_seed)   # the public view, unless privileged
             return self._act(reply.observation)
         return self._after_step(reply)
 
@@ -233,9 +236,21 @@ class SimWorker:
         return self._act(self.observation)
 
     def _send(self, cli, request, pending: str) -> None:
-        self.sent_at = time.monotonic()
+        self.sent_at = self.last_sent = time.monotonic()
         self.pending = pending
+        self.request, self.cli = request, cli
         self.future = cli.call_async(request)
+
+    def resend_if_lost(self) -> bool:
+        """Send a reset or question again that got no reply in RESEND_AFTER_S (a request sent while a
+        restarted node is not yet discovered is lost; both may be repeated: a reset starts the same
+        episode, a question gets the same answer). Steps are never repeated: they change the world."""
+        if self.pending not in ('reset', 'question') or time.monotonic() - self.last_sent < RESEND_AFTER_S:
+            return False
+        self.cli.remove_pending_request(self.future)
+        self.last_sent = time.monotonic()
+        self.future = self.cli.call_async(self.request)
+        return True
 
     def _result(self, reason: str, obs=None, success: bool = False, error: str = ''):
         from dialfred_sim.metrics import EpisodeResult
@@ -249,7 +264,7 @@ class SimWorker:
             failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
             error='' if success else (error or self.last_error), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed,
-            wall_s=round(time.monotonic() - self.started, 4))
+            wall_s=round(time.monotonic() - self.started, 4), privileged=bool(getattr(self.agent, 'privileged', False)))
 
 
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
@@ -268,6 +283,8 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
                     on_result(result)
                     if queue:
                         w.begin(*queue.popleft())
+            elif w.busy and w.resend_if_lost():
+                continue
             elif w.overdue():
                 node = 'oracle' if w.pending == 'question' else 'sim'
                 raise TimeoutError(f'no reply from {w.namespace or "/"} {node} node after '
@@ -394,7 +411,9 @@ def print_report(report: EvalReport) -> None:
     from dialfred_sim.metrics import failures, format_table
     c, info = report.config, report.to_json()['this_run']
     rate = f', {info["episodes_per_s"]:.2f} episodes/s' if info['episodes_per_s'] else ''
-    print(f'{c.split}, {c.agent_name} agent, seed {c.seed}: {len(report.results)} tasks '
+    privileged = (' (PRIVILEGED: given the expert\'s plan; a reference, not a benchmark result)'
+                  if any(r.privileged for r in report.results) else '')
+    print(f'{c.split}, {c.agent_name} agent{privileged}, seed {c.seed}: {len(report.results)} tasks '
           f'({report.ran} played now in {report.wall_s:.1f} s{rate})')
     print(format_table(report.summary))
     if c.agent == 'expert':

@@ -40,6 +40,7 @@ from typing import Optional
 
 REPO = Path(__file__).resolve().parent
 SERVICE_SETTLE_S = 0.2   # see Graph.client
+RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again (see Graph.call)
 # Every process of the graph (this one and its children) uses the project's Fast DDS profile: a
 # shared-memory segment large enough for whole observations (see config/fastdds_profiles.xml).
 os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(REPO / 'config' / 'fastdds_profiles.xml'))
@@ -202,7 +203,8 @@ class Graph:
 
     def client(self, srv_type, name: str, timeout: float = 30.0):
         """A client for service `name`, once it is available; NodeDied if a node dies meanwhile."""
-        cli = self.client_node.create_client(srv_type, name)
+        from dialfred_sim.ros_util import SERVICE_QOS
+        cli = self.client_node.create_client(srv_type, name, qos_profile=SERVICE_QOS)
         deadline = time.monotonic() + timeout
         while not cli.wait_for_service(timeout_sec=0.1):
             self.check()
@@ -223,16 +225,25 @@ class Graph:
             self.executor.spin_once(timeout_sec=0.05)
         self.check()
 
-    def call(self, cli, request, timeout: float = 30.0):
-        """Call a service and wait for the reply, watching the nodes for crashes."""
-        future = cli.call_async(request)
+    def call(self, cli, request, timeout: float = 30.0, retry_after: Optional[float] = None):
+        """Call a service and wait for the reply, watching the nodes for crashes; TimeoutError after
+        `timeout` s. `retry_after`: for requests that may be repeated (a reset, a question), send
+        the request again when no reply came in that many seconds: a request sent while a restarted
+        server is not yet discovered, or a reply sent before the server's reply path matched ours
+        (see `client`), is lost, and waiting longer would not bring it."""
         deadline = time.monotonic() + timeout
-        while not future.done():
-            self.executor.spin_until_future_complete(future, timeout_sec=0.5)
-            self.check()
-            if time.monotonic() > deadline:
+        while True:
+            future = cli.call_async(request)
+            resend = time.monotonic() + retry_after if retry_after else deadline
+            while not future.done() and time.monotonic() < min(resend, deadline):
+                self.executor.spin_until_future_complete(future, timeout_sec=min(0.5, retry_after or 0.5))
+                self.check()
+            if future.done():
+                return future.result()
+            cli.remove_pending_request(future)
+            if time.monotonic() >= deadline:
                 raise TimeoutError(f'no reply from {cli.srv_name} after {timeout:.0f} s')
-        return future.result()
+            cli.wait_for_service(timeout_sec=max(0.0, min(1.0, deadline - time.monotonic())))
 
 
 def sim_node(resolution: int = 128, namespace: str = '', **params) -> NodeProcess:
@@ -275,7 +286,7 @@ def run_demo(args) -> int:
         reset_cli = graph.client(SimReset, '/sim/reset')
         step_cli = graph.client(SimStep, '/sim/step')
         print(f'graph ready in {time.monotonic() - t0:.1f} s')
-        reply = graph.call(reset_cli, SimReset.Request(scene=args.scene, seed=args.seed))
+        reply = graph.call(reset_cli, SimReset.Request(scene=args.scene, seed=args.seed), retry_after=RESEND_AFTER_S)
         if not reply.ok:
             print(f'reset failed: {reply.error}', file=sys.stderr)
             return 1
@@ -353,21 +364,22 @@ def run_dialogue(args) -> int:
 
         def ask(qtype: str, noun: str, frame, title: str) -> None:
             request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
-            reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0)   # a person takes time
+            reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0,   # a person takes time
+                              retry_after=None if args.human else RESEND_AFTER_S)
             said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
             print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
             film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
 
         for task in tasks:
             reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
-                                                           with_segmentation=False))
+                                                           with_segmentation=False), retry_after=RESEND_AFTER_S)
             if not reply.ok:
                 print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
                 return 1
-            t = reply.task
+            t = reply.task     # the public view; this job, like the checker, knows the type from its split
             frame = image_array(reply.observation.rgb)
-            title = f'{t.task_id} ({t.task_type}): "{t.instruction}"'
-            print(f'\n{t.task_id} ({t.task_type}) in {t.scene}: "{t.instruction}"')
+            title = f'{t.task_id} ({task.task_type}): "{t.instruction}"'
+            print(f'\n{t.task_id} ({task.task_type}) in {t.scene}: "{t.instruction}"')
             film.append((frame, [title, 'start']))
             # Ask about what the instruction names (the goto landmark comes first in object_nouns).
             named = [n for n in t.object_nouns if n in t.instruction.lower()]

@@ -6,7 +6,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
-from dialfred_msgs.msg import Action, AgentPose, Observation, QAPair, TaskDescription
+from dialfred_msgs.msg import Action, AgentPose, Observation, QAPair, TaskAnswerKey, TaskDescription
 from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
 RGB_4X4 = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3)
@@ -73,10 +73,13 @@ def test_observation_fields():
     assert AgentPose.get_fields_and_field_types() == {
         'x': 'double', 'y': 'double', 'camera_height': 'double', 'rotation_deg': 'double',
         'horizon_deg': 'double'}
+    # What any client that resets sees: no type, plan, expert length or end pose (TaskAnswerKey has them).
     assert TaskDescription.get_fields_and_field_types() == {
-        'task_id': 'string', 'task_type': 'string', 'scene': 'string', 'split': 'string',
-        'instruction': 'string', 'step_instructions': 'sequence<string>', 'object_nouns': 'sequence<string>',
-        'expert_length': 'uint32', 'expert_end_pose': 'dialfred_msgs/AgentPose', 'goal_conditions_total': 'uint32'}
+        'task_id': 'string', 'scene': 'string', 'split': 'string', 'instruction': 'string',
+        'object_nouns': 'sequence<string>'}
+    assert TaskAnswerKey.get_fields_and_field_types() == {
+        'task_type': 'string', 'step_instructions': 'sequence<string>', 'expert_length': 'uint32',
+        'expert_end_pose': 'dialfred_msgs/AgentPose', 'goal_conditions_total': 'uint32'}
 
 
 def test_observation_with_a_4x4_rgb_image_round_trips():
@@ -115,7 +118,7 @@ def test_services_have_the_documented_request_and_response():
         'with_segmentation': 'boolean'}
     assert SimReset.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
-        'task': 'dialfred_msgs/TaskDescription'}
+        'task': 'dialfred_msgs/TaskDescription', 'goal_conditions_total': 'uint32'}
     assert SimStep.Request.get_fields_and_field_types() == {
         'action': 'dialfred_msgs/Action', 'with_depth': 'boolean', 'with_segmentation': 'boolean'}
     # Replies carry every channel unless the caller opts out.

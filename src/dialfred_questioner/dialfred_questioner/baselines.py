@@ -27,14 +27,14 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, load_class
+from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, load_class, public_view, task_view
 
 
 class Questioner(Protocol):
     name: str
 
     def reset(self, task: Any, seed: int) -> None:
-        """Start an episode of `task` (a dialfred_sim.tasks.Task); `seed` seeds any randomness."""
+        """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
         """A question before the agent's action number `step` + 1, or None."""
@@ -168,12 +168,13 @@ class QuestioningAgent:
         if attach is not None:         # a questioner that watches the performer (model confusion)
             attach(performer)
         self.name = f'{performer.name}+{questioner.name}'
+        self.privileged = bool(getattr(performer, 'privileged', False))
         self.dialogue: list[QA] = []
         self._steps = 0
 
     def reset(self, task: Any, seed: int) -> None:
-        self.performer.reset(task, seed)
-        self.questioner.reset(task, seed)
+        self.performer.reset(task_view(self.performer, task), seed)
+        self.questioner.reset(public_view(task), seed)     # a questioner is never privileged
         self.dialogue = []
         self._steps = 0
 
