@@ -10,11 +10,16 @@ goes to <out without .jsonl>.summary.json.
 With `--questioner`, each worker also gets an oracle node in its namespace (.../w0/oracle/answer
 answers from .../w0/sim/ground_truth). Before every action the agent may ask it questions, which
 are counted (NQ, NQ_invalid).
+
+With `--tasks PATH` (a split file of your own, such as a sealed test split) instead of `--split`,
+every simulator node reads that file (its `tasks_file` parameter), and <out without .jsonl>.tasks.json
+records the file's path and sha256: results of another file are refused, never mixed in.
 """
 
 from __future__ import annotations
 
 import collections
+import functools
 import json
 import os
 import sys
@@ -41,6 +46,13 @@ class EvalConfig:
     seed: int = 0
     resolution: int = 128
     request_timeout: float = 120.0      # seconds one reset or step may take before the run gives up
+    tasks_file: Optional[Path] = None   # a split file of your own (a test_unseen split) instead of `split`
+
+    @functools.cached_property
+    def tasks_source(self):
+        """The tasks file read once (dialfred_sim.tasks.splits.TasksFile), or None for a shipped split."""
+        from dialfred_sim.tasks.splits import read_tasks_file
+        return read_tasks_file(self.tasks_file) if self.tasks_file else None
 
     @property
     def agent_name(self) -> str:
@@ -57,7 +69,14 @@ class EvalConfig:
         if self.out:
             return Path(self.out)
         perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
-        return REPO / 'out' / 'eval' / f'{self.split}_{self.agent_name}{perturbed}.jsonl'
+        source = self.tasks_source
+        tasks = f'{source.split}-{source.sha256[:8]}' if source else self.split   # a file: named by its content
+        return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}.jsonl'
+
+    @property
+    def tasks_record_path(self) -> Path:
+        """Where a run on a tasks file records which file (path, sha256) its results came from."""
+        return self.results_path.with_suffix('.tasks.json')
 
     def make_agent(self):
         """A new agent as configured (ValueError for an unknown agent or questioner)."""
@@ -70,6 +89,11 @@ class EvalConfig:
         """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
         from dialfred_oracle.answers import QUESTION_TYPES
         self.make_agent()
+        if self.tasks_file:
+            try:
+                self.split = self.tasks_source.split      # the split played is the file's
+            except FileNotFoundError as exc:
+                raise ValueError(str(exc)) from None
         if self.perturb_type:
             if not self.questioner:
                 raise ValueError('a perturbed oracle needs a questioner (--questioner)')
@@ -100,7 +124,8 @@ class EvalReport:
         c = self.config
         loop_s = self.wall_s - self.startup_s
         return {
-            'split': c.split, 'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
+            'split': c.split, 'tasks_file': c.tasks_source.describe() if c.tasks_source else None,
+            'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
             'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
             'workers': c.workers,
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
@@ -295,7 +320,41 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
                                    f'oracle {r.oracle!r}, seed {r.seed}, not {config.split!r}, {config.agent_name!r}, '
                                    f'{config.oracle!r}, '
                                    f'{config.seed}: choose another --out')
+    check_tasks_record(config, bool(existing))
     return results_by_task(existing, task_ids)
+
+
+def check_tasks_record(config: EvalConfig, has_results: bool) -> None:
+    """Results of a tasks file are kept with a record of that file (<results>.tasks.json: path, sha256):
+    ResultsFileError if the results file holds results of another tasks file, or of a shipped split
+    while a tasks file is given (or the other way round). Writes the record for a new results file."""
+    record_path, source = config.tasks_record_path, config.tasks_source
+    record = _read_tasks_record(record_path)
+    if has_results and (record or {}).get('sha256') != (source.sha256 if source else None):
+        held = (f"tasks file {record['path']} (sha256 {record['sha256'][:12]}...)" if record
+                else f'tasks of the shipped split {config.split!r}')
+        wanted = f'tasks file {source.path} (sha256 {source.sha256[:12]}...)' if source else \
+            f'the shipped split {config.split!r}'
+        raise ResultsFileError(f'{config.results_path} holds results of {held}, not of {wanted}: '
+                               'choose another --out')
+    if not has_results:
+        if source:
+            record_path.parent.mkdir(parents=True, exist_ok=True)
+            record_path.write_text(json.dumps(source.describe(), indent=1) + '\n')
+        elif record is not None:
+            record_path.unlink()      # left from results that are gone
+
+
+def _read_tasks_record(path: Path) -> Optional[dict]:
+    if not path.exists():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except ValueError:
+        record = None
+    if not (isinstance(record, dict) and isinstance(record.get('path'), str) and isinstance(record.get('sha256'), str)):
+        raise ResultsFileError(f'{path} is not a record of a tasks file: choose another --out')
+    return record
 
 
 def progress_bar(total: int, done: int, enabled: bool):
@@ -316,14 +375,15 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
     config.check()    # an unknown agent or questioner, or a bad setting, fails here before any node starts
 
     t0 = time.monotonic()
-    tasks = load_split(config.split)[:config.limit]
+    tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in enumerate(tasks) if t.task_id not in done]
     ran, startup_s = 0, 0.0
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
-        nodes = [sim_node(config.resolution, ns, publish_observations=False) for ns in namespaces]
+        from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
+        nodes = [sim_node(config.resolution, ns, publish_observations=False, **from_file) for ns in namespaces]
         if config.questioner:
             withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
                         'seed': config.seed} if config.perturb_type else {}
@@ -362,13 +422,18 @@ def print_report(report: EvalReport) -> None:
         for r in failed:
             print(f'  {r.task_id}  {r.task_type:<20} {r.end_reason:<12} {r.error}')
     print(f'results: {c.results_path}\nsummary: {c.summary_path}')
+    if c.tasks_source:
+        print(f'tasks:   {c.tasks_source.path} (sha256 {c.tasks_source.sha256[:12]}..., recorded in '
+              f'{c.tasks_record_path})')
 
 
 def eval_config(args) -> EvalConfig:
-    return EvalConfig(split=args.split, agent=args.agent, questioner=args.questioner or '', limit=args.limit,
+    return EvalConfig(split=args.split or 'valid_unseen',
+                      agent=args.agent, questioner=args.questioner or '', limit=args.limit,
                       perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
                       workers=args.workers,
-                      out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution)
+                      out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
+                      tasks_file=Path(args.tasks) if args.tasks else None)
 
 
 def run_eval_command(args) -> int:
@@ -390,7 +455,13 @@ def run_eval_command(args) -> int:
 
 def add_eval_parser(sub) -> None:
     ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table')
-    ev.add_argument('--split', default='valid_unseen', choices=['train', 'valid_seen', 'valid_unseen'])
+    tasks = ev.add_mutually_exclusive_group()
+    tasks.add_argument('--split', default=None, choices=['train', 'valid_seen', 'valid_unseen'],
+                       help='a shipped split (default valid_unseen)')
+    tasks.add_argument('--tasks', default=None, metavar='PATH',
+                       help='a split file of your own instead of --split, e.g. a sealed test split made with '
+                            '`python -m dialfred_sim.tasks.splits test_unseen --seed S --size N --out PATH`; '
+                            'results record its path and sha256 and are never mixed with another file\'s')
     ev.add_argument('--agent', default='expert',
                     help='expert, random, or your own class as package.module:ClassName (on the Python path; '
                          'made as ClassName(resolution=R), with reset(task, seed) and act(observation))')

@@ -10,6 +10,7 @@ reported with its exit code and the last lines it printed.
     python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
     python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
     python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
+                                   (or --tasks PATH: a split file of your own, e.g. a sealed test split)
                                    [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
                                    [--seed 0] [--resolution 128]
 
