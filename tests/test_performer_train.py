@@ -27,7 +27,8 @@ from dialfred_performer.model import PerformerConfig, load_checkpoint
 from dialfred_performer.prepare import (VOCABULARY_FILE, PrepareConfig, _dialogue_worker, _part_path, prepare,
                                         write_dialogues)
 from dialfred_performer.preprocess import Vocabulary, tokenize
-from dialfred_performer.train import TrainConfig, epoch_batches, lr_factor, main, train
+from dialfred_performer.train import (TrainConfig, epoch_batches, epoch_items, load_data, load_vocabulary, lr_factor,
+                                      main, train)
 
 TINY_MODEL = PerformerConfig(resolution=64, d_model=32, heads=2, layers=1, ff=64, dropout=0.1, max_steps=64)
 
@@ -173,3 +174,15 @@ def test_the_entry_script_runs_training_with_the_malloc_settings(folder, tmp_pat
     assert run.returncode == 0, run.stderr[-2000:]
     summary = json.loads(run.stdout.strip().splitlines()[-1])
     assert summary['updates'] == 1 and summary['malloc_settings'] and (tmp_path / 'run' / 'last.pt').is_file()
+
+
+def test_without_every_combination_an_epoch_shows_each_training_task_once(folder, tmp_path):
+    cfg = tiny(folder, tmp_path / 'run', every_combination=False)
+    data = load_data(cfg, load_vocabulary(cfg))
+    combos = len(data.train.combinations)
+    train_tasks = sorted({i // combos for i in data.train_items})
+    epochs = [epoch_items(data, cfg, e) for e in range(6)]
+    assert all(sorted(i // combos for i in items) == train_tasks for items in epochs)
+    assert len({tuple(items) for items in epochs}) > 1                  # combinations drawn anew each epoch
+    assert epoch_items(data, cfg, 0) == epochs[0]
+    assert train(dataclasses.replace(cfg, epochs=1))['updates'] == 1     # 3 tasks, batches of 4

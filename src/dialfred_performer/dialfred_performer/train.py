@@ -14,7 +14,11 @@ Written to `--out`: `last.pt` (every `--checkpoint-every` updates, at each epoch
 session stops; with the optimiser, schedule and RNG state, so `--resume` continues to the very
 weights of an uninterrupted run), `epoch-NNN.pt` and `best.pt` (lowest validation loss),
 `metrics.jsonl` (a line per `--log-every` updates and per validation), `curves.png`. Every checkpoint
-is a `model.save_checkpoint` file, loadable by `PerformerAgent.from_checkpoint`.
+is a `model.save_checkpoint` file, loadable by `PerformerAgent.from_checkpoint`. A first Ctrl-C
+stops after the current update and writes last.pt; --resume goes on from there.
+
+An epoch shows every training task once per question-type combination (8x its frames; the paper's
+augmentation); --no-every-combination shows each once, with a combination drawn per epoch.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import json
 import math
 import os
 import random
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -53,17 +58,21 @@ RESUMABLE_CHANGES = ('resume', 'progress', 'device', 'threads', 'loader_workers'
 class TrainConfig:
     """Train the DialFRED performer (Episodic Transformer) on expert demonstrations with dialogues."""
 
-    demonstrations: str = arg(str(default_dir('train', 64)), 'training demonstrations folder (python -m dialfred_performer.prepare)')
+    demonstrations: str = arg(str(default_dir('train', 64)),
+                              'training demonstrations folder (made by python -m dialfred_performer.prepare)')
     validation: str = arg('', "validation demonstrations folder (e.g. valid_seen's); '' = hold out training tasks")
     val_fraction: float = arg(0.05, 'without --validation: hold out the training tasks whose id hashes below this')
     dialogues: bool = arg(True, "train with the folder's dialogues.jsonl (--no-dialogues: instructions only)")
+    every_combination: bool = arg(True, 'an epoch shows each task once per question-type combination (8x); '
+                                        '--no-every-combination: once, with a combination drawn per epoch')
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
     out: str = arg('out/performer', 'folder for checkpoints, metrics.jsonl and curves.png')
     model: PerformerConfig = field(default_factory=PerformerConfig)
     epochs: int = arg(10, 'passes over the training episodes (each task once per question-type combination)')
     max_updates: int = arg(0, 'stop after this many optimiser updates in all (0: epochs x updates per epoch)')
     batch_size: int = arg(16, 'episodes per update')
-    bucket: int = arg(32, 'episodes are sorted by length within shuffled groups of bucket x batch_size (1: no grouping)')
+    bucket: int = arg(32, 'episodes are sorted by length within shuffled groups of bucket x batch_size '
+                          '(less padding; 1: no grouping)')
     lr: float = arg(1e-3, 'peak learning rate (AdamW)')
     final_lr_fraction: float = arg(0.01, 'the cosine decays to lr x this')
     warmup_updates: int = arg(500, 'linear warmup from 0 to lr')
@@ -192,6 +201,17 @@ def load_vocabulary(cfg: TrainConfig) -> Vocabulary:
     return Vocabulary.build(vocabulary_texts(Path(cfg.demonstrations)) + oracle_texts())
 
 
+def epoch_items(data: Data, cfg: TrainConfig, epoch: int) -> list[int]:
+    """The training items of `epoch`: all of them, or (--no-every-combination) one per task, its
+    question-type combination drawn from (seed, epoch, task)."""
+    if cfg.every_combination:
+        return data.train_items
+    combos = len(data.train.combinations)
+    tasks = sorted({i // combos for i in data.train_items})
+    draws = np.random.default_rng([cfg.seed, epoch, 1]).integers(combos, size=len(tasks))
+    return [k * combos + int(c) for k, c in zip(tasks, draws)]
+
+
 def epoch_batches(lengths: Sequence[int], batch_size: int, seed: int, epoch: int, bucket: int) -> list[list[int]]:
     """Positions 0..len(lengths)-1 in batches for one epoch: a seeded shuffle, cut into groups of
     bucket x batch_size sorted by length (less padding), batched, and the batches shuffled."""
@@ -265,6 +285,29 @@ def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler) 
 
 # ---------------------------------------------------------------------- training
 
+class StopRequest:
+    """While it is held, a first Ctrl-C (SIGINT) asks the loop to stop after the current update and
+    write last.pt (a consistent state to --resume from); a second one stops at once."""
+
+    def __init__(self):
+        self.asked = False
+        self.previous = signal.signal(signal.SIGINT, self._handle)
+
+    def _handle(self, signum, frame) -> None:
+        if self.asked:
+            raise KeyboardInterrupt
+        self.asked = True
+        print('\nCtrl-C: stopping after this update and writing last.pt (again: stop now)', file=sys.stderr)
+
+    def release(self) -> None:
+        signal.signal(signal.SIGINT, self.previous)
+
+
+def ignore_interrupts(_worker_id: int) -> None:
+    """DataLoader workers leave Ctrl-C to the training process (which stops cleanly)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def train(cfg: TrainConfig) -> dict:
     """Train (or continue) the run of `cfg`; the final summary (also the last line printed by main)."""
     out = Path(cfg.out)
@@ -280,8 +323,7 @@ def train(cfg: TrainConfig) -> dict:
 
     vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
     data = load_data(cfg, vocab)
-    lengths = Data.item_lengths(data.train, data.train_items)
-    per_epoch = math.ceil(len(data.train_items) / cfg.batch_size)
+    per_epoch = math.ceil(len(epoch_items(data, cfg, 0)) / cfg.batch_size)
     total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
     model = Performer(cfg.model, len(vocab)).to(device)
     optimizer = make_optimizer(model, cfg)
@@ -313,63 +355,70 @@ def train(cfg: TrainConfig) -> dict:
                 checkpoint('best.pt', full=False)
         draw_curves(out / 'metrics.jsonl', out / 'curves.png')
 
-    model.train()
-    halt = False                      # --stop-after reached: this session ends
-    while progress.epoch < cfg.epochs and progress.update < total and not halt:
-        batches = epoch_batches(lengths, cfg.batch_size, cfg.seed, progress.epoch, cfg.bucket)
-        todo = [[data.train_items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
-        # Its own generator: a DataLoader iterator draws a seed, which must not come from torch's global
-        # RNG (dropout's), or a resumed run (one more iterator) would draw different dropout masks.
-        loader = torch.utils.data.DataLoader(data.train, batch_sampler=todo, collate_fn=collate,
-                                             num_workers=cfg.loader_workers,
-                                             generator=torch.Generator().manual_seed(cfg.seed))
-        for batch in loader:
-            batch = to_device(batch, device)
-            outputs = model(batch)
-            loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            if cfg.grad_clip > 0:
-                torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
-            optimizer.step()
-            scheduler.step()
-            progress.update += 1
-            progress.batch_in_epoch += 1
-            session_updates += 1
-            for k, v in batch_stats(outputs, batch).items():
-                progress.window[k] += v
-            frames_seen += int(batch['step_valid'].sum())
-            bar.update(1)
-            if progress.update % cfg.log_every == 0:
-                now = time.monotonic()
-                row = summarize(progress.window, cfg.pointer_weight)
-                row.update(frames_per_s=round(row['steps'] / max(now - t_window, 1e-9), 2),
-                           lr=scheduler.get_last_lr()[0])
-                log.write({'kind': 'train', 'update': progress.update, 'epoch': progress.epoch, **row})
-                bar.set_postfix(loss=f'{row["loss"]:.3f}', act=f'{row["action_accuracy"]:.3f}',
-                                fps=f'{row["frames_per_s"]:.0f}')
-                last['train'] = row
-                progress.window, t_window = dict.fromkeys(STAT_KEYS, 0), now
-            if progress.update % cfg.checkpoint_every == 0:
+    stop_request = StopRequest()
+    try:
+        model.train()
+        halt = False                      # --stop-after reached or Ctrl-C: this session ends
+        while progress.epoch < cfg.epochs and progress.update < total and not halt:
+            items = epoch_items(data, cfg, progress.epoch)
+            batches = epoch_batches(Data.item_lengths(data.train, items), cfg.batch_size, cfg.seed, progress.epoch,
+                                    cfg.bucket)
+            todo = [[items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
+            # Its own generator: a DataLoader iterator draws a seed, which must not come from torch's global
+            # RNG (dropout's), or a resumed run (one more iterator) would draw different dropout masks.
+            loader = torch.utils.data.DataLoader(data.train, batch_sampler=todo, collate_fn=collate,
+                                                 num_workers=cfg.loader_workers,
+                                                 generator=torch.Generator().manual_seed(cfg.seed),
+                                                 worker_init_fn=ignore_interrupts if cfg.loader_workers else None)
+            for batch in loader:
+                batch = to_device(batch, device)
+                outputs = model(batch)
+                loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                if cfg.grad_clip > 0:
+                    torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+                optimizer.step()
+                scheduler.step()
+                progress.update += 1
+                progress.batch_in_epoch += 1
+                session_updates += 1
+                for k, v in batch_stats(outputs, batch).items():
+                    progress.window[k] += v
+                frames_seen += int(batch['step_valid'].sum())
+                bar.update(1)
+                if progress.update % cfg.log_every == 0:
+                    now = time.monotonic()
+                    row = summarize(progress.window, cfg.pointer_weight)
+                    row.update(frames_per_s=round(row['steps'] / max(now - t_window, 1e-9), 2),
+                               lr=scheduler.get_last_lr()[0])
+                    log.write({'kind': 'train', 'update': progress.update, 'epoch': progress.epoch, **row})
+                    bar.set_postfix(loss=f'{row["loss"]:.3f}', act=f'{row["action_accuracy"]:.3f}',
+                                    fps=f'{row["frames_per_s"]:.0f}')
+                    last['train'] = row
+                    progress.window, t_window = dict.fromkeys(STAT_KEYS, 0), now
+                if progress.update % cfg.checkpoint_every == 0:
+                    checkpoint()
+                halt = (bool(cfg.stop_after) and session_updates >= cfg.stop_after) or stop_request.asked
+                if halt or progress.update >= total:
+                    break
+            if progress.batch_in_epoch == len(batches):          # the epoch is complete
+                validate_and_draw()
+                progress.epoch += 1
+                progress.batch_in_epoch = 0
+                checkpoint(f'epoch-{progress.epoch:03d}.pt', full=False)
                 checkpoint()
-            halt = bool(cfg.stop_after) and session_updates >= cfg.stop_after
-            if halt or progress.update >= total:
-                break
-        if progress.batch_in_epoch == len(batches):          # the epoch is complete
+                bar.set_description(f'epoch {min(progress.epoch + 1, cfg.epochs)}/{cfg.epochs}')
+                t_window = time.monotonic()                      # frames/s of training only
+        finished = progress.update >= total or progress.epoch >= cfg.epochs
+        if finished and progress.batch_in_epoch and session_updates:   # max_updates ended it inside an epoch
             validate_and_draw()
-            progress.epoch += 1
-            progress.batch_in_epoch = 0
-            checkpoint(f'epoch-{progress.epoch:03d}.pt', full=False)
-            checkpoint()
-            bar.set_description(f'epoch {min(progress.epoch + 1, cfg.epochs)}/{cfg.epochs}')
-            t_window = time.monotonic()                      # frames/s of training only
-    finished = progress.update >= total or progress.epoch >= cfg.epochs
-    if finished and progress.batch_in_epoch and session_updates:   # max_updates ended it inside an epoch
-        validate_and_draw()
-    checkpoint()
-    if not finished:
-        draw_curves(out / 'metrics.jsonl', out / 'curves.png')
-    bar.close()
+        checkpoint()
+        if not finished:
+            draw_curves(out / 'metrics.jsonl', out / 'curves.png')
+        bar.close()
+    finally:
+        stop_request.release()
     seconds = time.monotonic() - t_start
     return {'finished': finished, 'updates': progress.update, 'epoch': progress.epoch, 'total_updates': total,
             'session_updates': session_updates, 'session_seconds': round(seconds, 2),
