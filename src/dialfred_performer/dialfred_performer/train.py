@@ -50,7 +50,8 @@ from .prepare import VOCABULARY_FILE
 from .preprocess import Vocabulary
 
 MODULE = 'dialfred_performer.train'
-# Fields that may change between a run and its --resume without changing its results.
+# Fields that may change between a run and its --resume (all must match otherwise). Only the same
+# device and thread count give bit-identical weights; another may change the last bits.
 RESUMABLE_CHANGES = ('resume', 'progress', 'device', 'threads', 'loader_workers', 'stop_after', 'checkpoint_every')
 
 
