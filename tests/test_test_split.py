@@ -118,6 +118,14 @@ def test_a_shipped_split_takes_no_seed_of_your_own(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_a_part_of_a_shipped_split_is_never_written_over_the_shipped_file():
+    from dialfred_sim.tasks.splits import split_path
+    before = split_path('train').read_bytes()
+    done = make_split('train', '--size', '3')
+    assert done.returncode == 2 and '--size 3 of train needs --out' in done.stderr
+    assert split_path('train').read_bytes() == before
+
+
 def test_force_replaces_an_existing_file_with_the_new_split(test_split, tmp_path):
     out = tmp_path / 'replaced.jsonl.gz'
     out.write_bytes(b'old')

@@ -400,6 +400,10 @@ def main(argv=None) -> int:
         else:
             out = Path(args.out) if args.out else split_path(args.split)
             size = args.size or SPLIT_SIZES[args.split]
+            if not args.out and size != SPLIT_SIZES[args.split]:
+                # A part of a split where load_split reads the whole one would replace the shipped file.
+                raise ValueError(f'--size {size} of {args.split} needs --out (the default is the split itself, '
+                                 f'{SPLIT_SIZES[args.split]:,} tasks)')
     except ValueError as exc:
         ap.error(str(exc))      # exit 2, nothing written
     try:
