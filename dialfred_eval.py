@@ -29,7 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_launch import REPO, Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service  # noqa: F401
+from dialfred_sim.graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service, use_project_environment  # noqa: F401
+
+REPO = Path(__file__).resolve().parent
+use_project_environment(REPO)
 
 @dataclass
 class EvalConfig:
