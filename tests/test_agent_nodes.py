@@ -130,3 +130,36 @@ def test_cancel_a_refused_second_goal_and_bad_goals_while_the_node_keeps_serving
         assert (done.result.end_reason, done.result.steps, done.result.last_action) == ('stop', 1, 'Stop')
         assert done.result.goal_conditions_total > 0 and not done.result.success
         graph.check()
+
+
+def test_the_questioner_node_asks_like_the_baseline_and_refuses_a_confusion_request_without_a_gap():
+    from dialfred_msgs.msg import QAPair, TaskDescription
+    from dialfred_msgs.srv import QuestionerAsk
+    task = TaskDescription(task_id='valid_unseen/000003', instruction='Put the apple in the fridge.',
+                           object_nouns=['apple', 'fridge'])
+    nodes = [NodeProcess('dialfred_questioner', {'questioner': 'all'}, namespace='/qa'),
+             NodeProcess('dialfred_questioner', {'questioner': 'confusion'}, namespace='/qc')]
+    with Graph(nodes) as graph:
+        ask_all = graph.client(QuestionerAsk, '/qa/questioner/ask')
+        asked, dialogue = [], []
+        while True:
+            reply = graph.call(ask_all, QuestionerAsk.Request(task=task, seed=1, step=0, dialogue=dialogue))
+            assert reply.ok, reply.error
+            if not reply.ask:
+                break
+            asked.append((reply.question_type, reply.object_noun))
+            dialogue.append(QAPair(question_type=reply.question_type, object_noun=reply.object_noun, valid=True))
+        assert asked == [('location', 'apple'), ('appearance', 'apple'), ('location', 'fridge'),
+                         ('appearance', 'fridge'), ('direction', '')]          # AllQuestioner's order
+        confusion = graph.client(QuestionerAsk, '/qc/questioner/ask')
+        reply = graph.call(confusion, QuestionerAsk.Request(task=task, seed=1, step=0))
+        assert not reply.ok and 'confusion_gap' in reply.error
+        sure = graph.call(confusion, QuestionerAsk.Request(task=task, seed=1, step=0, confusion_gap=0.9))
+        unsure = graph.call(confusion, QuestionerAsk.Request(task=task, seed=1, step=1, confusion_gap=0.1))
+        assert (sure.ok, sure.ask, unsure.ok, unsure.ask) == (True, False, True, True)
+        graph.check()
+    bad = NodeProcess('dialfred_questioner', {'questioner': 'nosuch'})
+    bad.start()
+    assert bad.proc.wait(30) == 1
+    time.sleep(0.2)
+    assert any('unknown questioner' in line for line in bad.tail)
