@@ -114,7 +114,7 @@ def main() -> None:
                 if not ok:
                     confusions[f'{fact.colour}->{named or "?"}'] += 1
             else:
-                e = truth.task.expert_end_pose
+                e = truth.answer_key.expert_end_pose
                 checks['direction'].append(text == expected_direction(agent, (e.x, e.y, e.rotation_deg)))
             if len(examples) < 12:
                 examples.append({'task': task.task_id, 'q': (qtype, noun), 'a': text})

@@ -46,6 +46,13 @@ def test_oracle_latency_answers_every_request():
     assert report['pipelined']['requests_per_s'] > 0
 
 
+def test_service_flood_answers_every_request_only_with_keep_all():
+    report = run_bench('service_flood', '--steps', '60', '--questions', '40', '--wait', '5')
+    for service, sent in (('sim_step', 60), ('oracle_answer', 40)):
+        assert report['keep_all'][service]['replied'] == report['keep_all'][service]['ok'] == sent
+        assert report['ros_default'][service]['replied'] < sent     # the baseline loses some: it is a real baseline
+
+
 def test_oracle_fuzz_finds_no_crash_on_a_short_run():
     report = run_bench('oracle_fuzz', '--requests', '60')
     assert report['crashes'] == 0 and report['malformed_replies'] == 0 and report['oracle_alive_at_end']

@@ -6,7 +6,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
-from dialfred_msgs.msg import Action, AgentPose, Observation, QAPair, TaskDescription
+from dialfred_msgs.msg import Action, AgentPose, Observation, QAPair, TaskAnswerKey, TaskDescription
 from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
 RGB_4X4 = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3)
@@ -73,10 +73,13 @@ def test_observation_fields():
     assert AgentPose.get_fields_and_field_types() == {
         'x': 'double', 'y': 'double', 'camera_height': 'double', 'rotation_deg': 'double',
         'horizon_deg': 'double'}
+    # What any client that resets sees: no type, plan, expert length or end pose (TaskAnswerKey has them).
     assert TaskDescription.get_fields_and_field_types() == {
-        'task_id': 'string', 'task_type': 'string', 'scene': 'string', 'split': 'string',
-        'instruction': 'string', 'step_instructions': 'sequence<string>', 'object_nouns': 'sequence<string>',
-        'expert_length': 'uint32', 'expert_end_pose': 'dialfred_msgs/AgentPose', 'goal_conditions_total': 'uint32'}
+        'task_id': 'string', 'scene': 'string', 'split': 'string', 'instruction': 'string',
+        'object_nouns': 'sequence<string>'}
+    assert TaskAnswerKey.get_fields_and_field_types() == {
+        'task_type': 'string', 'step_instructions': 'sequence<string>', 'expert_length': 'uint32',
+        'expert_end_pose': 'dialfred_msgs/AgentPose', 'goal_conditions_total': 'uint32'}
 
 
 def test_observation_with_a_4x4_rgb_image_round_trips():
@@ -115,7 +118,7 @@ def test_services_have_the_documented_request_and_response():
         'with_segmentation': 'boolean'}
     assert SimReset.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
-        'task': 'dialfred_msgs/TaskDescription'}
+        'task': 'dialfred_msgs/TaskDescription', 'goal_conditions_total': 'uint32'}
     assert SimStep.Request.get_fields_and_field_types() == {
         'action': 'dialfred_msgs/Action', 'with_depth': 'boolean', 'with_segmentation': 'boolean'}
     # Replies carry every channel unless the caller opts out.
@@ -133,3 +136,36 @@ def test_services_have_the_documented_request_and_response():
     request = SimStep.Request(action=Action(action=Action.PICKUP, x=150, y=200))
     restored = deserialize_message(serialize_message(request), SimStep.Request)
     assert (restored.action.action, restored.action.x, restored.action.y) == ('Pickup', 150, 200)
+
+
+def test_run_task_action_has_the_documented_goal_result_and_feedback():
+    from dialfred_msgs.action import RunTask
+    assert RunTask.Goal.get_fields_and_field_types() == {'task_id': 'string', 'seed': 'int64', 'checkpoint': 'string'}
+    assert RunTask.Result.get_fields_and_field_types() == {
+        'success': 'boolean', 'steps': 'uint32', 'goal_conditions_met': 'uint32', 'goal_conditions_total': 'uint32',
+        'failed_actions': 'uint32', 'questions': 'uint32', 'invalid_questions': 'uint32', 'end_reason': 'string',
+        'error': 'string', 'last_action': 'string'}
+    assert RunTask.Feedback.get_fields_and_field_types() == {
+        'step': 'uint32', 'action': 'dialfred_msgs/Action', 'action_success': 'boolean', 'questions': 'uint32'}
+    # The action's hidden services and topic carry the goal id (action_msgs) with the goal.
+    assert 'goal_id' in RunTask.Impl.SendGoalService.Request.get_fields_and_field_types()
+    feedback = RunTask.Feedback(step=3, action=Action(action=Action.OPEN, x=10, y=20), questions=2)
+    restored = deserialize_message(serialize_message(feedback), RunTask.Feedback)
+    assert (restored.step, restored.action.action, restored.action.x, restored.questions) == (3, 'Open', 10, 2)
+
+
+def test_questioner_ask_carries_task_frame_dialogue_step_and_gap():
+    from dialfred_msgs.srv import QuestionerAsk
+    assert QuestionerAsk.Request.get_fields_and_field_types() == {
+        'task': 'dialfred_msgs/TaskDescription', 'seed': 'int64', 'step': 'uint32', 'rgb': 'sensor_msgs/Image',
+        'dialogue': 'sequence<dialfred_msgs/QAPair>', 'confusion_gap': 'double'}
+    assert QuestionerAsk.Request().confusion_gap < 0       # unknown unless the performer sends it
+    assert QuestionerAsk.Response.get_fields_and_field_types() == {
+        'ok': 'boolean', 'error': 'string', 'ask': 'boolean', 'question_type': 'string', 'object_noun': 'string'}
+    request = QuestionerAsk.Request(task=TaskDescription(task_id='valid_unseen/000001', object_nouns=['apple']),
+                                    step=4, rgb=rgb_image(RGB_4X4), confusion_gap=0.25,
+                                    dialogue=[QAPair(question_type=QAPair.LOCATION, object_noun='apple',
+                                                     answer='The apple is in the fridge.', valid=True)])
+    restored = deserialize_message(serialize_message(request), QuestionerAsk.Request)
+    assert restored.dialogue[0].answer == 'The apple is in the fridge.' and restored.confusion_gap == 0.25
+    assert bytes(restored.rgb.data) == RGB_4X4.tobytes()

@@ -24,13 +24,13 @@ import threading
 import time
 
 import numpy as np
-import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
+from dialfred_sim.ros_util import SERVICE_QOS, run_node
 
 from .answers import (MAX_NOUN_CHARS, QUESTION_ALIASES, QUESTION_TYPES, Answer, Perturbation, answer,
                       question_text, situation_key)
@@ -45,7 +45,7 @@ def snapshot_from_msg(msg: GroundTruth.Response) -> Snapshot:
     a = msg.agent
     expert_end = None
     if msg.has_task:
-        e = msg.task.expert_end_pose
+        e = msg.answer_key.expert_end_pose
         expert_end = (e.x, e.y, e.rotation_deg, e.horizon_deg)
     objects = {f.object_id: ObjectFact(
         object_id=f.object_id, type_name=f.type_name, noun=f.noun, position=(f.x, f.y, f.z),
@@ -57,7 +57,7 @@ def snapshot_from_msg(msg: GroundTruth.Response) -> Snapshot:
         object_id=p.object_id, pixels=np.frombuffer(bytes(p.pixels), np.uint8).reshape(-1, 3),
         from_current_view=p.from_current_view) for p in msg.appearances}
     return Snapshot(agent=(a.x, a.y, a.rotation_deg, a.horizon_deg), expert_end=expert_end,
-                    task_id=msg.task.task_id, task_type=msg.task.task_type, instruction=msg.task.instruction,
+                    task_id=msg.task.task_id, task_type=msg.answer_key.task_type, instruction=msg.task.instruction,
                     task_objects=dict(zip(msg.task_nouns, msg.task_object_ids)), objects=objects,
                     appearances=appearances)
 
@@ -81,8 +81,9 @@ class OracleNode(Node):
         self.sim_timeout = float(p('sim_timeout').value)
         self._sim_settled = False
         # The answer callback waits on the simulator's reply, which another thread must take.
-        self.sim_cli = self.create_client(GroundTruth, 'sim/ground_truth', callback_group=ReentrantCallbackGroup())
-        self.create_service(OracleAnswer, 'oracle/answer', self.on_answer,
+        self.sim_cli = self.create_client(GroundTruth, 'sim/ground_truth', qos_profile=SERVICE_QOS,
+                                          callback_group=ReentrantCallbackGroup())
+        self.create_service(OracleAnswer, 'oracle/answer', self.on_answer, qos_profile=SERVICE_QOS,
                             callback_group=MutuallyExclusiveCallbackGroup())
         mode = 'asking a person in this terminal' if self.human else 'from the simulator\'s ground truth'
         self.get_logger().info(f'serving oracle/answer, {mode}')
@@ -163,18 +164,7 @@ class OracleNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = OracleNode()
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(OracleNode, args, executor_factory=lambda: MultiThreadedExecutor(num_threads=4))
 
 
 if __name__ == '__main__':

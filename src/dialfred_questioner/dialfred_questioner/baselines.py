@@ -27,20 +27,26 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, load_class
+from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, load_class, public_view, task_view
 
 
 class Questioner(Protocol):
     name: str
 
     def reset(self, task: Any, seed: int) -> None:
-        """Start an episode of `task` (a dialfred_sim.tasks.Task); `seed` seeds any randomness."""
+        """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
         """A question before the agent's action number `step` + 1, or None."""
 
     def hear(self, qa: QA) -> None:
         """The oracle's reply to the question just asked."""
+
+
+def top2_gap(probabilities) -> float:
+    """The gap between the two most likely actions' probabilities (0.0 with fewer than two)."""
+    p = np.sort(np.asarray(probabilities, dtype=float))[::-1]
+    return float(p[0] - p[1]) if len(p) >= 2 else 0.0
 
 
 def task_nouns(task: Any) -> list[str]:
@@ -130,13 +136,19 @@ class ModelConfusionQuestioner:
         self._asked_at = -1
 
     def confused(self, observation: Any) -> bool:
-        p = np.sort(np.asarray(self.performer.action_probabilities(observation), dtype=float))[::-1]
-        return len(p) < 2 or p[0] - p[1] < self.epsilon
+        return top2_gap(self.performer.action_probabilities(observation)) < self.epsilon
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
         if self.performer is None:
             raise RuntimeError('attach() the performer before asking')
-        if self._asked_at == step or not self.confused(observation):
+        if self._asked_at == step:
+            return None
+        return self.ask_given_gap(top2_gap(self.performer.action_probabilities(observation)), step)
+
+    def ask_given_gap(self, gap: float, step: int) -> Optional[Question]:
+        """The same decision from the performer's top-2 gap as the performer reports it (the
+        questioner node gets it in the /questioner/ask request instead of calling the performer)."""
+        if self._asked_at == step or gap >= self.epsilon:
             return None
         self._asked_at = step
         return random_question(self._rng, self._nouns)
@@ -168,12 +180,13 @@ class QuestioningAgent:
         if attach is not None:         # a questioner that watches the performer (model confusion)
             attach(performer)
         self.name = f'{performer.name}+{questioner.name}'
+        self.privileged = bool(getattr(performer, 'privileged', False))
         self.dialogue: list[QA] = []
         self._steps = 0
 
     def reset(self, task: Any, seed: int) -> None:
-        self.performer.reset(task, seed)
-        self.questioner.reset(task, seed)
+        self.performer.reset(task_view(self.performer, task), seed)
+        self.questioner.reset(public_view(task), seed)     # a questioner is never privileged
         self.dialogue = []
         self._steps = 0
 

@@ -4,7 +4,10 @@ An agent is told the task at the start of an episode (`reset(task, seed)`) and t
 observation, names its next action (`act(observation) -> (action, x, y)`, ALFRED's action names, the
 target pixel in the simulator's frame; -1, -1 for actions without a target). The observation is
 whatever the driver has (the launcher passes the dialfred_msgs/Observation message); the two agents
-here do not look at it. The performer of a later issue is an agent too: `make_agent` is where a new
+here do not look at it. The task an agent is told is its public view (`tasks.PublicTask`: the
+instruction and the nouns it names, with the task's id, room and split); the expert's plan, the goal
+and the type stay with the simulator, the checker and the oracle. Only a built-in reference agent
+marked `privileged` (the expert) is given the whole `Task`, and its results say so. The performer of a later issue is an agent too: `make_agent` is where a new
 one gets its name, and any class of yours works as 'package.module:ClassName'.
 
 An agent that talks (`DialogueAgent`) also has `ask(observation) -> Question | None`, called before
@@ -53,7 +56,7 @@ class Agent(Protocol):
     name: str
 
     def reset(self, task: Any, seed: int) -> None:
-        """Start an episode of `task` (a dialfred_sim.tasks.Task); `seed` seeds any randomness."""
+        """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
 
     def act(self, observation: Any) -> Decision:
         """The next action (name, x, y) given the latest observation."""
@@ -88,10 +91,25 @@ def scale_pixel(x: int, y: int, from_resolution: int, to_resolution: int) -> tup
     return one(x), one(y)
 
 
+def public_view(task: Any) -> Any:
+    """The public view of `task` (a Task's `public()`; a PublicTask as it is)."""
+    return task.public() if hasattr(task, 'public') else task
+
+
+def task_view(agent: Any, task: Any) -> Any:
+    """What `agent` is told of `task`: the whole Task for a privileged reference agent, else its
+    public view."""
+    return task if getattr(agent, 'privileged', False) else public_view(task)
+
+
 class ExpertAgent:
-    """Replays the task's expert actions in order, then Stop (if the episode is still running)."""
+    """Replays the task's expert actions in order, then Stop (if the episode is still running).
+
+    Privileged: it reads the expert's plan from the whole Task, so it is a reference (the
+    benchmark's upper bound and a check of the world), not an agent, and results mark it."""
 
     name = 'expert'
+    privileged = True
 
     def __init__(self, resolution: int = 128):
         self.resolution = resolution      # the simulator's frame size; pixels are scaled to it
@@ -99,6 +117,8 @@ class ExpertAgent:
         self._next = 0
 
     def reset(self, task: Any, seed: int = 0) -> None:
+        if not hasattr(task, 'expert_actions'):
+            raise TypeError(f'the expert replays the task\'s plan: it needs the whole Task, got {type(task).__name__}')
         self._plan = [(a.action, *scale_pixel(a.x, a.y, task.resolution, self.resolution))
                       for a in task.expert_actions]
         self._next = 0
@@ -115,6 +135,7 @@ class RandomAgent:
     """Uniform over the 13 actions, with a uniform random pixel; seeded per episode."""
 
     name = 'random'
+    privileged = False
 
     def __init__(self, resolution: int = 128):
         self.resolution = resolution
@@ -162,4 +183,8 @@ def make_agent(name: str, resolution: int = 128) -> Agent:
         return AGENTS[name](resolution=resolution)
     if ':' not in name:
         raise ValueError(f'unknown agent {name!r}; known: {", ".join(AGENTS)}, or package.module:ClassName')
-    return load_class(name)(resolution=resolution)
+    cls = load_class(name)
+    if getattr(cls, 'privileged', False):
+        raise ValueError(f'agent {name!r} says it is privileged: only the built-in reference agents '
+                         f'({", ".join(k for k, c in AGENTS.items() if c.privileged)}) may see a task\'s solution')
+    return cls(resolution=resolution)

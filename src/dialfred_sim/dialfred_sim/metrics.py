@@ -53,6 +53,7 @@ class EpisodeResult:
     oracle: str = ''                 # '' = exact answers; 'location:0.5' = withholding that type that often
     seed: int = 0
     wall_s: float = 0.0
+    privileged: bool = False         # played by a reference agent that saw the task's solution (the expert)
 
     def __post_init__(self):
         if self.end_reason not in END_REASONS:
@@ -104,7 +105,7 @@ class EpisodeResult:
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
-                'oracle': str, 'seed': int, 'wall_s': float}
+                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool}
 
 
 def _has_type(value, want: type) -> bool:

@@ -8,22 +8,23 @@ node only converts messages. Bad requests get ok=false and an error text, and th
 from __future__ import annotations
 
 import array as pyarray
+import sys
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 
-from dialfred_msgs.msg import AgentPose, Appearance, ObjectFact, Observation, TaskDescription
+from dialfred_msgs.msg import AgentPose, Appearance, ObjectFact, Observation, TaskAnswerKey, TaskDescription
 from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
 from .ground_truth import snapshot
+from .tasks.splits import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
-from .ros_util import make_executor, spin_forever
+from .ros_util import SERVICE_QOS, error_reply, run_node
 
 # Observations: every one matters to a recorder, only the newest to a controller.
 OBSERVATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
@@ -58,18 +59,21 @@ def image_bytes(array: np.ndarray) -> pyarray.array:
     return data
 
 
-def task_description(task, goal_conditions_total: int) -> TaskDescription:
-    """The TaskDescription message of a tasks.Task; `goal_conditions_total` is the env's count of the
-    conditions left to achieve at the task's start (info['goal_conditions_total'])."""
-    t = TaskDescription()
-    t.task_id, t.task_type, t.scene, t.split = task.task_id, task.task_type, task.scene, task.split
-    t.instruction, t.step_instructions = task.instruction, list(task.step_instructions)
-    t.object_nouns, t.expert_length = list(task.object_nouns), task.expert_length
+def task_description(task) -> TaskDescription:
+    """The public TaskDescription of a tasks.Task: what any client that resets may see."""
+    public = task.public()
+    return TaskDescription(task_id=public.task_id, scene=public.scene, split=public.split,
+                           instruction=public.instruction, object_nouns=list(public.object_nouns))
+
+
+def task_answer_key(task, goal_conditions_total: int) -> TaskAnswerKey:
+    """What only the checker and the oracle may know of a tasks.Task (sent on /sim/ground_truth only);
+    `goal_conditions_total` is the env's count of the conditions left to do at the task's start."""
     i, j, rot, horizon = task.expert_end_pose
-    t.expert_end_pose = AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
-                                  rotation_deg=float(rot), horizon_deg=float(horizon))
-    t.goal_conditions_total = int(goal_conditions_total)
-    return t
+    return TaskAnswerKey(task_type=task.task_type, step_instructions=list(task.step_instructions),
+                         expert_length=task.expert_length, goal_conditions_total=int(goal_conditions_total),
+                         expert_end_pose=AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
+                                                   rotation_deg=float(rot), horizon_deg=float(horizon)))
 
 
 def object_fact_msg(f) -> ObjectFact:
@@ -79,6 +83,10 @@ def object_fact_msg(f) -> ObjectFact:
                       colour=f.colour, material=f.material, pickupable=bool(f.pickupable),
                       is_open=bool(f.is_open), is_on=bool(f.is_on), is_dirty=bool(f.is_dirty),
                       is_sliced=bool(f.is_sliced), temperature=f.temperature, held=bool(f.held))
+
+
+class TasksFileError(RuntimeError):
+    """The tasks_file parameter names no readable split file."""
 
 
 class SimNode(Node):
@@ -92,23 +100,33 @@ class SimNode(Node):
         self.declare_parameter('max_steps', 1000)
         self.declare_parameter('max_failures', 10)
         self.declare_parameter('publish_observations', True)
+        self.declare_parameter('tasks_file', '', ParameterDescriptor(
+            description='a split file of your own (e.g. a test_unseen split): /sim/reset task ids are looked up '
+                        "there first, then in the shipped splits; '' = shipped splits only", read_only=True))
         p = self.get_parameter
+        # Read once, at start: a missing or malformed file stops the node here with the reason.
+        try:
+            self.tasks_file = read_tasks_file(p('tasks_file').value) if p('tasks_file').value else None
+        except (FileNotFoundError, ValueError) as exc:
+            raise TasksFileError(str(exc)) from None
         scene = p('scene').value or None
         self.default_seed = int(p('seed').value)
         self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
                                max_steps=int(p('max_steps').value), max_failures=int(p('max_failures').value))
         self.publish_observations = bool(p('publish_observations').value)
         self.observation_pub = self.create_publisher(Observation, 'sim/observation', OBSERVATION_QOS)
-        self.create_service(SimReset, 'sim/reset', self.on_reset)
-        self.create_service(SimStep, 'sim/step', self.on_step)
-        self.create_service(GroundTruth, 'sim/ground_truth', self.on_ground_truth)
+        self.create_service(SimReset, 'sim/reset', self.on_reset, qos_profile=SERVICE_QOS)
+        self.create_service(SimStep, 'sim/step', self.on_step, qos_profile=SERVICE_QOS)
+        self.create_service(GroundTruth, 'sim/ground_truth', self.on_ground_truth, qos_profile=SERVICE_QOS)
         self.clock = self.get_clock()
         self.obs = None
         self.info = None
-        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
+        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}'
+                               + (f', tasks of {self.tasks_file.path}' if self.tasks_file else ''))
 
     # ------------------------------------------------------------------ services
 
+    @error_reply()
     def on_reset(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
         if request.task_id:
             return self._reset_to_task(request, response)
@@ -116,6 +134,9 @@ class SimNode(Node):
         scene = request.scene or (self.info['scene'] if self.info else None)
         options = {'scene': scene} if scene else None
         seed = int(request.seed)
+        if seed < 0:   # gymnasium raises a non-ValueError for it
+            response.ok, response.error = False, f'seed must be a non-negative integer, got {seed}'
+            return response
         try:
             self.obs, self.info = self.env.reset(seed=seed, options=options)
         except ValueError as exc:
@@ -129,16 +150,19 @@ class SimNode(Node):
 
     def _reset_to_task(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
         try:
-            self.obs, self.info = self.env.reset(options={'task_id': request.task_id})
+            task = resolve_task(request.task_id, self.tasks_file)
+            self.obs, self.info = self.env.reset(options={'task': task})
         except (ValueError, FileNotFoundError) as exc:
             response.ok, response.error = False, str(exc)
             return response
         response.ok = True
         self._fill_observation(response.observation, False, request.with_depth, request.with_segmentation)
-        response.task = task_description(self.env.task, self.info['goal_conditions_total'])
+        response.task = task_description(self.env.task)
+        response.goal_conditions_total = int(self.info['goal_conditions_total'])
         self._publish(response.observation)
         return response
 
+    @error_reply()
     def on_ground_truth(self, request: GroundTruth.Request, response: GroundTruth.Response) -> GroundTruth.Response:
         if self.obs is None:
             response.ok, response.error = False, 'ground truth before reset: call /sim/reset first'
@@ -154,7 +178,8 @@ class SimNode(Node):
                                    rotation_deg=float(rot), horizon_deg=float(horizon))
         if self.env.task is not None:
             response.has_task = True
-            response.task = task_description(self.env.task, self.info['goal_conditions_total'])
+            response.task = task_description(self.env.task)
+            response.answer_key = task_answer_key(self.env.task, self.info['goal_conditions_total'])
         response.task_nouns = list(snap.task_objects)
         response.task_object_ids = list(snap.task_objects.values())
         response.objects = [object_fact_msg(f) for f in snap.objects.values()]
@@ -163,6 +188,7 @@ class SimNode(Node):
                                 for a in snap.appearances.values()]
         return response
 
+    @error_reply()
     def on_step(self, request: SimStep.Request, response: SimStep.Response) -> SimStep.Response:
         if self.obs is None:
             response.ok, response.error = False, 'step before reset: call /sim/reset first'
@@ -225,18 +251,11 @@ class SimNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = SimNode()
-    executor = make_executor()
-    executor.add_node(node)
     try:
-        spin_forever(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        run_node(SimNode, args)
+    except TasksFileError as exc:      # said in one line, not a traceback
+        print(f'dialfred_sim node: {exc}', file=sys.stderr)
+        return 1
 
 
 if __name__ == '__main__':

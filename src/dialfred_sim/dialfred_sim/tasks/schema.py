@@ -100,9 +100,25 @@ class Episode:
     resolution: int = 128
 
 
+@dataclass(frozen=True)
+class PublicTask:
+    """What an agent is told about its task, as a DialFRED agent is: the main-action instruction and
+    the nouns of the objects it names (what questions may be about), with the task's id, room and
+    split. The type, goal, step-by-step instructions and the expert's plan, length and end pose stay
+    with the simulator, the checker and the oracle (`Task`)."""
+
+    task_id: str
+    scene: str
+    split: str
+    instruction: str
+    object_nouns: tuple[str, ...]
+
+
 @dataclass
 class Task:
-    """One DialFRED task: a run of an episode's primitives with a type, goal and instructions."""
+    """One DialFRED task: a run of an episode's primitives with a type, goal and instructions.
+
+    Privileged: it holds the expert's solution. Agents get `public()`."""
 
     task_id: str
     task_type: str
@@ -120,6 +136,10 @@ class Task:
     @property
     def split(self) -> str:
         return self.episode.split
+
+    def public(self) -> PublicTask:
+        """The view of this task that agents get."""
+        return PublicTask(self.task_id, self.scene, self.split, self.instruction, tuple(self.object_nouns))
 
     @property
     def scene(self) -> str:
