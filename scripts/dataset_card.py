@@ -210,7 +210,9 @@ METRICS_SECTION = [
     '  - GC 100% does not mean success. Success also needs the conditions that held at the start to '
     'hold at the end. An agent that heats the apple and leaves it in the microwave has made the one '
     'change the task asked for (GC 1/1), but it has not finished the task (the apple is not in hand).',
-    '  - Undoing a condition that held at the start costs success, never GC.',
+    '  - Undoing a condition that held at the start costs success, never GC. GC falls only when the agent'
+    ' undoes what it achieved itself (it walks away from the place it had reached, or opens again what it'
+    ' had closed).',
     '  - Every generated task has at least one condition left to do (the generator drops a task whose'
     ' goal already holds). A hand-made task with none scores GC = its success (0 or 1).',
     "  - The simulator reports both numbers: `info['goal_conditions_met']` and "
