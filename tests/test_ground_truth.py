@@ -88,7 +88,7 @@ def test_a_task_snapshot_names_the_tasks_objects_and_the_experts_end_pose(env, v
             assert s.objects[p.target].noun in s.task_objects and s.objects[p.receptacle].noun in s.task_objects
 
 
-def test_a_sliced_target_drops_out_of_the_task_objects(env, valid_unseen):
+def test_a_sliced_target_is_replaced_by_its_slices_among_the_task_objects(env, valid_unseen):
     task = next(t for t in valid_unseen if t.task_type == 'Slice')
     env.reset(options={'task': task})
     target = task.primitives[-1].target
@@ -97,7 +97,10 @@ def test_a_sliced_target_drops_out_of_the_task_objects(env, valid_unseen):
     rerender(env)
     assert target not in env.world.objects
     s = snapshot(env)
-    assert target not in s.task_objects.values() and target not in task_object_ids(env)
+    slices = sorted(o for o, obj in env.world.objects.items() if obj.sliced_from == target)
+    assert len(slices) >= 4 and target not in task_object_ids(env) and target not in s.task_objects.values()
+    assert set(slices) <= set(task_object_ids(env))
+    assert s.task_objects[s.objects[slices[0]].noun] == slices[0]
 
 
 def test_an_object_in_view_is_sampled_from_the_current_frame(env):
