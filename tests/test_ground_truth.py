@@ -7,8 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from dialfred_sim.ground_truth import (MAX_APPEARANCE_PIXELS, Appearance, Snapshot, appearance, snapshot,
-                                       snapshot_from_dict, snapshot_to_dict, task_object_ids)
+from dialfred_sim.ground_truth import (MAX_APPEARANCE_PIXELS, MIN_SEEN_PIXELS, Appearance, GroundTruthCache, Snapshot,
+                                       appearance, seen_positions, snapshot, snapshot_from_dict, snapshot_to_dict,
+                                       task_object_ids)
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.expert import replay
 from dialfred_sim.world.catalog import load_catalog
@@ -171,6 +172,49 @@ def test_a_snapshot_survives_a_json_round_trip(env, valid_unseen):
     empty = snapshot_from_dict(snapshot_to_dict(Snapshot((0, 0, 0, 30), None, '', '', '', {}, {},
                                                          {'X': Appearance('X', np.zeros((0, 3), np.uint8), False)})))
     assert empty.appearances['X'].pixels.shape == (0, 3)
+
+
+def test_an_object_in_view_is_seen_at_the_mean_point_of_its_pixels(env):
+    reset(env, 'FloorPlan1', seed=0)
+    world = env.world
+    _, depth, seg = env._frame
+    seen = seen_positions(world, depth, seg)
+    assert seen
+    for oid, obj in world.objects.items():
+        ys, xs = np.nonzero(seg == obj.body)
+        if len(xs) < MIN_SEEN_PIXELS:
+            assert oid not in seen
+            continue
+        points = np.array([world.pixel_point(x, y, depth)[0] for x, y in zip(xs, ys)])
+        assert seen[oid] == pytest.approx(tuple(points.mean(axis=0)), abs=1e-6), oid
+    s = snapshot(env)
+    assert {oid for oid, f in s.objects.items() if f.seen_position is not None} == set(seen)
+    for oid, f in s.objects.items():
+        assert f.where == (f.seen_position if oid in seen else f.position)
+
+
+def test_the_cache_gives_the_snapshot_of_the_moment_and_computes_it_once_per_state(env, valid_unseen):
+    cache = GroundTruthCache(env, first_version=100)
+    versions = []
+    for task in valid_unseen[:3]:
+        env.reset(options={'task': task})
+        for action in (None, 'RotateLeft', 'MoveAhead', 'LookDown', 'RotateRight'):
+            if action:
+                env.step({'action': action})
+            ids = task_object_ids(env)
+            version = cache.version()
+            got, want = cache.snapshot(ids), snapshot(env, ids)
+            assert (got.objects, got.agent, got.expert_end, got.task_objects, got.task_id) == \
+                (want.objects, want.agent, want.expert_end, want.task_objects, want.task_id)
+            assert list(got.appearances) == list(want.appearances)
+            for oid, look in want.appearances.items():
+                assert np.array_equal(got.appearances[oid].pixels, look.pixels)
+                assert got.appearances[oid].from_current_view == look.from_current_view
+            # Asked again in the same state: the same version and the very same objects, not recomputed.
+            assert cache.version() == version and cache.snapshot() is cache.snapshot()
+            assert cache.appearances(ids[:1]).get(ids[0]) is got.appearances.get(ids[0])
+            versions.append(version)
+    assert versions == list(range(100, 100 + len(versions)))      # every reset and step is a new state
 
 
 def test_every_receptacle_type_uses_dialfreds_preposition():

@@ -85,6 +85,90 @@ def test_a_bad_question_is_invalid_and_the_node_serves_on(graph, qtype, noun, wh
     assert ask(graph, 'location', task_noun()).valid
 
 
+@pytest.mark.parametrize('qtype', ['Location', 'LOCATION', ' location', 'location ', 'Loc', 'APPEARANCE', ' Direction '])
+def test_a_question_type_in_any_case_or_spacing_is_answered_through_the_node(graph, qtype):
+    reply = ask(graph, qtype, task_noun())
+    assert reply.valid and reply.answer and not reply.reason, reply.reason
+    from dialfred_oracle.answers import parse_question_type
+    assert reply.answer == ask(graph, parse_question_type(qtype), task_noun()).answer
+
+
+def test_a_flood_of_200_concurrent_questions_gets_200_replies(graph):
+    import time
+    noun = task_noun()
+    kinds = [('location', noun), ('appearance', noun), ('direction', ''), ('location', 'unicorn'), ('colour', noun)]
+    futures = [graph.ask_cli.call_async(OracleAnswer.Request(question_type=q, object_noun=n))
+               for q, n in (kinds[k % len(kinds)] for k in range(200))]
+    deadline = time.monotonic() + 120
+    while not all(f.done() for f in futures) and time.monotonic() < deadline:
+        graph.executor.spin_once(timeout_sec=0.05)
+    replies = [f.result() for f in futures if f.done()]
+    assert len(replies) == 200
+    for k, r in enumerate(replies):     # each one valid with an answer, or invalid with a reason
+        assert (r.valid and r.answer and not r.reason) or (not r.valid and r.reason and not r.answer), (k, r)
+        assert 'internal error' not in r.reason
+    assert [r.valid for r in replies] == [k % len(kinds) < 3 for k in range(200)]
+    graph.check()
+
+
+def test_the_simulator_says_unchanged_to_a_caller_holding_the_current_state(graph):
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import SimStep
+    full = graph.call(graph.truth_cli, GroundTruth.Request())
+    assert full.ok and not full.unchanged and full.version > 0 and full.objects
+    box = task_object_id = dict(zip(full.task_nouns, full.task_object_ids))[task_noun()]
+    same = graph.call(graph.truth_cli, GroundTruth.Request(known_version=full.version, appearance_of=[box]))
+    assert same.ok and same.unchanged and same.version == full.version
+    assert not same.objects and not same.task_nouns and [a.object_id for a in same.appearances] == [task_object_id]
+    step = graph.client(SimStep, '/o/sim/step')
+    assert graph.call(step, SimStep.Request(action=Action(action='RotateLeft'), with_depth=False)).ok
+    moved = graph.call(graph.truth_cli, GroundTruth.Request(known_version=full.version))
+    assert moved.ok and not moved.unchanged and moved.version > full.version and moved.objects
+    assert moved.agent.rotation_deg != full.agent.rotation_deg
+    assert graph.call(graph.reset_cli, SimReset.Request(task_id=TASK, with_depth=False, with_segmentation=False)).ok
+
+
+class _AskingAnotherSimulator(NodeProcess):
+    """An oracle in its own namespace that asks the simulator of namespace `sim_namespace`."""
+
+    def __init__(self, namespace: str, sim_namespace: str, **params):
+        super().__init__('dialfred_oracle', params, namespace=namespace)
+        self.sim_namespace = sim_namespace
+
+    def command(self) -> list[str]:
+        return super().command() + ['-r', f'sim/ground_truth:={self.sim_namespace}/sim/ground_truth']
+
+
+def test_answers_with_the_cache_are_byte_identical_to_fetching_the_world_every_time():
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import SimStep
+    from dialfred_sim.tasks import get_task
+    cached = oracle_node(namespace='/same')
+    uncached = _AskingAnotherSimulator('/fresh', '/same', cache_ground_truth=False)
+    with Graph([sim_node(128, namespace='/same'), cached, uncached]) as g:
+        reset_cli, step_cli = g.client(SimReset, '/same/sim/reset'), g.client(SimStep, '/same/sim/step')
+        new, old = g.client(OracleAnswer, '/same/oracle/answer'), g.client(OracleAnswer, '/fresh/oracle/answer')
+        compared = 0
+        for task_id in (TASK, 'valid_unseen/000010', 'valid_unseen/000020', 'valid_unseen/000072',
+                        'valid_unseen/000131', 'valid_unseen/000191'):     # the last three slice
+            task = get_task(task_id)
+            assert g.call(reset_cli, SimReset.Request(task_id=task_id, with_depth=False)).ok
+            nouns = list(task.object_nouns)
+            questions = [(q, n) for n in nouns for q in ('location', 'appearance')]
+            questions += [('direction', ''), ('location', nouns[0] + 's'), ('appearance', f'the {nouns[-1]}'),
+                          ('location', 'unicorn'), ('location', 'tv'), ('appearance', 'counter'),
+                          ('Location', f'sliced {nouns[-1]}'), ('location', 'floor lamp')]
+            for a in [None] + list(task.expert_actions):       # every state along the expert's path
+                if a is not None:
+                    g.call(step_cli, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y), with_depth=False))
+                for qtype, noun in questions + questions[:3]:     # some asked twice in the same state
+                    mine, theirs = ask(g, qtype, noun, new), ask(g, qtype, noun, old)
+                    assert (mine.valid, mine.answer, mine.reason) == (theirs.valid, theirs.answer, theirs.reason), \
+                        (task_id, k, qtype, noun)
+                    compared += 1
+        assert compared >= 200
+
+
 def test_without_a_simulator_the_oracle_says_so():
     with Graph([oracle_node(namespace='/lonely', sim_timeout=1.0)]) as g:
         cli = g.client(OracleAnswer, '/lonely/oracle/answer')
