@@ -32,12 +32,11 @@ from typing import Optional
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
-from dialfred_sim.ros_util import SERVICE_QOS, make_executor, run_node, spin_forever
+from dialfred_sim.ros_util import SERVICE_QOS, make_executor, run_node
 
 from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, question_text, situation_key
 
@@ -109,15 +108,13 @@ class OracleNode(Node):
         self._state: Optional[WorldState] = None      # the newest state fetched (with the cache on)
         self._state_lock = threading.Lock()
         self._sim_settled = False
-        # An answer waits on the simulator's reply, which another thread must take: the client lives
-        # on a node of its own with its own executor thread. Two EventsExecutors answered in about
-        # half the time of one multi-threaded executor for both (docs/benchmarks.md, the oracle).
+        # An answer waits on the simulator's reply inside the answer callback: the client lives on a
+        # node of its own, with an executor of its own that the callback spins until the reply is in
+        # (spinning the executor that runs the callback would hang: ros2/rclpy#1313).
         self.sim_side = rclpy.create_node('dialfred_oracle_sim_client', context=self.context)
         self.sim_cli = self.sim_side.create_client(GroundTruth, 'sim/ground_truth', qos_profile=SERVICE_QOS)
         self.sim_executor = make_executor()
         self.sim_executor.add_node(self.sim_side)
-        self.sim_thread = threading.Thread(target=self._take_sim_replies, name='sim_replies', daemon=True)
-        self.sim_thread.start()
         self.create_service(OracleAnswer, 'oracle/answer', self.on_answer, qos_profile=SERVICE_QOS)
         mode = 'asking a person in this terminal' if self.human else 'from the simulator\'s ground truth'
         cache = 'kept per simulator state' if self.cache else 'fetched whole for every question'
@@ -192,12 +189,14 @@ class OracleNode(Node):
             # race): a reply sent before that would be lost, so wait a moment once.
             time.sleep(0.2)
             self._sim_settled = True
-        done = threading.Event()
         future = self.sim_cli.call_async(request)
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(self.sim_timeout):
-            self.sim_cli.remove_pending_request(future)
-            raise SimulatorUnavailable(f'the simulator did not answer within {self.sim_timeout:g} s')
+        deadline = time.monotonic() + self.sim_timeout
+        while not future.done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                self.sim_cli.remove_pending_request(future)
+                raise SimulatorUnavailable(f'the simulator did not answer within {self.sim_timeout:g} s')
+            self.sim_executor.spin_once(timeout_sec=min(left, 0.1))
         reply = future.result()
         if not reply.ok:
             raise SimulatorUnavailable(f'the simulator refused: {reply.error}')
@@ -215,15 +214,8 @@ class OracleNode(Node):
         text = line.strip() or suggestion.text
         return Answer(True, text, question_type=qtype, object_noun=noun, object_id=suggestion.object_id)
 
-    def _take_sim_replies(self) -> None:
-        try:
-            spin_forever(self.sim_executor)
-        except ExternalShutdownException:
-            pass
-
     def destroy_node(self):
         self.sim_executor.shutdown()
-        self.sim_thread.join(timeout=2.0)
         self.sim_side.destroy_node()
         super().destroy_node()
 
