@@ -10,6 +10,8 @@ each `--requests` times one at a time (latency; requests/s = 1 / mean) and then 
 requests outstanding (throughput, and each request's time from sending to its reply). Then
 `--after-steps` times: one /sim/step (turning left and right in turn) and one location question,
 the question timed: the first question in a new state, which fetches the whole world on both paths.
+One at a time, the CPU time each process (sim, oracle, this client) spent per request is measured
+too: on a loaded machine, latency is mostly waiting for a core.
 
 Paths: `fetch_every_question` (node parameter cache_ground_truth:=false: the whole world is fetched
 for every question, and again for an appearance's pixels, as before) and `cached` (the default: the
@@ -55,15 +57,26 @@ def call(graph, cli, request):
     return future.result()
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of process `pid` so far (Linux /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def one_at_a_time(graph, cli, requests) -> tuple[dict, int]:
+    """Latency one request at a time, and the CPU time each process spent per request."""
     ms, invalid = [], 0
+    pids = {n.package.removeprefix('dialfred_'): n.proc.pid for n in graph.nodes}
+    cpu0 = {name: cpu_seconds(pid) for name, pid in pids.items()} | {'client': time.process_time()}
     for request in requests:
         t = time.perf_counter()
         reply = call(graph, cli, request)
         ms.append((time.perf_counter() - t) * 1e3)
         invalid += not reply.valid
+    cpu1 = {name: cpu_seconds(pid) for name, pid in pids.items()} | {'client': time.process_time()}
     out = summary(ms)
     out['requests_per_s'] = round(1e3 / out['mean_ms'], 1)
+    out['cpu_ms_per_request'] = {name: round((cpu1[name] - cpu0[name]) / len(requests) * 1e3, 3) for name in cpu0}
     return out, invalid
 
 
