@@ -74,15 +74,15 @@ def task_answer_key(task) -> TaskAnswerKey:
 
 
 def object_fact_msg(f) -> ObjectFact:
+    seen_x, seen_y, seen_z = f.seen_position if f.seen_position is not None else (0.0, 0.0, 0.0)
     return ObjectFact(object_id=f.object_id, type_name=f.type_name, noun=f.noun, x=float(f.position[0]),
                       y=float(f.position[1]), z=float(f.position[2]), parent_id=f.parent_id,
                       parent_type=f.parent_type, parent_noun=f.parent_noun, preposition=f.preposition,
                       colour=f.colour, material=f.material, pickupable=bool(f.pickupable),
                       is_open=bool(f.is_open), is_on=bool(f.is_on), is_dirty=bool(f.is_dirty),
                       is_sliced=bool(f.is_sliced), temperature=f.temperature, held=bool(f.held),
-                      in_view=f.seen_position is not None,
-                      **({} if f.seen_position is None else dict(zip(('seen_x', 'seen_y', 'seen_z'),
-                                                                      map(float, f.seen_position)))))
+                      in_view=f.seen_position is not None, seen_x=float(seen_x), seen_y=float(seen_y),
+                      seen_z=float(seen_z))
 
 
 class SimNode(Node):
