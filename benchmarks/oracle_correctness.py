@@ -168,7 +168,8 @@ def main() -> None:
     report = {'benchmark': 'oracle_correctness', 'questions': args.questions, 'seed': args.seed,
               'wall_s': round(time.perf_counter() - t0, 1)}
     for name, vals in sorted(checks.items()):
-        report[name] = {'n': len(vals), 'agree': int(sum(vals)), 'rate': round(float(np.mean(vals)), 4) if vals else None}
+        report[name] = {'n': len(vals), 'agree': int(sum(vals)),
+                        'rate': round(float(np.mean(vals)), 4) if vals else None}
     report['colour_confusions'] = dict(confusions.most_common(15))
     report['examples'] = examples[:12]
     print(json.dumps(report, indent=2))

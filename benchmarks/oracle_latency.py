@@ -109,8 +109,8 @@ def run_path(cache: bool, args, nouns) -> dict:
     def question(qtype, noun=''):
         return OracleAnswer.Request(question_type=qtype, object_noun=noun)
     groups = {
-        'location_direction': [question('location', nouns[(k // 2) % len(nouns)]) if k % 2 == 0 else question('direction')
-                               for k in range(args.requests)],
+        'location_direction': [question('location', nouns[(k // 2) % len(nouns)]) if k % 2 == 0
+                               else question('direction') for k in range(args.requests)],
         'appearance': [question('appearance', nouns[k % len(nouns)]) for k in range(args.requests)],
     }
     out = {'cache_ground_truth': cache}

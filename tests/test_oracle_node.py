@@ -85,7 +85,8 @@ def test_a_bad_question_is_invalid_and_the_node_serves_on(graph, qtype, noun, wh
     assert ask(graph, 'location', task_noun()).valid
 
 
-@pytest.mark.parametrize('qtype', ['Location', 'LOCATION', ' location', 'location ', 'Loc', 'APPEARANCE', ' Direction '])
+@pytest.mark.parametrize('qtype', ['Location', 'LOCATION', ' location', 'location ', 'Loc', 'APPEARANCE',
+                                   ' Direction '])
 def test_a_question_type_in_any_case_or_spacing_is_answered_through_the_node(graph, qtype):
     reply = ask(graph, qtype, task_noun())
     assert reply.valid and reply.answer and not reply.reason, reply.reason
@@ -116,10 +117,10 @@ def test_the_simulator_says_unchanged_to_a_caller_holding_the_current_state(grap
     from dialfred_msgs.srv import SimStep
     full = graph.call(graph.truth_cli, GroundTruth.Request())
     assert full.ok and not full.unchanged and full.version > 0 and full.objects
-    box = task_object_id = dict(zip(full.task_nouns, full.task_object_ids))[task_noun()]
-    same = graph.call(graph.truth_cli, GroundTruth.Request(known_version=full.version, appearance_of=[box]))
+    target = dict(zip(full.task_nouns, full.task_object_ids))[task_noun()]
+    same = graph.call(graph.truth_cli, GroundTruth.Request(known_version=full.version, appearance_of=[target]))
     assert same.ok and same.unchanged and same.version == full.version
-    assert not same.objects and not same.task_nouns and [a.object_id for a in same.appearances] == [task_object_id]
+    assert not same.objects and not same.task_nouns and [a.object_id for a in same.appearances] == [target]
     step = graph.client(SimStep, '/o/sim/step')
     assert graph.call(step, SimStep.Request(action=Action(action='RotateLeft'), with_depth=False)).ok
     moved = graph.call(graph.truth_cli, GroundTruth.Request(known_version=full.version))
@@ -216,14 +217,14 @@ def test_the_human_mode_asks_a_person_on_standard_input(tmp_path):
         person.proc.stdin.write('It is next to the toaster.\n')
         person.proc.stdin.flush()
         reply = ask(g, 'location', task_noun(), cli)
-        assert reply.valid and reply.answer == 'It is next to the toaster.'
+        assert reply.valid and reply.answer == 'It is next to the toaster.', (reply, list(person.tail))
         person.proc.stdin.write('\n')                    # an empty line accepts the simulator's answer
         person.proc.stdin.flush()
         reply = ask(g, 'location', task_noun(), cli)
-        assert reply.valid and task_noun() in reply.answer
+        assert reply.valid and task_noun() in reply.answer, (reply, list(person.tail))
         person.proc.stdin.close()                         # nobody there any more
         reply = ask(g, 'location', task_noun(), cli)
-        assert not reply.valid and 'no person' in reply.reason
-        assert any('Where is' in line for line in person.tail)   # the question was put to the person
+        assert not reply.valid and 'no person' in reply.reason, (reply, list(person.tail))
+        assert any('Where is' in line for line in person.tail), list(person.tail)   # the question was put to the person
     rows = [json.loads(line) for line in log.read_text().splitlines()]
     assert [r['answer'] for r in rows[:1]] == ['It is next to the toaster.'] and all(r['human'] for r in rows)

@@ -242,7 +242,8 @@ def check_answer(snapshot: Snapshot, ans: Answer) -> dict[str, Optional[bool]]:
     receptacle_ok: a location answer names the object's parent receptacle with the right
     preposition (or none for an object without one, or says it is held when it is);
     direction_ok: a location answer's direction bin, or a direction answer's advice, recomputed
-    from the geometry (for an object in view, from the part the agent sees: ObjectFact.where); colour_ok: an appearance answer names the object's colour variant.
+    from the geometry (for an object in view, from the part the agent sees: ObjectFact.where);
+    colour_ok: an appearance answer names the object's colour variant.
     None where a check does not apply (and for invalid answers)."""
     out: dict[str, Optional[bool]] = {'receptacle_ok': None, 'direction_ok': None, 'colour_ok': None}
     if not ans.valid:

@@ -398,7 +398,8 @@ def snapshot_from_dict(d: dict[str, Any]) -> Snapshot:
     """The Snapshot that `snapshot_to_dict` wrote."""
     def point(v):
         return tuple(float(x) for x in v) if v is not None else None
-    objects = {oid: ObjectFact(**{**f, 'position': point(f['position']), 'seen_position': point(f.get('seen_position'))})
+    objects = {oid: ObjectFact(**{**f, 'position': point(f['position']),
+                                  'seen_position': point(f.get('seen_position'))})
                for oid, f in d['objects'].items()}
     appearances = {oid: Appearance(a['object_id'], np.asarray(a['pixels'], dtype=np.uint8).reshape(-1, 3),
                                    bool(a['from_current_view'])) for oid, a in d.get('appearances', {}).items()}
