@@ -10,11 +10,16 @@ goes to <out without .jsonl>.summary.json.
 With `--questioner`, each worker also gets an oracle node in its namespace (.../w0/oracle/answer
 answers from .../w0/sim/ground_truth). Before every action the agent may ask it questions, which
 are counted (NQ, NQ_invalid).
+
+With `--tasks PATH` (a split file of your own, such as a sealed test split) instead of `--split`,
+every simulator node reads that file (its `tasks_file` parameter), and <out without .jsonl>.tasks.json
+records the file's path and sha256: results of another file are refused, never mixed in.
 """
 
 from __future__ import annotations
 
 import collections
+import functools
 import json
 import os
 import sys
@@ -24,7 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_launch import REPO, Graph, NodeDied, oracle_node, sim_node, sim_service  # noqa: F401
+from dialfred_sim.graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service, use_project_environment  # noqa: F401
+
+REPO = Path(__file__).resolve().parent
+use_project_environment(REPO)
 
 @dataclass
 class EvalConfig:
@@ -41,11 +49,36 @@ class EvalConfig:
     seed: int = 0
     resolution: int = 128
     request_timeout: float = 120.0      # seconds one reset or step may take before the run gives up
+    tasks_file: Optional[Path] = None   # a split file of your own (a test_unseen split) instead of `split`
+    performer: str = ''                 # 'et': a performer node per worker plays each task (RunTask goals);
+                                        # '' = the agent is a Python object of this process (the in-process path)
+    checkpoint: Optional[Path] = None   # the `et` performer's checkpoint (default out/performer/et.pt)
+    episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
+
+    @functools.cached_property
+    def tasks_source(self):
+        """The tasks file read once (dialfred_sim.tasks.splits.TasksFile), or None for a shipped split."""
+        from dialfred_sim.tasks.splits import read_tasks_file
+        return read_tasks_file(self.tasks_file) if self.tasks_file else None
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return Path(self.checkpoint) if self.checkpoint else REPO / 'out' / 'performer' / 'et.pt'
+
+    @functools.cached_property
+    def checkpoint_sha256(self) -> str:
+        import hashlib
+        try:
+            return hashlib.sha256(self.checkpoint_path.read_bytes()).hexdigest()
+        except OSError:
+            raise ValueError(f'no performer checkpoint at {self.checkpoint_path} (--checkpoint PATH)') from None
 
     @property
     def agent_name(self) -> str:
-        """The name results carry: the agent's, with its questioner's after a '+'."""
-        return f'{self.agent}+{self.questioner}' if self.questioner else self.agent
+        """The name results carry: the agent's (the `et` performer's with its checkpoint's sha256, so that
+        results of two checkpoints never mix), with its questioner's after a '+'."""
+        agent = f'et-{self.checkpoint_sha256[:8]}' if self.agent == 'et' else self.agent
+        return f'{agent}+{self.questioner}' if self.questioner else agent
 
     @property
     def oracle(self) -> str:
@@ -57,19 +90,45 @@ class EvalConfig:
         if self.out:
             return Path(self.out)
         perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
-        return REPO / 'out' / 'eval' / f'{self.split}_{self.agent_name}{perturbed}.jsonl'
+        source = self.tasks_source
+        tasks = f'{source.split}-{source.sha256[:8]}' if source else self.split   # a file: named by its content
+        return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}.jsonl'
+
+    @property
+    def tasks_record_path(self) -> Path:
+        """Where a run on a tasks file records which file (path, sha256) its results came from."""
+        return self.results_path.with_suffix('.tasks.json')
+
+    def make_performer(self):
+        """The acting agent alone: the `et` performer from its checkpoint, or a dialfred_sim.agents one."""
+        if self.agent == 'et':
+            from dialfred_performer.agent import PerformerAgent
+            from dialfred_performer.model import CheckpointError
+            try:
+                return PerformerAgent.from_checkpoint(self.checkpoint_path)
+            except (FileNotFoundError, CheckpointError) as exc:
+                raise ValueError(str(exc)) from None
+        from dialfred_sim.agents import make_agent
+        return make_agent(self.agent, self.resolution)
 
     def make_agent(self):
         """A new agent as configured (ValueError for an unknown agent or questioner)."""
         from dialfred_questioner.baselines import make_questioner, with_questioner
-        from dialfred_sim.agents import make_agent
-        return with_questioner(make_agent(self.agent, self.resolution),
-                               make_questioner(self.questioner) if self.questioner else None)
+        return with_questioner(self.make_performer(), make_questioner(self.questioner) if self.questioner else None)
 
     def check(self) -> None:
         """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
         from dialfred_oracle.answers import QUESTION_TYPES
-        self.make_agent()
+        if self.performer:
+            if self.performer != 'et':
+                raise ValueError(f'--performer must be et (the Episodic-Transformer performer node), got {self.performer!r}')
+            self.agent = 'et'
+        self.make_agent()     # the node path too: a bad checkpoint or questioner fails before any node starts
+        if self.tasks_file:
+            try:
+                self.split = self.tasks_source.split      # the split played is the file's
+            except FileNotFoundError as exc:
+                raise ValueError(str(exc)) from None
         if self.perturb_type:
             if not self.questioner:
                 raise ValueError('a perturbed oracle needs a questioner (--questioner)')
@@ -100,9 +159,11 @@ class EvalReport:
         c = self.config
         loop_s = self.wall_s - self.startup_s
         return {
-            'split': c.split, 'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
+            'split': c.split, 'tasks_file': c.tasks_source.describe() if c.tasks_source else None,
+            'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
             'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
-            'workers': c.workers,
+            'workers': c.workers, 'through': 'performer node' if c.performer else 'in-process agent',
+            'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent == 'et' else None),
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None},
@@ -113,6 +174,7 @@ class EvalReport:
 
 
 MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
+RESEND_AFTER_S = 10.0  # a reset or question unanswered this long is sent again (see SimWorker.resend_if_lost)
 
 
 class SimWorker:
@@ -131,6 +193,7 @@ class SimWorker:
         self.sent_at = 0.0
         self.task = None
         self.pending = ''      # what the request in flight is: 'reset', 'step' or 'question'
+        self.traces = collections.defaultdict(list)   # task id -> the actions sent, (name, x, y)
 
     @property
     def busy(self) -> bool:
@@ -198,6 +261,7 @@ class SimWorker:
                 return None
         name, x, y = self.agent.act(obs)
         self.last_action, self.asked_in_a_row = name, 0
+        self.traces[self.task.task_id].append((name, int(x), int(y)))
         self._send(self.step_cli, SimStep.Request(action=Action(action=name, x=int(x), y=int(y)),
                                                   with_depth=False, with_segmentation=False), 'step')
         return None
@@ -210,9 +274,21 @@ class SimWorker:
         return self._act(self.observation)
 
     def _send(self, cli, request, pending: str) -> None:
-        self.sent_at = time.monotonic()
+        self.sent_at = self.last_sent = time.monotonic()
         self.pending = pending
+        self.request, self.cli = request, cli
         self.future = cli.call_async(request)
+
+    def resend_if_lost(self) -> bool:
+        """Send a reset or question again that got no reply in RESEND_AFTER_S (a request sent while a
+        restarted node is not yet discovered is lost; both may be repeated: a reset starts the same
+        episode, a question gets the same answer). Steps are never repeated: they change the world."""
+        if self.pending not in ('reset', 'question') or time.monotonic() - self.last_sent < RESEND_AFTER_S:
+            return False
+        self.cli.remove_pending_request(self.future)
+        self.last_sent = time.monotonic()
+        self.future = self.cli.call_async(self.request)
+        return True
 
     def _result(self, reason: str, obs=None, success: bool = False, error: str = ''):
         from dialfred_sim.metrics import EpisodeResult
@@ -227,6 +303,98 @@ class SimWorker:
             error='' if success else (error or self.last_error), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed,
             wall_s=round(time.monotonic() - self.started, 4), privileged=bool(getattr(self.agent, 'privileged', False)))
+
+
+class PerformerWorker:
+    """One worker's performer node (in its own namespace, with its simulator, oracle and questioner
+    nodes beside it) playing one task at a time as a RunTask goal: a commander that only sends goals
+    and records results. `begin` sends the goal; `advance` handles the reply that arrived (the goal
+    accepted: wait for its result; the result: the episode's EpisodeResult). A goal running longer
+    than `episode_timeout` is cancelled, and its episode recorded as an error."""
+
+    def __init__(self, graph: Graph, namespace: str, config: EvalConfig):
+        from rclpy.action import ActionClient
+
+        from dialfred_msgs.action import RunTask
+        self.name = f'{namespace.rstrip("/")}/performer/run_task'
+        self.client = ActionClient(graph.client_node, RunTask, self.name)
+        deadline = time.monotonic() + 60.0
+        while not self.client.wait_for_server(timeout_sec=0.1):
+            graph.check()
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'action server {self.name} not available after 60 s')
+        graph.spin_until_any([], SETTLE_S)       # the reply paths may match a moment later (see Graph.client)
+        self.namespace, self.config = namespace, config
+        self.future = self.goal_handle = self.cancel_future = None
+        self.task = None
+        self.pending = ''       # 'goal' (waiting for acceptance) or 'result'
+        self.traces = collections.defaultdict(list)   # task id -> the actions of its feedback, (name, x, y)
+
+    @property
+    def busy(self) -> bool:
+        return self.future is not None
+
+    def begin(self, index: int, task) -> None:
+        from dialfred_msgs.action import RunTask
+
+        from dialfred_sim.agents import episode_seed
+        self.task, self.started = task, time.monotonic()
+        self.sent_at, self.cancel_future, self.goal_handle = self.started, None, None
+        trace = self.traces[task.task_id]
+        trace.clear()
+
+        def feedback(msg) -> None:
+            a = msg.feedback.action
+            trace.append((a.action, int(a.x), int(a.y)))
+
+        goal = RunTask.Goal(task_id=task.task_id, seed=episode_seed(self.config.seed, index))
+        self.future = self.client.send_goal_async(goal, feedback_callback=feedback)
+        self.pending = 'goal'
+
+    def advance(self):
+        reply, self.future = self.future.result(), None
+        if self.pending == 'goal':
+            if reply is None or not reply.accepted:
+                return self._result(None, error=f'{self.name} rejected the goal (is another goal running there?)')
+            self.goal_handle, self.pending = reply, 'result'
+            self.future = reply.get_result_async()
+            return None
+        from action_msgs.msg import GoalStatus
+        result = reply.result
+        if reply.status == GoalStatus.STATUS_CANCELED:
+            return self._result(result, error=f'cancelled after {self.config.episode_timeout:g} s (episode_timeout)')
+        return self._result(result)
+
+    def overdue(self) -> bool:
+        """Cancel a goal past episode_timeout (once); True only if even the cancel got no result in 60 s."""
+        late = time.monotonic() - self.started - self.config.episode_timeout
+        if late < 0 or self.pending != 'result':
+            return self.pending == 'goal' and time.monotonic() - self.sent_at > self.config.request_timeout
+        if self.cancel_future is None:
+            self.cancel_future = self.goal_handle.cancel_goal_async()
+        return late > 60.0
+
+    def resend_if_lost(self) -> bool:
+        return False         # a goal is never sent twice: the node refuses a second one while the first runs
+
+    def _result(self, result, error: str = ''):
+        from dialfred_sim.metrics import EpisodeResult
+        task, r = self.task, result
+        reason = 'error' if error or r is None or r.end_reason in ('error', 'canceled') else r.end_reason
+        success = bool(r.success) if r is not None and reason != 'error' else False
+        return EpisodeResult(
+            task_id=task.task_id, task_type=task.task_type, split=task.split, success=success,
+            goal_conditions_met=int(r.goal_conditions_met) if r else 0,
+            goal_conditions_total=int(r.goal_conditions_total) if r else 0,
+            steps=int(r.steps) if r else 0, expert_length=int(task.expert_length),
+            questions=int(r.questions) if r else 0, invalid_questions=int(r.invalid_questions) if r else 0,
+            failed_actions=int(r.failed_actions) if r else 0, end_reason=reason,
+            error='' if success else (error or (r.error if r else '')), agent=self.config.agent_name,
+            oracle=self.config.oracle, seed=self.config.seed, wall_s=round(time.monotonic() - self.started, 4),
+            privileged=False)
+
+
+SETTLE_S = 0.2
 
 
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
@@ -245,8 +413,10 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
                     on_result(result)
                     if queue:
                         w.begin(*queue.popleft())
+            elif w.busy and w.resend_if_lost():
+                continue
             elif w.overdue():
-                node = 'oracle' if w.pending == 'question' else 'sim'
+                node = {'question': 'oracle', 'goal': 'performer', 'result': 'performer'}.get(w.pending, 'sim')
                 raise TimeoutError(f'no reply from {w.namespace or "/"} {node} node after '
                                    f'{w.config.request_timeout:.0f} s (task {w.task.task_id})')
 
@@ -280,7 +450,41 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
                                    f'oracle {r.oracle!r}, seed {r.seed}, not {config.split!r}, {config.agent_name!r}, '
                                    f'{config.oracle!r}, '
                                    f'{config.seed}: choose another --out')
+    check_tasks_record(config, bool(existing))
     return results_by_task(existing, task_ids)
+
+
+def check_tasks_record(config: EvalConfig, has_results: bool) -> None:
+    """Results of a tasks file are kept with a record of that file (<results>.tasks.json: path, sha256):
+    ResultsFileError if the results file holds results of another tasks file, or of a shipped split
+    while a tasks file is given (or the other way round). Writes the record for a new results file."""
+    record_path, source = config.tasks_record_path, config.tasks_source
+    record = _read_tasks_record(record_path)
+    if has_results and (record or {}).get('sha256') != (source.sha256 if source else None):
+        held = (f"tasks file {record['path']} (sha256 {record['sha256'][:12]}...)" if record
+                else f'tasks of the shipped split {config.split!r}')
+        wanted = f'tasks file {source.path} (sha256 {source.sha256[:12]}...)' if source else \
+            f'the shipped split {config.split!r}'
+        raise ResultsFileError(f'{config.results_path} holds results of {held}, not of {wanted}: '
+                               'choose another --out')
+    if not has_results:
+        if source:
+            record_path.parent.mkdir(parents=True, exist_ok=True)
+            record_path.write_text(json.dumps(source.describe(), indent=1) + '\n')
+        elif record is not None:
+            record_path.unlink()      # left from results that are gone
+
+
+def _read_tasks_record(path: Path) -> Optional[dict]:
+    if not path.exists():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except ValueError:
+        record = None
+    if not (isinstance(record, dict) and isinstance(record.get('path'), str) and isinstance(record.get('sha256'), str)):
+        raise ResultsFileError(f'{path} is not a record of a tasks file: choose another --out')
+    return record
 
 
 def progress_bar(total: int, done: int, enabled: bool):
@@ -289,11 +493,13 @@ def progress_bar(total: int, done: int, enabled: bool):
                 smoothing=0.05)
 
 
-def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
+def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] = None) -> EvalReport:
     """Evaluate `config.agent` on the split's tasks through `config.workers` simulator nodes.
 
     Results go to the JSON-lines file as each episode ends; tasks already there are skipped (resume).
-    Writes the summary JSON next to it and returns the report of every selected task.
+    Writes the summary JSON next to it and returns the report of every selected task. `traces`: a
+    dict to fill with each played task's actions, {task_id: [(name, x, y), ...]} (the performer path
+    takes them from the goals' feedback).
     """
     from dialfred_sim.metrics import append_result, summarize
     from dialfred_sim.tasks import load_split
@@ -301,21 +507,33 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
     config.check()    # an unknown agent or questioner, or a bad setting, fails here before any node starts
 
     t0 = time.monotonic()
-    tasks = load_split(config.split)[:config.limit]
+    tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in enumerate(tasks) if t.task_id not in done]
     ran, startup_s = 0, 0.0
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
-        nodes = [sim_node(config.resolution, ns, publish_observations=False) for ns in namespaces]
+        from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
+        nodes = [sim_node(config.resolution, ns, publish_observations=False, **from_file) for ns in namespaces]
         if config.questioner:
             withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
                         'seed': config.seed} if config.perturb_type else {}
             nodes += [oracle_node(ns, **withhold) for ns in namespaces]
+        if config.performer:
+            if config.questioner:
+                nodes += [NodeProcess('dialfred_questioner', {'questioner': config.questioner}, namespace=ns)
+                          for ns in namespaces]
+            nodes += [NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
+                                                         'questioner': bool(config.questioner),
+                                                         'request_timeout': config.request_timeout},
+                                  namespace=ns) for ns in namespaces]
         with Graph(nodes) as graph:
-            workers = [SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
-                       for ns in namespaces]
+            if config.performer:
+                workers = [PerformerWorker(graph, ns, config) for ns in namespaces]
+            else:
+                workers = [SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
+                           for ns in namespaces]
             startup_s = time.monotonic() - t0
             with progress_bar(len(tasks), len(done), progress) as bar:
                 def record(result) -> None:
@@ -326,6 +544,11 @@ def run_eval(config: EvalConfig, progress: bool = True) -> EvalReport:
                     bar.update(1)
 
                 play_episodes(graph, workers, jobs, record)
+            if traces is not None:
+                if config.performer:
+                    graph.spin_until_any([], 0.5)     # feedback of the last steps may come after the result
+                for w in workers:
+                    traces.update(w.traces)
     results = [done[t.task_id] for t in tasks]
     report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results))
     config.summary_path.write_text(json.dumps(report.to_json(), indent=1) + '\n')
@@ -347,13 +570,19 @@ def print_report(report: EvalReport) -> None:
         for r in failed:
             print(f'  {r.task_id}  {r.task_type:<20} {r.end_reason:<12} {r.error}')
     print(f'results: {c.results_path}\nsummary: {c.summary_path}')
+    if c.tasks_source:
+        print(f'tasks:   {c.tasks_source.path} (sha256 {c.tasks_source.sha256[:12]}..., recorded in '
+              f'{c.tasks_record_path})')
 
 
 def eval_config(args) -> EvalConfig:
-    return EvalConfig(split=args.split, agent=args.agent, questioner=args.questioner or '', limit=args.limit,
+    return EvalConfig(split=args.split or 'valid_unseen',
+                      agent=args.agent, questioner=args.questioner or '', limit=args.limit,
                       perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
                       workers=args.workers,
-                      out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution)
+                      out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
+                      tasks_file=Path(args.tasks) if args.tasks else None,
+                      performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None)
 
 
 def run_eval_command(args) -> int:
@@ -375,10 +604,23 @@ def run_eval_command(args) -> int:
 
 def add_eval_parser(sub) -> None:
     ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table')
-    ev.add_argument('--split', default='valid_unseen', choices=['train', 'valid_seen', 'valid_unseen'])
+    tasks = ev.add_mutually_exclusive_group()
+    tasks.add_argument('--split', default=None, choices=['train', 'valid_seen', 'valid_unseen'],
+                       help='a shipped split (default valid_unseen)')
+    tasks.add_argument('--tasks', default=None, metavar='PATH',
+                       help='a split file of your own instead of --split, e.g. a sealed test split made with '
+                            '`python -m dialfred_sim.tasks.splits test_unseen --seed S --size N --out PATH`; '
+                            'results record its path and sha256 and are never mixed with another file\'s')
     ev.add_argument('--agent', default='expert',
-                    help='expert, random, or your own class as package.module:ClassName (on the Python path; '
+                    help='expert, random, et (the performer of --checkpoint, in this process), or your own class '
+                         'as package.module:ClassName (on the Python path; '
                          'made as ClassName(resolution=R), with reset(task, seed) and act(observation))')
+    ev.add_argument('--performer', default=None, choices=['et'],
+                    help='et: a performer node per worker plays each task as a RunTask goal (with sim, oracle '
+                         'and questioner nodes in its namespace); this process only sends goals and records '
+                         'results. (--agent et plays the same performer in this process.)')
+    ev.add_argument('--checkpoint', default=None, metavar='PATH',
+                    help='the et performer\'s checkpoint (default out/performer/et.pt)')
     ev.add_argument('--questioner', default=None,
                     help='ask the oracle (one oracle node per worker): random = one random question at the '
                          'start; all = location + appearance of every instruction object, then direction; '

@@ -10,6 +10,7 @@ reported with its exit code and the last lines it printed.
     python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
     python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
     python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
+                                   (or --tasks PATH: a split file of your own, e.g. a sealed test split)
                                    [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
                                    [--seed 0] [--resolution 128]
 
@@ -26,239 +27,21 @@ runs in the caller's domain so that other terminals can reach it.
 from __future__ import annotations
 
 import argparse
-import collections
-import os
 import signal
-import subprocess
 import sys
-import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+
+# The process supervision lives in an installed module (dialfred_sim.graph); the names are kept here
+# for the scripts, tests and benchmarks that import them from the launcher.
+from dialfred_sim.graph import (RESEND_AFTER_S, SERVICE_SETTLE_S, Graph, NodeDied, NodeProcess,  # noqa: F401
+                                image_array, oracle_node, resolve_executable, sim_node, sim_service,
+                                use_private_ros_domain, use_project_environment)
 
 REPO = Path(__file__).resolve().parent
-SERVICE_SETTLE_S = 0.2   # see Graph.client
-# Every process of the graph (this one and its children) uses the project's Fast DDS profile: a
-# shared-memory segment large enough for whole observations (see config/fastdds_profiles.xml).
-os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(REPO / 'config' / 'fastdds_profiles.xml'))
-os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+use_project_environment(REPO)
 
-
-def use_private_ros_domain() -> int:
-    """Put this process (and the nodes it starts) in a ROS domain of its own, unless the caller chose
-    one: benchmarks must not be answered, or slowed, by another graph on this machine."""
-    if 'ROS_DOMAIN_ID' not in os.environ:
-        os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 101)   # 1-101: safe on Linux
-    return int(os.environ['ROS_DOMAIN_ID'])
-
-
-def resolve_executable(package: str, executable: str = 'node') -> Path:
-    """<prefix>/lib/<package>/<executable> of an installed package, as `ros2 run` finds it."""
-    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-    try:
-        prefix = get_package_prefix(package)
-    except PackageNotFoundError:
-        raise FileNotFoundError(f'package {package!r} is not in the ament index '
-                                f'(AMENT_PREFIX_PATH={os.environ.get("AMENT_PREFIX_PATH", "")!r}); '
-                                'run ./dialfred setup') from None
-    path = Path(prefix) / 'lib' / package / executable
-    if not os.access(path, os.X_OK):
-        raise FileNotFoundError(f'{path} is missing or not executable')
-    return path
-
-
-class NodeDied(RuntimeError):
-    pass
-
-
-def _libc_prctl():
-    try:
-        import ctypes
-        return ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):   # pragma: no cover - not Linux
-        return None
-
-
-_PRCTL = _libc_prctl()
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent() -> None:
-    """In a new child (before exec): get SIGTERM when the launcher dies, however it dies, so that a
-    killed launcher or benchmark never leaves nodes running (they live in sessions of their own)."""
-    if _PRCTL is not None:
-        _PRCTL(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-
-
-@dataclass
-class NodeProcess:
-    """One node executable running as a child process, its output kept for error reports."""
-
-    package: str
-    parameters: dict = field(default_factory=dict)
-    executable: str = 'node'
-    namespace: str = ''          # e.g. '/w0': the node's relative names (sim/step) become /w0/sim/step
-    stdin: Optional[int] = None  # subprocess.PIPE to feed it text (tests of the oracle's human mode)
-    capture_output: bool = True  # False: it talks to this terminal (the oracle asking a person)
-    proc: Optional[subprocess.Popen] = None
-    tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=40))
-
-    @property
-    def label(self) -> str:
-        return f'{self.package} [{self.namespace}]' if self.namespace else self.package
-
-    def command(self) -> list[str]:
-        ros_args = [a for k, v in self.parameters.items() for a in ('-p', f'{k}:={v}')]
-        if self.namespace:
-            ros_args += ['-r', f'__ns:={self.namespace}']
-        cmd = [str(resolve_executable(self.package, self.executable))]
-        return cmd + ['--ros-args'] + ros_args if ros_args else cmd
-
-    def start(self) -> None:
-        out = subprocess.PIPE if self.capture_output else None
-        self.proc = subprocess.Popen(self.command(), stdin=self.stdin, stdout=out,
-                                     stderr=subprocess.STDOUT if self.capture_output else None, text=True,
-                                     start_new_session=True, preexec_fn=_die_with_parent)
-        if self.capture_output:
-            threading.Thread(target=self._drain, daemon=True).start()
-
-    def _drain(self) -> None:
-        for line in self.proc.stdout:
-            self.tail.append(line.rstrip())
-            if os.environ.get('DIALFRED_VERBOSE'):
-                print(f'[{self.label}] {line.rstrip()}', file=sys.stderr)
-
-    def check(self) -> None:
-        if self.proc is not None and self.proc.poll() is not None:
-            out = '\n    '.join(list(self.tail)[-15:]) or '(no output)'
-            raise NodeDied(f'{self.label} node died with exit code {self.proc.returncode}; last output:\n    {out}')
-
-    def stop(self, timeout: float = 5.0) -> Optional[int]:
-        if self.proc is None or self.proc.poll() is not None:
-            return None if self.proc is None else self.proc.returncode
-        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
-            try:
-                os.killpg(self.proc.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                return self.proc.wait(wait)
-            except subprocess.TimeoutExpired:
-                continue
-        return self.proc.poll()
-
-
-class Graph:
-    """The running node graph plus a client node in this process to talk to it."""
-
-    def __init__(self, nodes: list[NodeProcess]):
-        self.nodes = nodes
-        self.client_node = None
-        self.executor = None
-        self.owns_context = False    # False inside another Graph of this process: share its rclpy context
-
-    def __enter__(self) -> 'Graph':
-        try:
-            self._start()
-        except BaseException:
-            self.__exit__()         # never leave started nodes behind (they run in their own sessions)
-            raise
-        return self
-
-    def _start(self) -> None:
-        import rclpy
-        from rclpy.signals import SignalHandlerOptions
-
-        from dialfred_sim.ros_util import make_executor
-        for n in self.nodes:
-            n.start()
-        if not rclpy.ok():
-            # Ctrl-C is this process's KeyboardInterrupt (unwinding through __exit__), not rclpy's
-            # handler, which would shut the context down under a running spin (ExternalShutdownException).
-            rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-            self.owns_context = True
-        self.client_node = rclpy.create_node('dialfred_launcher')
-        self.executor = make_executor()
-        self.executor.add_node(self.client_node)
-
-    def __exit__(self, *exc) -> None:
-        import rclpy
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self.client_node is not None:
-            self.client_node.destroy_node()
-        if self.owns_context:
-            rclpy.try_shutdown()
-        for n in self.nodes:
-            code = n.stop()
-            if code not in (None, 0, -signal.SIGINT, 130):
-                print(f'{n.label} node exited with code {code}', file=sys.stderr)
-
-    def check(self) -> None:
-        for n in self.nodes:
-            n.check()
-
-    def client(self, srv_type, name: str, timeout: float = 30.0):
-        """A client for service `name`, once it is available; NodeDied if a node dies meanwhile."""
-        from dialfred_sim.ros_util import SERVICE_QOS
-        cli = self.client_node.create_client(srv_type, name, qos_profile=SERVICE_QOS)
-        deadline = time.monotonic() + timeout
-        while not cli.wait_for_service(timeout_sec=0.1):
-            self.check()
-            if time.monotonic() > deadline:
-                raise TimeoutError(f'service {name} not available after {timeout:.0f} s')
-        # "Available" means the server's request reader matched; its reply writer may not have
-        # matched our reply reader yet, and a reply sent before that is lost (a known DDS service
-        # discovery race, ros2/rmw_fastrtps#390). A moment of discovery traffic closes the gap.
-        settle = time.monotonic() + SERVICE_SETTLE_S
-        while time.monotonic() < settle:
-            self.executor.spin_once(timeout_sec=0.02)
-        return cli
-
-    def spin_until_any(self, futures: list, timeout: float = 0.5) -> None:
-        """Serve callbacks until one of `futures` is done or `timeout` passes; NodeDied if a node dies."""
-        deadline = time.monotonic() + timeout
-        while not any(f.done() for f in futures) and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-        self.check()
-
-    def call(self, cli, request, timeout: float = 30.0):
-        """Call a service and wait for the reply, watching the nodes for crashes."""
-        future = cli.call_async(request)
-        deadline = time.monotonic() + timeout
-        while not future.done():
-            self.executor.spin_until_future_complete(future, timeout_sec=0.5)
-            self.check()
-            if time.monotonic() > deadline:
-                raise TimeoutError(f'no reply from {cli.srv_name} after {timeout:.0f} s')
-        return future.result()
-
-
-def sim_node(resolution: int = 128, namespace: str = '', **params) -> NodeProcess:
-    return NodeProcess('dialfred_sim', {'resolution': resolution, **params}, namespace=namespace)
-
-
-def oracle_node(namespace: str = '', human: bool = False, **params) -> NodeProcess:
-    """The oracle; `human` makes it ask a person in this terminal (its output is then not captured)."""
-    if human:
-        params['human'] = True
-    return NodeProcess('dialfred_oracle', dict(params), namespace=namespace, capture_output=not human)
-
-
-def sim_service(namespace: str, name: str) -> str:
-    """The full name of the sim node's service `name` ('reset', 'step') in `namespace` ('' or '/w0')."""
-    return f'{namespace.rstrip("/")}/sim/{name}'
-
-
-# ---------------------------------------------------------------------------------------- jobs
-
-def image_array(msg):
-    import numpy as np
-    dtype = {'rgb8': np.uint8, '32FC1': np.float32, '32SC1': np.int32}[msg.encoding]
-    arr = np.frombuffer(bytes(msg.data), dtype=dtype)
-    channels = 3 if msg.encoding == 'rgb8' else 1
-    return arr.reshape(msg.height, msg.width, channels) if channels > 1 else arr.reshape(msg.height, msg.width)
+from dialfred_eval import ResultsFileError, add_eval_parser, run_eval_command  # noqa: E402
 
 
 def run_demo(args) -> int:
@@ -275,7 +58,7 @@ def run_demo(args) -> int:
         reset_cli = graph.client(SimReset, '/sim/reset')
         step_cli = graph.client(SimStep, '/sim/step')
         print(f'graph ready in {time.monotonic() - t0:.1f} s')
-        reply = graph.call(reset_cli, SimReset.Request(scene=args.scene, seed=args.seed))
+        reply = graph.call(reset_cli, SimReset.Request(scene=args.scene, seed=args.seed), retry_after=RESEND_AFTER_S)
         if not reply.ok:
             print(f'reset failed: {reply.error}', file=sys.stderr)
             return 1
@@ -353,14 +136,15 @@ def run_dialogue(args) -> int:
 
         def ask(qtype: str, noun: str, frame, title: str) -> None:
             request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
-            reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0)   # a person takes time
+            reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0,   # a person takes time
+                              retry_after=None if args.human else RESEND_AFTER_S)
             said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
             print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
             film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
 
         for task in tasks:
             reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
-                                                           with_segmentation=False))
+                                                           with_segmentation=False), retry_after=RESEND_AFTER_S)
             if not reply.ok:
                 print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
                 return 1
@@ -449,7 +233,6 @@ def main(argv=None) -> int:
     dialogue.add_argument('--human', action='store_true', help='the oracle asks you in this terminal')
     dialogue.add_argument('--resolution', type=int, default=128)
     dialogue.add_argument('--gif', help='also save the dialogue as a GIF of captioned frames to this path')
-    from dialfred_eval import ResultsFileError, add_eval_parser, run_eval_command
     add_eval_parser(sub)
     args = parser.parse_args(argv)
     # Ctrl-C and SIGTERM both unwind through the Graph context, which stops every child.

@@ -17,7 +17,7 @@ agent protocol only, as your agent would be:
         --questioner examples.direction_follower:AskForDirections
 
 The launcher lives at the repository's root, so this package is importable as it is. On valid_unseen
-it reaches the goal in 156 of the 168 Move tasks (92.9%). The random agent reaches 6.0% of them.
+it reaches the goal in 151 of the 163 Move tasks (92.6%). The random agent reaches 5.5% of them.
 """
 
 from __future__ import annotations

@@ -2,11 +2,13 @@
 """Dataset card of the DialFRED task splits: statistics as JSON, docs/dataset.md and an example image.
 
     ./dialfred env python3 scripts/dataset_card.py [--splits valid_seen valid_unseen train]
+    ./dialfred env python3 scripts/dataset_card.py --tasks PATH     # a split file of your own, e.g. a test split
 
 Prints the statistics of every split that exists (and names the absent ones) as JSON on stdout,
 writes docs/dataset.md and renders docs/images/task_examples.png (first frames of six valid_unseen
-tasks of different types). `split_statistics` is plain Python over `Task` objects (no ROS, no
-simulator); only the example image starts a simulator.
+tasks of different types). With --tasks it only prints the statistics of those files (a sealed test
+split stays out of the card). `split_statistics` is plain Python over `Task` objects (no ROS, no
+simulator); `navigation_twins` and the example image start a simulator.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from typing import Callable, Sequence
 
 from dialfred_sim.tasks import SPLIT_SIZES, TASK_TYPES, Task, load_split
 from dialfred_sim.tasks.instructions import tokenize, vocabulary
-from dialfred_sim.tasks.splits import VALID_UNSEEN_SCENES
+from dialfred_sim.tasks.splits import TEST_SPLIT, TEST_UNSEEN_SCENES, VALID_UNSEEN_SCENES, read_tasks_file
 
 ROOT = Path(__file__).resolve().parents[1]
 CARD = ROOT / 'docs' / 'dataset.md'
@@ -36,6 +38,7 @@ EXAMPLE_TYPES = ('Move & Heat', 'Open & Pick & Close', 'Pick & Move & Put', 'Mov
                  'Turn on', 'Pick & Move & Slice')
 EXAMPLE_SPLIT = 'valid_unseen'
 EXAMPLE_RESOLUTION = 192
+TWIN_RESOLUTION = 64          # the rebuilt worlds are only inspected, never shown: the smallest frame will do
 
 
 # ---------------------------------------------------------------------- statistics (ROS-free)
@@ -76,6 +79,42 @@ def split_statistics(tasks: Sequence[Task]) -> dict:
     }
 
 
+def navigation_twins(tasks: Sequence[Task], resolution: int = TWIN_RESOLUTION) -> dict:
+    """How many navigation goals have a twin: another object of the target's type and colour.
+
+    A navigation goal is a task whose goal has a 'reachable' condition: get the object in view and
+    within reach (the task types Move and Pick & Move). Its target has a twin when, in the room as the
+    task starts (rebuilt in a simulator), another object has the same type and the same colour: an
+    appearance answer cannot tell the two apart, the location answer (which says where it is from the
+    agent) can. Returns a JSON-ready dict: navigation_goals, same_type (another object of the type),
+    twins (of those, one of the same colour too), twin_types (twins per target type, most first),
+    not_rebuilt (goals whose first state the simulator refuses to rebuild: a split made under older
+    rules, as the shipped train is since issue 10's physics; left out of the other counts).
+    """
+    from dialfred_sim.env import DialfredEnv
+    goals = [(t, c.obj) for t in tasks for c in t.goal if c.kind == 'reachable']
+    same_type, twin_types, not_rebuilt = 0, Counter(), 0
+    env = DialfredEnv(resolution=resolution)
+    try:
+        for task, target_id in goals:
+            try:
+                env.reset(options={'task': task})
+            except ValueError:
+                not_rebuilt += 1
+                continue
+            target = env.world.objects[target_id]
+            others = [o for o in env.world.objects.values()
+                      if o.object_id != target_id and o.type_name == target.type_name]
+            same_type += bool(others)
+            if any(o.colour == target.colour for o in others):
+                twin_types[target.type_name] += 1
+    finally:
+        env.close()
+    return {'navigation_goals': len(goals) - not_rebuilt, 'same_type': same_type, 'twins': sum(twin_types.values()),
+            'twin_types': dict(sorted(twin_types.items(), key=lambda kv: (-kv[1], kv[0]))),
+            'not_rebuilt': not_rebuilt}
+
+
 def load_existing(splits: Sequence[str]) -> tuple[dict[str, list[Task]], list[str]]:
     """The tasks of each split that exists on this machine, and the names of the absent ones."""
     found, absent = {}, []
@@ -99,6 +138,10 @@ def _decimal(v) -> str:
 
 def _percent(v) -> str:
     return f'{100 * v:.1f}%'
+
+
+def _count_of(part: int, whole: int) -> str:
+    return f'{part:,} ({100 * part / whole:.1f}%)' if whole else f'{part:,}'
 
 
 # (row label, value from split_statistics, how the card writes it)
@@ -142,7 +185,56 @@ def job_type_table(stats: dict[str, dict]) -> list[str]:
     return markdown_table(['ALFRED job type (episodes)', *stats], rows, 'l' + 'r' * len(stats))
 
 
-def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[Task]) -> str:
+# How the evaluation scores an episode, GC's definition beside ALFRED's.
+METRICS_SECTION = [
+    '## Metrics',
+    '',
+    '`dialfred_sim/metrics.py` scores an evaluated episode as the paper does (after ALFRED), with one'
+    ' change to GC:',
+    '',
+    '- **SR**: a task succeeds when every goal condition holds; the episode ends at that moment.',
+    "- **PWSR**: success weighted by path length, s L* / max(L*, L), with L* the expert's length and "
+    "L the agent's steps.",
+    "- **GC** (goal-condition success). ALFRED's is the fraction of the goal's conditions that hold "
+    'at the end of the episode. Ours is the fraction of the conditions **that did not hold when the '
+    "task started** that hold at the end (`dialfred_sim.tasks.goals.goal_progress`). ALFRED's "
+    'episodes start in a fresh room, where hardly any condition holds yet. A DialFRED task starts '
+    "where the previous task of its episode ended, and there some do. A Heat task's goal is [the "
+    'object is hot, it is in hand, the microwave is closed], and the object is in hand and the '
+    "microwave closed when the task starts. Counted ALFRED's way, an agent that stops at once scored "
+    'GC 66.7% on every Clean, Cool and Heat task and 50% on Open & Pick & Close and Open & Put & '
+    "Close: 6.3% over valid_unseen as it was shipped before issue 10, near the random agent's 7.8%. "
+    "And the expert's GC fell from 2/3 to 0/3 while it put the object into the microwave. Counted our"
+    " way, doing nothing scores 0 on every task, and GC never falls along the expert's path "
+    '(`./dialfred bench expert_gc`, every task of both valid splits).',
+    '  - GC 100% does not mean success. Success also needs the conditions that held at the start to '
+    'hold at the end. An agent that heats the apple and leaves it in the microwave has made the one '
+    'change the task asked for (GC 1/1), but it has not finished the task (the apple is not in hand).',
+    '  - Undoing a condition that held at the start costs success, never GC. GC falls only when the agent'
+    ' undoes what it achieved itself (it walks away from the place it had reached, or opens again what it'
+    ' had closed).',
+    '  - Every generated task has at least one condition left to do (the generator drops a task whose'
+    ' goal already holds). A hand-made task with none scores GC = its success (0 or 1).',
+    "  - The simulator reports both numbers: `info['goal_conditions_met']` and "
+    "`info['goal_conditions_total']` in the Gymnasium env, the same fields in the `/sim/step` reply, "
+    'and `goal_conditions_total` in the `/sim/reset` reply and the oracle\'s task answer key.',
+    '- **NQ**: questions asked per task (NQ_invalid: those the oracle could not answer).',
+    '',
+]
+
+
+def twin_table(twins: dict[str, dict]) -> list[str]:
+    rows = [['navigation goals (`Move` and `Pick & Move` tasks)']
+            + [_integer(t['navigation_goals']) for t in twins.values()],
+            ['... whose target has another object of its type in the room']
+            + [_count_of(t['same_type'], t['navigation_goals']) for t in twins.values()],
+            ['... of its type and colour (a twin)']
+            + [_count_of(t['twins'], t['navigation_goals']) for t in twins.values()]]
+    return markdown_table(['navigation goals', *twins], rows, 'l' + 'r' * len(twins))
+
+
+def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[Task],
+              twins: dict[str, dict] | None = None) -> str:
     """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples."""
     present = ', '.join(f'`{name}`' for name in stats)
     lines = [
@@ -166,6 +258,16 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         './dialfred env python3 scripts/dataset_card.py                   # then this card',
         '```',
         '',
+        f'A sealed test split is not shipped: each user makes one from a seed of their own, in rooms no '
+        f'shipped split uses, with the same generator and checks, and evaluates on it:',
+        '',
+        '```bash',
+        f'./dialfred env python3 -m dialfred_sim.tasks.splits {TEST_SPLIT} --seed S --size N --out PATH   '
+        '# N tasks; --workers 2',
+        './dialfred launch eval --tasks PATH --agent expert',
+        './dialfred env python3 scripts/dataset_card.py --tasks PATH      # its statistics, without this card',
+        '```',
+        '',
         '## How this differs from the paper\'s data',
         '',
         '- **Episodes.** DialFRED cut its tasks out of ALFRED\'s episodes: expert demonstrations in AI2-THOR '
@@ -182,8 +284,11 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         'valid_unseen {:,} tasks); the mix of task types follows from our episodes, not from ALFRED\'s.'
         .format(SPLIT_SIZES['train'], SPLIT_SIZES['valid_seen'], SPLIT_SIZES['valid_unseen']),
         '- **Rooms.** As in ALFRED, valid_unseen uses rooms never seen in train (FloorPlan'
-        + ', '.join(map(str, VALID_UNSEEN_SCENES)) + ') and valid_seen reuses train\'s rooms.',
+        + ', '.join(map(str, VALID_UNSEEN_SCENES)) + ') and valid_seen reuses train\'s rooms. '
+        'ALFRED\'s test_unseen rooms (FloorPlan' + ', '.join(map(str, TEST_UNSEEN_SCENES)) + ') are in no '
+        'shipped split; only a test split of your own uses them.',
         '',
+        *METRICS_SECTION,
         '## Summary per split',
         '',
         f'Splits present when this card was written: {present}.',
@@ -209,6 +314,30 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         *job_type_table(stats),
         '',
     ]
+    if twins:
+        named = EXAMPLE_SPLIT if EXAMPLE_SPLIT in twins else next(iter(twins))
+        lines += [
+            '## Navigation goals with a twin',
+            '',
+            'A navigation goal is a task whose goal includes getting an object in view and within reach '
+            '(the `reachable` condition of the task types `Move` and `Pick & Move`). Its target has a **twin** '
+            'when, in the room as the task starts, another object has the same type and the same colour: '
+            'the instruction ("Walk to the counter.") and an appearance answer fit both; of the answers, only '
+            'the location answer, which says where the object is as seen from the agent, tells them apart '
+            '(direction answers lead to where the expert ends, without naming the object). Counted by '
+            '`navigation_twins` in `scripts/dataset_card.py`, which rebuilds each task\'s first state.',
+            '',
+            *twin_table(twins),
+            '',
+            f'Targets with a twin in `{named}`, by type: '
+            + ', '.join(f'{name} {n}' for name, n in twins[named]['twin_types'].items()) + '.',
+            '',
+        ]
+        left_out = {name: t['not_rebuilt'] for name, t in twins.items() if t.get('not_rebuilt')}
+        if left_out:
+            lines += ['Left out because the simulator refuses to rebuild their first state (the split was made '
+                      'before issue 10\'s physics; regenerate it): '
+                      + ', '.join(f'{n:,} navigation goals of `{name}`' for name, n in left_out.items()) + '.', '']
     if examples:
         lines += [
             '## Examples',
@@ -298,7 +427,22 @@ def main(argv=None) -> int:
     ap.add_argument('--card', default=str(CARD), help='markdown file to write')
     ap.add_argument('--image', default=str(IMAGE), help='example image to write')
     ap.add_argument('--no-image', action='store_true', help='keep the existing image (no simulator)')
+    ap.add_argument('--no-twins', action='store_true',
+                    help='leave out the navigation-twin count (it rebuilds every navigation task: minutes for train)')
+    ap.add_argument('--tasks', nargs='+', metavar='PATH', default=None,
+                    help='only print the statistics of these split files of your own (e.g. a test split) '
+                         'as JSON; the card and image are not written')
     args = ap.parse_args(argv)
+    if args.tasks:
+        try:
+            files = [read_tasks_file(path) for path in args.tasks]
+        except (FileNotFoundError, ValueError) as exc:
+            print(f'error: {exc}', file=sys.stderr)
+            return 1
+        described = {str(f.path): {**f.describe(), 'statistics': split_statistics(f.tasks),
+                                   'navigation_twins': navigation_twins(f.tasks)} for f in files}
+        print(json.dumps(described, indent=2))
+        return 0
     splits = [s for s in SPLITS if s in args.splits]        # always in the card's order
     found, absent = load_existing(splits)
     if not found:
@@ -306,6 +450,7 @@ def main(argv=None) -> int:
               '`./dialfred env python3 -m dialfred_sim.tasks.splits <split>`', file=sys.stderr)
         return 1
     stats = {name: split_statistics(tasks) for name, tasks in found.items()}
+    twins = {} if args.no_twins else {name: navigation_twins(tasks) for name, tasks in found.items()}
     examples = pick_examples(found[EXAMPLE_SPLIT]) if EXAMPLE_SPLIT in found else []
     if examples and not args.no_image:
         image = Path(args.image)
@@ -313,8 +458,9 @@ def main(argv=None) -> int:
         example_sheet(examples, first_frames(examples)).save(image, optimize=True)
     card = Path(args.card)
     card.parent.mkdir(parents=True, exist_ok=True)
-    card.write_text(card_text(stats, absent, examples))
-    print(json.dumps({'splits': stats, 'absent': absent, 'examples': [t.task_id for t in examples],
+    card.write_text(card_text(stats, absent, examples, twins))
+    print(json.dumps({'splits': stats, 'navigation_twins': twins, 'absent': absent,
+                      'examples': [t.task_id for t in examples],
                       'card': str(card), 'image': str(args.image) if examples else None}, indent=2))
     return 0
 

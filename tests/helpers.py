@@ -82,19 +82,23 @@ def pixel(env, object_id: str):
 
 
 def _candidates(env, target, radius: float, min_radius: float = 0.0):
+    """Poses the agent may stand in (free floor, room for what it holds) looking towards `target`,
+    best guesses first; for a closed openable only those from which it can open without hitting the agent."""
     w = env.world
     ox, oy, oz = target.position
+    held = w.objects[w.held] if w.held else None
+    to_open = target.otype.openable and not target.is_open and target.spec.articulation is not None
     out = []
-    for i, j in w.layout.navigable:
+    for i, j in w.free_floor():
         x, y = i * GRID, j * GRID
         d = math.hypot(ox - x, oy - y)
-        if not min_radius <= d <= radius:
+        if not min_radius <= d <= radius or (to_open and w.would_hit_agent(target, i, j)):
             continue
         bearing = math.degrees(math.atan2(oy - y, ox - x))
         pitch = math.degrees(math.atan2(1.5 - oz, max(d, 0.05)))
         for rot in (0, 90, 180, 270):
             off = abs((bearing - rot + 180) % 360 - 180)
-            if off > 60 and d > 0.3:
+            if off > 60 and d > 0.3 or held is not None and w.carry_spot(held, i, j, rot)[0] is None:
                 continue
             for hor in HORIZONS:
                 out.append((off + abs(hor - pitch) / 2 + 10 * d * (min_radius == 0), (i, j, rot, hor)))

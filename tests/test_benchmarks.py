@@ -51,6 +51,13 @@ def test_oracle_latency_times_both_paths_and_answers_every_request():
     assert isinstance(report['goal']['met'], bool)
 
 
+def test_service_flood_answers_every_request_only_with_keep_all():
+    report = run_bench('service_flood', '--steps', '60', '--questions', '40', '--wait', '5')
+    for service, sent in (('sim_step', 60), ('oracle_answer', 40)):
+        assert report['keep_all'][service]['replied'] == report['keep_all'][service]['ok'] == sent
+        assert report['ros_default'][service]['replied'] < sent     # the baseline loses some: it is a real baseline
+
+
 def test_oracle_fuzz_finds_no_crash_on_a_short_run():
     report = run_bench('oracle_fuzz', '--requests', '60')
     assert report['crashes'] == 0 and report['malformed_replies'] == 0 and report['oracle_alive_at_end']
@@ -80,3 +87,16 @@ def test_cache_decay_rejects_a_bad_budget():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'cache_decay.py'), '--reps', '0'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and '--reps must be >= 1' in proc.stderr
+
+
+def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks():
+    report = run_bench('expert_gc', '--limit', '12')
+    assert report['tasks'] == 12 and report['expert_failures'] == []
+    assert report['gc_nonzero_or_nothing_to_do_at_start'] == [] and report['falls'] == []
+    assert sum(row['n'] for row in report['per_type'].values()) == 12
+
+
+def test_split_physics_finds_every_shipped_valid_episode_allowed():
+    report = run_bench('split_physics', '--split', 'valid_unseen', '--limit', '6')
+    assert report['episodes'] == 6 and report['tasks'] > 0
+    assert report['episodes_refused'] == 0 and report['refused'] == [] and report['reasons'] == {}

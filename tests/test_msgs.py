@@ -136,3 +136,36 @@ def test_services_have_the_documented_request_and_response():
     request = SimStep.Request(action=Action(action=Action.PICKUP, x=150, y=200))
     restored = deserialize_message(serialize_message(request), SimStep.Request)
     assert (restored.action.action, restored.action.x, restored.action.y) == ('Pickup', 150, 200)
+
+
+def test_run_task_action_has_the_documented_goal_result_and_feedback():
+    from dialfred_msgs.action import RunTask
+    assert RunTask.Goal.get_fields_and_field_types() == {'task_id': 'string', 'seed': 'int64', 'checkpoint': 'string'}
+    assert RunTask.Result.get_fields_and_field_types() == {
+        'success': 'boolean', 'steps': 'uint32', 'goal_conditions_met': 'uint32', 'goal_conditions_total': 'uint32',
+        'failed_actions': 'uint32', 'questions': 'uint32', 'invalid_questions': 'uint32', 'end_reason': 'string',
+        'error': 'string', 'last_action': 'string'}
+    assert RunTask.Feedback.get_fields_and_field_types() == {
+        'step': 'uint32', 'action': 'dialfred_msgs/Action', 'action_success': 'boolean', 'questions': 'uint32'}
+    # The action's hidden services and topic carry the goal id (action_msgs) with the goal.
+    assert 'goal_id' in RunTask.Impl.SendGoalService.Request.get_fields_and_field_types()
+    feedback = RunTask.Feedback(step=3, action=Action(action=Action.OPEN, x=10, y=20), questions=2)
+    restored = deserialize_message(serialize_message(feedback), RunTask.Feedback)
+    assert (restored.step, restored.action.action, restored.action.x, restored.questions) == (3, 'Open', 10, 2)
+
+
+def test_questioner_ask_carries_task_frame_dialogue_step_and_gap():
+    from dialfred_msgs.srv import QuestionerAsk
+    assert QuestionerAsk.Request.get_fields_and_field_types() == {
+        'task': 'dialfred_msgs/TaskDescription', 'seed': 'int64', 'step': 'uint32', 'rgb': 'sensor_msgs/Image',
+        'dialogue': 'sequence<dialfred_msgs/QAPair>', 'confusion_gap': 'double'}
+    assert QuestionerAsk.Request().confusion_gap < 0       # unknown unless the performer sends it
+    assert QuestionerAsk.Response.get_fields_and_field_types() == {
+        'ok': 'boolean', 'error': 'string', 'ask': 'boolean', 'question_type': 'string', 'object_noun': 'string'}
+    request = QuestionerAsk.Request(task=TaskDescription(task_id='valid_unseen/000001', object_nouns=['apple']),
+                                    step=4, rgb=rgb_image(RGB_4X4), confusion_gap=0.25,
+                                    dialogue=[QAPair(question_type=QAPair.LOCATION, object_noun='apple',
+                                                     answer='The apple is in the fridge.', valid=True)])
+    restored = deserialize_message(serialize_message(request), QuestionerAsk.Request)
+    assert restored.dialogue[0].answer == 'The apple is in the fridge.' and restored.confusion_gap == 0.25
+    assert bytes(restored.rgb.data) == RGB_4X4.tobytes()

@@ -151,7 +151,7 @@ def test_answers_with_the_cache_are_byte_identical_to_fetching_the_world_every_t
         new, old = g.client(OracleAnswer, '/same/oracle/answer'), g.client(OracleAnswer, '/fresh/oracle/answer')
         compared = 0
         for task_id in (TASK, 'valid_unseen/000010', 'valid_unseen/000020', 'valid_unseen/000072',
-                        'valid_unseen/000131', 'valid_unseen/000191'):     # the last three slice
+                        'valid_unseen/000131', 'valid_unseen/000191'):     # the last three make or move slices
             task = get_task(task_id)
             assert g.call(reset_cli, SimReset.Request(task_id=task_id, with_depth=False)).ok
             nouns = list(task.object_nouns)

@@ -161,6 +161,174 @@ def test_move_ahead_into_furniture_fails_naming_it(env):
     pytest.fail('no pose facing furniture')
 
 
+# ---------------------------------------------------------------------------------------------- open doors
+
+UNSEEN_KITCHEN = 'FloorPlan10'     # the room of issue 10: 4 free points within 0.075 m of an open door
+
+
+def openables(env):
+    return sorted((o for o in env.world.objects.values() if o.fixture and o.otype.openable
+                   and o.spec.articulation is not None), key=lambda o: o.object_id)
+
+
+def test_no_free_grid_point_is_within_the_agents_radius_of_an_open_door(env):
+    from dialfred_sim.world.open_parts import clearance
+    reset(env, UNSEEN_KITCHEN)
+    w = env.world
+    doors = openables(env)
+    assert {o.type_name for o in doors} >= {'Fridge', 'Cabinet', 'Microwave'}
+    for door in doors:
+        w.set_open(door, True)
+    free = w.free_floor()
+    taken = w.layout.navigable - free
+    assert len(taken) >= 4 and free
+    for door in doors:
+        outlines = w.open_part_outlines(door)
+        assert min(clearance(i * GRID, j * GRID, outlines) for i, j in free) >= AGENT_RADIUS, door.object_id
+    for i, j in taken:
+        assert w.open_blocker(i, j) is not None
+        with pytest.raises(ValueError, match=r'is taken by the open '):
+            env.teleport(i, j, 0, 30)
+
+
+def test_an_open_fridge_door_blocks_the_agent_and_closing_it_clears_the_way(env):
+    w = kitchen(env)
+    fridge = first_of(env, 'Fridge')
+    ok(env, 'Open', face(env, fridge.object_id))
+    free = w.free_floor()
+    for (i, j) in sorted(w.layout.navigable - free):
+        for rot, (di, dj) in HEADING.items():
+            if (i - di, j - dj) in free and w.open_blocker(i, j) == fridge.object_id:
+                env.teleport(i - di, j - dj, rot, 0)
+                fails(env, 'MoveAhead', match=rf'^MoveAhead blocked by {fridge.object_id}, which is open$')
+                fridge_px = env.pixel_of(fridge.object_id)
+                if fridge_px is None or distance_at(env, fridge_px) > REACH:
+                    continue
+                ok(env, 'Close', fridge_px)
+                ok(env, 'MoveAhead')
+                assert agent_pose(env)[:2] == (i, j)
+                return
+    pytest.fail('no free point next to the open door, facing it with the fridge in reach')
+
+
+def test_a_door_does_not_open_into_the_agent(env):
+    """Opening fails, changing nothing, where the door would swing into the agent on its way open."""
+    w = kitchen(env)
+    fridge = first_of(env, 'Fridge')
+    in_the_way = [(i, j) for i, j in sorted(w.layout.navigable) if w.would_hit_agent(fridge, i, j)]
+    assert in_the_way
+    for i, j in in_the_way:
+        for rot in HEADING:
+            for hor in (0, 15, 30, 45, 60):
+                env.teleport(i, j, rot, hor)
+                px = env.pixel_of(fridge.object_id)
+                if px is not None and distance_at(env, px) <= REACH:
+                    fails(env, 'Open', px, match=rf'^{fridge.object_id} would hit you as it opens; step back first$')
+                    assert not fridge.is_open
+                    ok(env, 'Open', face(env, fridge.object_id))
+                    assert fridge.is_open and not w.would_hit_agent(fridge)
+                    return
+    pytest.fail('the fridge is never in reach from where its door would hit the agent')
+
+
+# ---------------------------------------------------------------------------------------------- the hand
+
+def _carried_box(obj):
+    rect = footprint(obj.position, obj.yaw, obj.spec.size)
+    return rect, obj.position[2], obj.position[2] + obj.spec.size[2]
+
+
+def _passes_into(env, obj):
+    """What the held object's box overlaps: 'the wall', a fixture id, or None."""
+    w = env.world
+    rect, z0, z1 = _carried_box(obj)
+    lay = w.layout
+    if rect[0] < -1e-6 or rect[1] < -1e-6 or rect[2] > lay.width + 1e-6 or rect[3] > lay.depth + 1e-6:
+        return 'the wall'
+    for fx in lay.fixtures:
+        r = footprint(fx.position, fx.yaw, fx.spec.size)
+        if (rect[0] < r[2] - 1e-6 and r[0] < rect[2] - 1e-6 and rect[1] < r[3] - 1e-6 and r[1] < rect[3] - 1e-6
+                and z0 < fx.position[2] + fx.spec.size[2] - 1e-6 and fx.position[2] < z1 - 1e-6):
+            return fx.object_id
+    return None
+
+
+def test_a_held_object_stays_in_the_room_and_out_of_the_furniture(env):
+    """Issue 10: a bread carried towards a wall ended 0.17 m outside the room. On every free point
+    and heading of the room the hand now draws it back until it is clear."""
+    reset(env, UNSEEN_KITCHEN)
+    w = env.world
+    bread = spawn_held(env, 'Bread')
+    drawn_back = 0
+    for i, j in sorted(w.layout.navigable):
+        for rot in HEADING:
+            env.teleport(i, j, rot, 30)
+            assert _passes_into(env, bread) is None, (i, j, rot, bread.position)
+            a = w.agent
+            ahead = (bread.position[0] - a.x) * math.cos(math.radians(rot)) + \
+                (bread.position[1] - a.y) * math.sin(math.radians(rot))
+            drawn_back += ahead < 0.42 - 1e-6
+    assert drawn_back > 0        # the hand did have to draw back somewhere
+
+
+def test_a_held_object_is_carried_at_full_reach_where_there_is_room(env):
+    reset(env, KITCHEN)
+    apple = spawn_held(env, 'Apple')
+    w = env.world
+    for i, j in sorted(w.layout.navigable):
+        for rot in HEADING:
+            env.teleport(i, j, rot, 30)
+            ahead = (apple.position[0] - w.agent.x) * math.cos(math.radians(rot)) + \
+                (apple.position[1] - w.agent.y) * math.sin(math.radians(rot))
+            if ahead == pytest.approx(0.42):
+                assert apple.position[2] == pytest.approx(0.95)
+                return
+    pytest.fail('the apple is never carried at full reach')
+
+
+def _wall_approach(env):
+    """(i, j, rot): a free point from which one step ahead lands on the free point nearest a wall,
+    facing that wall."""
+    w = env.world
+    nav = w.layout.navigable
+    for i, j in sorted(nav):
+        for rot, (di, dj) in HEADING.items():
+            a, b = (i + di, j + dj), (i + 2 * di, j + 2 * dj)
+            x, y = b[0] * GRID, b[1] * GRID
+            outside = x <= 0 or y <= 0 or x >= w.layout.width or y >= w.layout.depth
+            if a in nav and outside and not _near_furniture(env, a[0] * GRID, a[1] * GRID, 0.7):
+                return i, j, rot
+    raise AssertionError('no free approach to a wall')
+
+
+def test_a_baseball_bat_cannot_be_carried_into_the_wall(env):
+    """A bat is longer than the agent is wide: facing the wall from the nearest point there is no
+    room to hold it. The step that would push it through the wall fails and changes nothing."""
+    kitchen(env)
+    i, j, rot = _wall_approach(env)
+    env.teleport(i, j, rot, 30)
+    bat = spawn_held(env, 'BaseballBat')
+    assert _passes_into(env, bat) is None
+    fails(env, 'MoveAhead', match=rf'^MoveAhead blocked: the {bat.object_id} in hand would pass into the wall$')
+    apple = spawn_on(env, 'Apple', counter(env).object_id)
+    env.world.remove(bat.object_id)
+    env.world.hold(apple)
+    rerender(env)
+    ok(env, 'MoveAhead')                  # an apple fits: the hand draws it back instead
+    assert _passes_into(env, apple) is None
+
+
+def test_turning_to_face_the_wall_with_a_bat_in_hand_fails(env):
+    kitchen(env)
+    i, j, rot = _wall_approach(env)
+    di, dj = HEADING[rot]
+    env.teleport(i + di, j + dj, (rot + 90) % 360, 30)     # on the point nearest the wall, beside it
+    bat = spawn_held(env, 'BaseballBat')
+    if env.world.carry_spot(bat, i + di, j + dj, (rot + 90) % 360)[0] is None:
+        pytest.skip('no room for the bat beside the wall either')
+    fails(env, 'RotateRight', match=rf'^RotateRight blocked: the {bat.object_id} in hand would pass into the wall$')
+
+
 def test_rotate_left_turns_90_degrees_counter_clockwise_and_right_clockwise(env):
     reset(env, KITCHEN)
     i, j, _ = free_ahead_pose(env)
@@ -343,8 +511,9 @@ def test_put_places_the_object_on_the_shelf_the_agent_points_at(env):
     from dialfred_sim.world.scene import _to_local
     w = kitchen(env)
     fridge = first_of(env, 'Fridge')
-    ok(env, 'Open', face(env, fridge.object_id))
+    ok(env, 'Open', face(env, fridge.object_id))      # from where its door cannot hit the agent
     apple = spawn_held(env, 'Apple')
+    face(env, fridge.object_id)                        # then step up to the open fridge
     _, depth, seg = env._frame
     ys, xs = np.nonzero(seg == fridge.body)
     shelves: dict[int, list] = {}
@@ -487,6 +656,24 @@ def test_a_stove_knob_lights_its_burner_and_heats_the_kettle_on_it(env):
     assert w.object_state(kettle.object_id).temperature == HOT
     ok(env, 'ToggleOff', pixel(env, knob.object_id))
     assert not knob.is_on and not burner.is_on
+
+
+@pytest.mark.parametrize('switch_on, switch_off', [('burner', 'knob'), ('knob', 'burner'), ('burner', 'burner')])
+def test_a_stove_knob_and_its_burner_are_one_switch(env, switch_on, switch_off):
+    """Turning the burner itself on turns its knob too, so either can turn it off again."""
+    w = kitchen(env)
+    knob = first_of(env, 'StoveKnob')
+    burner = w.objects[knob.controls]
+    parts = {'knob': knob, 'burner': burner}
+    kettle = spawn_on(env, 'Kettle', burner.object_id)
+    ok(env, 'ToggleOn', face(env, parts[switch_on].object_id))
+    assert knob.is_on and burner.is_on and kettle.temperature == HOT
+    other = parts['knob' if switch_on == 'burner' else 'burner']
+    fails(env, 'ToggleOn', face(env, other.object_id), match=rf'^{other.object_id} is already on$')
+    ok(env, 'ToggleOff', face(env, parts[switch_off].object_id))
+    assert not knob.is_on and not burner.is_on
+    other = parts['knob' if switch_off == 'burner' else 'burner']
+    fails(env, 'ToggleOff', face(env, other.object_id), match=rf'^{other.object_id} is already off$')
 
 
 def test_putting_on_a_lit_burner_heats(env):
@@ -711,6 +898,98 @@ def test_malformed_actions_raise_value_error_and_change_nothing(env, action):
     assert np.array_equal(env.render(), frame)
     _, _, _, info = act(env, 'RotateRight')
     assert info['step_count'] == 2 and info['failed_actions'] == 0
+
+
+# A pixel is two integers. Anything else is a caller's bug that used to be coerced silently (3.9 -> 3,
+# '3' -> 3, True -> 1) or to escape as OverflowError (inf).
+NOT_A_PIXEL = [
+    pytest.param((3.9, 5.9), id='floats'),
+    pytest.param((3.0, 5.0), id='whole-floats'),
+    pytest.param(('3', '5'), id='digit-strings'),
+    pytest.param('35', id='a-string'),
+    pytest.param((True, False), id='bools'),
+    pytest.param((float('inf'), 3), id='inf'),
+    pytest.param((float('nan'), 3), id='nan'),
+    pytest.param(np.array([3.5, 5.0]), id='float-array'),
+    pytest.param({3, 5}, id='a-set'),
+    pytest.param(7, id='one-number'),
+]
+
+
+@pytest.mark.parametrize('pixel', NOT_A_PIXEL)
+def test_a_pixel_that_is_not_two_integers_is_a_value_error_naming_it(env, pixel):
+    reset(env, KITCHEN)
+    before, frame = snapshot(env), env.render().copy()
+    with pytest.raises(ValueError, match=r'Pickup needs a target pixel \(x, y\) of two integers, got ') as caught:
+        env.step({'action': 'Pickup', 'pixel': pixel})
+    assert repr(pixel) in str(caught.value)
+    assert snapshot(env) == before and np.array_equal(env.render(), frame)
+    assert env.steps == 0 and env.failures == 0 and not env.done
+
+
+@pytest.mark.parametrize('pixel', [(3, 5), [3, 5], np.array([3, 5]), (np.int32(3), np.int64(5))])
+def test_a_pixel_may_be_any_pair_of_python_or_numpy_integers(env, pixel):
+    reset(env, KITCHEN)
+    _, _, _, info = act(env, 'Pickup', pixel)
+    assert info['step_count'] == 1     # taken as an action (it may fail: there may be nothing there)
+
+
+BAD_LIMITS = [
+    pytest.param({'max_steps': 0}, ValueError, id='max_steps-0'),
+    pytest.param({'max_steps': -5}, ValueError, id='max_steps-negative'),
+    pytest.param({'max_failures': 0}, ValueError, id='max_failures-0'),
+    pytest.param({'max_steps': 2.5}, TypeError, id='max_steps-float'),
+    pytest.param({'max_steps': '100'}, TypeError, id='max_steps-string'),
+    pytest.param({'max_failures': True}, TypeError, id='max_failures-bool'),
+    pytest.param({'max_failures': None}, TypeError, id='max_failures-none'),
+    pytest.param({'dirty_probability': 1.5}, ValueError, id='dirty_probability-above-1'),
+    pytest.param({'dirty_probability': float('nan')}, ValueError, id='dirty_probability-nan'),
+    pytest.param({'dirty_probability': '0.2'}, TypeError, id='dirty_probability-string'),
+]
+
+
+@pytest.mark.parametrize('kwargs, error', BAD_LIMITS)
+def test_episode_limits_must_be_positive_integers(make_env, kwargs, error):
+    name, value = next(iter(kwargs.items()))
+    with pytest.raises(error, match=rf'^{name} must .*got {re.escape(repr(value))}'):
+        make_env(**kwargs)
+
+
+BAD_RESET_OPTIONS = [
+    pytest.param({'task_id': 12}, TypeError, r"task_id must be a string .*got 12 \(int\)", id='task_id-int'),
+    pytest.param({'task_id': ''}, ValueError, r"task_id must name a task .*got ''", id='task_id-empty'),
+    pytest.param({'task_id': None}, TypeError, r'task_id must be a string .*got None', id='task_id-none'),
+    pytest.param({'task_id': 'valid_unseen/999999'}, ValueError, r"unknown task_id 'valid_unseen/999999'",
+                 id='task_id-unknown'),
+    pytest.param({'task': None}, TypeError, r'task must be a dialfred_sim.tasks.Task, got None', id='task-none'),
+    pytest.param({'task': 'valid_unseen/000012'}, TypeError, r"task must be .*got 'valid_unseen/000012'",
+                 id='task-a-string'),
+    pytest.param({'task_id': 'valid_unseen/000012', 'scene': 'FloorPlan1'}, ValueError,
+                 r"give 'task_id' or 'task' alone", id='task-and-scene'),
+    pytest.param({'scene': 7}, TypeError, r"scene must be a string .*got 7", id='scene-int'),
+    pytest.param({'scene': ''}, ValueError, r"unknown scene ''", id='scene-empty'),
+    pytest.param({'scene': 'FloorPlan99'}, ValueError, r"unknown scene 'FloorPlan99'", id='scene-unknown'),
+    pytest.param({'taskid': 'valid_unseen/000012'}, ValueError, r"unknown reset option\(s\) 'taskid'",
+                 id='misspelt-key'),
+    pytest.param({'dirty_probability': -0.1}, ValueError, r'dirty_probability must be in \[0, 1\], got -0.1',
+                 id='dirty_probability-negative'),
+    pytest.param(['scene', 'FloorPlan1'], TypeError, r'options must be a dict', id='options-a-list'),
+]
+
+
+@pytest.mark.parametrize('options, error, message', BAD_RESET_OPTIONS)
+def test_bad_reset_options_are_a_clear_error_and_change_nothing(env, options, error, message):
+    reset(env, KITCHEN)
+    act(env, 'RotateLeft')
+    before, frame = snapshot(env), env.render().copy()
+    rng_state = env.np_random.bit_generator.state
+    with pytest.raises(error, match=message):
+        env.reset(seed=5, options=options)
+    assert snapshot(env) == before and np.array_equal(env.render(), frame)
+    assert env.np_random.bit_generator.state == rng_state      # not even reseeded
+    assert env.task is None and env.steps == 1 and not env.done
+    _, _, _, info = act(env, 'RotateRight')                    # the episode goes on
+    assert info['step_count'] == 2 and info['scene'] == KITCHEN
 
 
 def test_navigation_ignores_the_pixel(env):

@@ -268,6 +268,78 @@ def test_a_bad_reset_is_rejected_and_the_node_serves_on(sim, scene, task_id, err
     assert reply.ok and reply.task.scene == 'FloorPlan3'
 
 
+def test_a_negative_seed_is_refused_and_the_node_serves_on(sim):
+    # gymnasium raises a non-ValueError for it, which used to end the node's process.
+    reply = sim.reset('FloorPlan1', seed=-1)
+    assert not reply.ok and 'seed must be a non-negative integer, got -1' in reply.error
+    sim.graph.check()
+    assert sim.reset('FloorPlan1', seed=2 ** 63 - 1).ok
+
+
+def test_a_fuzz_of_malformed_requests_gets_a_reply_each_and_the_node_serves_on(sim):
+    rng = np.random.default_rng(7)
+    words = ['', ' ', 'FloorPlan', 'FloorPlan0', 'FloorPlan-1', 'FloorPlan1 ', 'floorplan1', 'valid_unseen/',
+             'valid_unseen/999999', 'valid_unseen/-1', '../../etc/passwd', 'x' * 5000, 'é\u00e9\u4e2d', '\x00',
+             'Pickup', 'pickup', 'Stop ', 'MoveAhead\n', 'Teleport']
+    extremes = [0, -1, 1, 2 ** 31 - 1, -2 ** 31, 64, 65, 10 ** 6]
+    replies = 0
+    for k in range(120):
+        if k % 2:
+            request = SimReset.Request(scene=str(rng.choice(words)), task_id=str(rng.choice(words)) if k % 3 else '',
+                                       seed=int(rng.choice([0, -1, -2 ** 63, 2 ** 63 - 1, 5])))
+            reply = sim.graph.call(sim.reset_cli, request)
+        else:
+            action = Action(action=str(rng.choice(words)), x=int(rng.choice(extremes)), y=int(rng.choice(extremes)))
+            reply = sim.graph.call(sim.step_cli, SimStep.Request(action=action))
+        assert reply.ok or reply.error          # an answer, and a reason when it is a refusal
+        assert 'internal error' not in reply.error, reply.error
+        replies += 1
+    sim.graph.check()
+    assert replies == 120
+    assert sim.reset('FloorPlan1', seed=0).ok and sim.step('RotateLeft').ok
+
+
+def test_a_flood_of_500_concurrent_steps_is_answered_in_order(sim):
+    """ROS's default service queue kept 10 requests: of 500 sent at once, 12 were executed and the
+    rest never got a reply. Every request must be answered."""
+    assert sim.reset('FloorPlan1', seed=0).ok
+    request = SimStep.Request(action=Action(action='RotateLeft'), with_depth=False, with_segmentation=False)
+    futures = [sim.step_cli.call_async(request) for _ in range(500)]
+    deadline = time.monotonic() + 120
+    while not all(f.done() for f in futures) and time.monotonic() < deadline:
+        sim.graph.spin_until_any([f for f in futures if not f.done()][:1], timeout=0.5)
+    replies = [f.result() for f in futures if f.done()]
+    assert len(replies) == 500
+    assert all(r.ok for r in replies)
+    assert sorted(r.observation.step_count for r in replies) == list(range(1, 501))
+
+
+def test_an_exception_in_a_callback_becomes_an_error_reply():
+    from dialfred_sim.ros_util import error_reply
+
+    class Logger:
+        def __init__(self):
+            self.lines = []
+
+        def error(self, text):
+            self.lines.append(text)
+
+    class FakeNode:
+        logger = Logger()
+
+        def get_logger(self):
+            return self.logger
+
+        @error_reply()
+        def on_step(self, request, response):
+            response.ok = True
+            return {}['missing']     # any bug
+
+    reply = FakeNode().on_step(SimStep.Request(), SimStep.Response())
+    assert not reply.ok and reply.error.startswith("internal error: KeyError: 'missing'")
+    assert 'Traceback' in FakeNode.logger.lines[0]
+
+
 def test_stepping_after_the_episode_ended_is_rejected(sim):
     sim.reset('FloorPlan1', seed=0)
     reply = sim.step('Stop')
@@ -353,6 +425,26 @@ def test_a_node_that_dies_at_start_is_reported_with_its_exit_code(other_ros_doma
         node.stop()
 
 
+def test_after_a_restart_of_the_simulator_a_reset_is_answered():
+    """A request sent while the restarted node is not yet discovered is lost: the client sends a
+    reset again (it may be repeated) instead of waiting for a reply that will never come. (In this
+    session's own domain: a Graph in this process shares the context of any other one alive.)"""
+    node = NodeProcess('dialfred_sim', {'resolution': 32}, namespace='/restart')
+    with Graph([node]) as graph:
+        cli = graph.client(SimReset, '/restart/sim/reset')
+        request = SimReset.Request(scene='FloorPlan1', seed=0, with_depth=False, with_segmentation=False)
+        first = graph.call(cli, request)
+        node.stop()
+        node.start()
+        t0 = time.monotonic()
+        reply = graph.call(cli, request, timeout=30.0, retry_after=1.0)
+        assert reply.ok and time.monotonic() - t0 < 30.0
+        assert bytes(reply.observation.rgb.data) == bytes(first.observation.rgb.data)
+        nobody = graph.client_node.create_client(SimReset, '/nobody/sim/reset')
+        with pytest.raises(TimeoutError, match='no reply from /nobody/sim/reset after 2 s'):
+            graph.call(nobody, request, timeout=2.0, retry_after=0.5)      # a clear timeout, not a hang
+
+
 def test_a_node_killed_while_running_is_reported_with_its_exit_code(other_ros_domain):
     node = NodeProcess('dialfred_sim', {'resolution': 16})
     graph = Graph([node])
@@ -405,6 +497,20 @@ def test_a_task_reset_tells_only_the_public_task_and_the_expert_reaches_its_goal
             break
     assert step.success and step.terminated and step.reward == 1.0
     assert step.goal_conditions_met == step.goal_conditions_total == reply.goal_conditions_total
+
+
+def test_a_task_counts_only_the_goal_conditions_left_to_do_at_its_start(task_sim):
+    """A Heat task's goal is hot + in hand + microwave closed; the last two hold at the start, so the
+    reset and every step report 1 condition to achieve, and stopping at once achieves none."""
+    from dialfred_sim.tasks import load_split
+    graph, reset_cli, step_cli = task_sim
+    task = next(t for t in load_split('valid_unseen') if t.task_type == 'Heat')
+    reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id))
+    assert reply.ok, reply.error
+    assert len(task.goal) == 3 and reply.goal_conditions_total == 1
+    step = graph.call(step_cli, SimStep.Request(action=Action(action='Stop')))
+    assert step.ok and step.terminated and not step.success
+    assert (step.goal_conditions_met, step.goal_conditions_total) == (0, 1)
 
 
 def test_free_exploration_has_no_goal(task_sim):

@@ -10,7 +10,7 @@ import pytest
 
 from dialfred_sim.env import DialfredEnv
 from dialfred_sim.tasks import TASK_TYPES, get_task, load_split, split_scenes
-from dialfred_sim.tasks.goals import conditions_met
+from dialfred_sim.tasks.goals import conditions_met, goal_progress
 from dialfred_sim.tasks.schema import Condition
 from dialfred_sim.tasks.splits import SPLIT_SIZES, generate_split, packaged_path
 from dialfred_sim.world.scene import HOT
@@ -25,13 +25,19 @@ def valid_tasks():
     return {s: load_split(s) for s in VALID}
 
 
-def play_expert(env, task):
-    """Reset to `task`, check its goal is not met yet, replay the expert; return the last info."""
+def play_expert(env, task, progress=None):
+    """Reset to `task`, check its goal is not met yet, replay the expert; return the last info.
+
+    `progress`, a list, gets (action, goal_conditions_met, goal_conditions_total, success) after the
+    reset ('' as the action) and after every step."""
     obs, info = env.reset(options={'task': task})
     assert not info['success'], f'{task.task_id}: goal already met before the expert acts'
+    progress = [] if progress is None else progress
+    progress.append(('', info['goal_conditions_met'], info['goal_conditions_total'], info['success']))
     for a in task.expert_actions:
         obs, reward, terminated, truncated, info = env.step({'action': a.action, 'pixel': (a.x, a.y)})
         assert info['last_action_success'], f'{task.task_id}: {a.action} failed: {info["last_action_error"]}'
+        progress.append((a.action, info['goal_conditions_met'], info['goal_conditions_total'], info['success']))
         if terminated or truncated:
             break
     return info
@@ -51,6 +57,64 @@ def test_every_task_type_has_a_task_the_expert_solves(valid_tasks, task_type):
         env.close()
 
 
+@pytest.mark.parametrize('task_type', TASK_TYPES)
+def test_gc_is_0_at_the_start_and_never_falls_while_the_expert_works(valid_tasks, task_type):
+    """GC counts only the goal conditions left to do at the start: nothing done scores 0, and the
+    expert's necessary steps (putting the apple down to heat it) never take GC back."""
+    task = next(t for t in valid_tasks['valid_unseen'] if t.task_type == task_type)
+    env = DialfredEnv(resolution=task.resolution)
+    try:
+        progress = []
+        play_expert(env, task, progress)
+    finally:
+        env.close()
+    _, met, total, _ = progress[0]
+    assert met == 0 and 1 <= total <= len(task.goal), progress[0]
+    assert all(p[2] == total for p in progress), 'the number of conditions to achieve changed'
+    met_along = [p[1] for p in progress]
+    assert met_along == sorted(met_along), f'{task.task_id}: GC fell along the expert: {progress}'
+    assert progress[-1][1:] == (total, total, True)
+
+
+def test_gc_of_a_heat_task_counts_the_heating_not_the_apple_already_in_hand(valid_tasks):
+    """The Heat goal is hot + held + microwave closed; the last two hold at the start. They used to
+    give GC 2/3 for doing nothing, and GC went 2/3 -> 1/3 -> 0/3 while the expert put the object into
+    the microwave. Now only 'hot' counts: 0/1 until the microwave runs, then 1/1; success still
+    needs the object back in hand and the microwave closed."""
+    task = next(t for t in valid_tasks['valid_unseen'] if t.task_type == 'Heat')
+    assert [c.kind for c in task.goal] == ['hot', 'holding', 'closed']
+    env = DialfredEnv(resolution=task.resolution)
+    try:
+        progress = []
+        play_expert(env, task, progress)
+    finally:
+        env.close()
+    actions = [p[0] for p in progress]
+    on = actions.index('ToggleOn')
+    assert [p[1:3] for p in progress[:on]] == [(0, 1)] * on
+    assert all(p[1:3] == (1, 1) for p in progress[on:])
+    # heated but still in the microwave: every condition left to do is done, yet no success
+    assert not progress[on][3] and progress[-1][3]
+
+
+@pytest.mark.parametrize('now, at_start, expected', [
+    ([False, True, True], [False, True, True], (0, 1)),     # Heat at the start: only 'hot' to do
+    ([False, False, False], [False, True, True], (0, 1)),   # apple put down, microwave open
+    ([True, False, True], [False, True, True], (1, 1)),     # heated, still inside
+    ([True, True, True], [False, True, True], (1, 1)),
+    ([True, False], [False, False], (1, 2)),
+    ([True, True], [True, True], (0, 0)),                   # nothing to do: see EpisodeResult.gc
+    ([], [], (0, 0)),                                       # free exploration
+])
+def test_goal_progress_counts_only_conditions_that_did_not_hold_at_the_start(now, at_start, expected):
+    assert goal_progress(now, at_start) == expected
+
+
+def test_goal_progress_needs_the_same_conditions_now_and_at_the_start():
+    with pytest.raises(ValueError, match='2 conditions now but 3 at the start'):
+        goal_progress([True, False], [True, False, False])
+
+
 def test_the_valid_splits_have_the_papers_sizes(valid_tasks):
     for split in VALID:
         tasks = valid_tasks[split]
@@ -67,7 +131,14 @@ def test_unseen_rooms_never_appear_in_train_and_seen_rooms_do(valid_tasks):
     assert len(train) == 108
 
 
-@pytest.mark.parametrize('split', ['valid_unseen', 'train'])
+# Issue 10 changed what the world allows (open doors take floor, a held object stays out of the walls)
+# and the expert with it; the valid splits were regenerated, the shipped train split was not (49 min).
+TRAIN_PREDATES_ISSUE_10 = pytest.mark.xfail(
+    strict=True, reason='the shipped train split predates issue 10\'s physics; regenerate it with '
+                        '`./dialfred env python3 -m dialfred_sim.tasks.splits train --workers 2`, then drop this mark')
+
+
+@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', pytest.param('train', marks=TRAIN_PREDATES_ISSUE_10)])
 def test_a_split_regenerates_identically_from_its_seeds(split):
     with gzip.open(packaged_path(split), 'rt') as f:
         shipped = [json.loads(next(f)) for _ in range(3)]
@@ -103,6 +174,29 @@ def test_an_unknown_task_id_is_a_clear_error():
         get_task('valid_unseen/999999')
     with pytest.raises(ValueError, match='unknown task_id'):
         get_task('nonsense')
+
+
+def test_a_task_the_world_cannot_rebuild_is_a_clear_error_not_a_crash():
+    """A split made under older rules (an expert path through an open door) cannot be set up: reset
+    says which task and step, and the env asks for a new reset instead of playing a broken state."""
+    from dataclasses import replace
+    from dialfred_sim.tasks.schema import ExpertAction
+    task = get_task('valid_unseen/000005')
+    episode = replace(task.episode, actions=[ExpertAction('Pickup', 1, 1, 'NoSuchThing_0', (0.0, 0.0, 0.0)),
+                                             *task.episode.actions])
+    broken = replace(task, episode=episode, start=task.start + 1, end=task.end + 1)
+    env = DialfredEnv(resolution=64)
+    try:
+        env.reset(options={'task': task})
+        with pytest.raises(ValueError, match=r'^task valid_unseen/000005 cannot be set up in this simulator: '
+                                             r'replay step 0: NoSuchThing_0 does not exist'):
+            env.reset(options={'task': broken})
+        with pytest.raises(RuntimeError, match='before reset'):
+            env.step('MoveAhead')
+        _, info = env.reset(options={'task': task})         # and it recovers
+        assert info['task_id'] == task.task_id
+    finally:
+        env.close()
 
 
 def test_the_same_task_gives_the_same_first_frame():

@@ -13,6 +13,5 @@ setup(
     install_requires=['setuptools'],
     zip_safe=False,
     license='MIT',
-    # No console scripts yet: the package is filled in by a later issue.
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['node = dialfred_performer.node:main']},
 )

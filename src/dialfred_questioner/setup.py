@@ -13,6 +13,5 @@ setup(
     install_requires=['setuptools'],
     zip_safe=False,
     license='MIT',
-    # No node yet: the learned questioner and its node come with a later issue.
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['node = dialfred_questioner.node:main']},
 )

@@ -1,1 +1,10 @@
-"""DialFRED performer: the instruction-following agent acting in the simulator; filled by a later issue (the performer model)."""
+"""DialFRED performer: the Episodic-Transformer agent that follows the instruction and the dialogue.
+
+ROS-free core: `preprocess` (instruction + dialogue -> tokens, frames -> tensors; the one path of
+training and evaluation), `nn/` (one module per part), `model` (PerformerConfig, Performer, loss,
+checkpoints), `data` (demonstrations + dialogues as padded batches), `agent` (PerformerAgent),
+`prepare` (a split's demonstrations, dialogues.jsonl and vocabulary: `./dialfred prepare-performer`),
+`train` (the training entry point, `TrainConfig` is its command line: `./dialfred train-performer`),
+`cli` (a config dataclass as argparse), `curves` (metrics.jsonl -> curves.png). The ROS node comes
+with the rest of issue 11.
+"""

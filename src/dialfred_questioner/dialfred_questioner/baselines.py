@@ -43,6 +43,12 @@ class Questioner(Protocol):
         """The oracle's reply to the question just asked."""
 
 
+def top2_gap(probabilities) -> float:
+    """The gap between the two most likely actions' probabilities (0.0 with fewer than two)."""
+    p = np.sort(np.asarray(probabilities, dtype=float))[::-1]
+    return float(p[0] - p[1]) if len(p) >= 2 else 0.0
+
+
 def task_nouns(task: Any) -> list[str]:
     """The objects a question may name: the nouns of the task's instruction, without repeats."""
     return list(dict.fromkeys(n for n in task.object_nouns if n))
@@ -130,13 +136,19 @@ class ModelConfusionQuestioner:
         self._asked_at = -1
 
     def confused(self, observation: Any) -> bool:
-        p = np.sort(np.asarray(self.performer.action_probabilities(observation), dtype=float))[::-1]
-        return len(p) < 2 or p[0] - p[1] < self.epsilon
+        return top2_gap(self.performer.action_probabilities(observation)) < self.epsilon
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
         if self.performer is None:
             raise RuntimeError('attach() the performer before asking')
-        if self._asked_at == step or not self.confused(observation):
+        if self._asked_at == step:
+            return None
+        return self.ask_given_gap(top2_gap(self.performer.action_probabilities(observation)), step)
+
+    def ask_given_gap(self, gap: float, step: int) -> Optional[Question]:
+        """The same decision from the performer's top-2 gap as the performer reports it (the
+        questioner node gets it in the /questioner/ask request instead of calling the performer)."""
+        if self._asked_at == step or gap >= self.epsilon:
             return None
         self._asked_at = step
         return random_question(self._rng, self._nouns)

@@ -79,9 +79,25 @@ def move_ahead(world: World) -> ActionResult:
     cell = world.agent.forward_cell()
     if cell not in world.layout.navigable:
         return _fail(f'MoveAhead blocked by {_blocker(world, cell)}')
+    door = world.open_blocker(*cell)
+    if door is not None:
+        return _fail(f'MoveAhead blocked by {door}, which is open')
+    hit = _carry_obstacle(world, cell[0], cell[1], world.agent.rotation)
+    if hit:
+        return _fail(f'MoveAhead blocked: the {world.held} in hand would pass into {hit}')
     world.agent.i, world.agent.j = cell
     world.update_held_pose()
     return ActionResult(True)
+
+
+def _carry_obstacle(world: World, i: int, j: int, rotation: int, obj: Optional[WorldObject] = None) -> str:
+    """What `obj` (the held object by default) would pass into, wherever the hand of an agent on
+    (i, j) facing `rotation` carried it: 'the wall' or a fixture's id; '' if there is room."""
+    obj = obj if obj is not None else world.objects.get(world.held) if world.held else None
+    if obj is None:
+        return ''
+    spot, hit = world.carry_spot(obj, i, j, rotation)
+    return '' if spot is not None else hit
 
 
 def _blocker(world: World, cell) -> str:
@@ -98,6 +114,11 @@ def _blocker(world: World, cell) -> str:
 
 
 def rotate(world: World, degrees: int) -> ActionResult:
+    a = world.agent
+    hit = _carry_obstacle(world, a.i, a.j, (a.rotation + degrees) % 360)
+    if hit:
+        name = 'RotateLeft' if degrees > 0 else 'RotateRight'
+        return _fail(f'{name} blocked: the {world.held} in hand would pass into {hit}')
     world.agent.rotation = (world.agent.rotation + degrees) % 360
     world.update_held_pose()
     return ActionResult(True)
@@ -137,6 +158,10 @@ def pickup(world: World, obj: WorldObject) -> ActionResult:
     closed = world.enclosed_by_closed(obj)
     if closed is not None:
         return _fail(f'{obj.object_id} is inside {closed.object_id}, which is closed', obj.object_id)
+    a = world.agent
+    hit = _carry_obstacle(world, a.i, a.j, a.rotation, obj)
+    if hit:
+        return _fail(f'no room to hold {obj.object_id} here: it would pass into {hit}', obj.object_id)
     world.hold(obj)
     return ActionResult(True, target=obj.object_id)
 
@@ -186,6 +211,8 @@ def open_close(world: World, obj: WorldObject, want_open: bool) -> ActionResult:
         return _fail(f'{oid} cannot be opened or closed', oid)
     if obj.is_open == want_open:
         return _fail(f'{oid} is already {"open" if want_open else "closed"}', oid)
+    if want_open and world.would_hit_agent(obj):
+        return _fail(f'{oid} would hit you as it opens; step back first', oid)
     world.set_open(obj, want_open)
     if want_open and obj.type_name == 'Microwave' and obj.is_on:
         obj.is_on = False   # opening a running microwave stops it
@@ -194,6 +221,19 @@ def open_close(world: World, obj: WorldObject, want_open: bool) -> ActionResult:
             if not o.fixture:
                 o.temperature = COLD
     return ActionResult(True, target=oid)
+
+
+def switched_together(world: World, obj: WorldObject) -> list[WorldObject]:
+    """The toggleable objects that are one switch with `obj`: a stove knob and the burner it controls
+    are on or off together, whichever of the two is toggled (a faucet and its basin are not: the
+    basin has no on/off state)."""
+    linked = [obj]
+    controlled = world.objects.get(obj.controls) if obj.controls else None
+    if controlled is not None and controlled.otype.toggleable:
+        linked.append(controlled)
+    linked += [o for o in world.objects.values()
+               if o.controls == obj.object_id and o.otype.toggleable and o not in linked]
+    return linked
 
 
 def toggle(world: World, obj: WorldObject, want_on: bool) -> ActionResult:
@@ -205,9 +245,8 @@ def toggle(world: World, obj: WorldObject, want_on: bool) -> ActionResult:
         return _fail(f'{oid} is already {"on" if want_on else "off"}', oid)
     if want_on and obj.type_name == 'Microwave' and obj.is_open:
         return _fail(f'{oid} is open; close it before turning it on', oid)
-    obj.is_on = want_on
-    if controlled is not None and controlled.otype.toggleable:
-        controlled.is_on = want_on    # a stove knob lights its burner
+    for switch in switched_together(world, obj):   # a stove knob lights its burner, and back
+        switch.is_on = want_on
     if want_on:
         heater = controlled if controlled is not None and controlled.type_name == 'StoveBurner' else obj
         if obj.type_name == 'Faucet' and controlled is not None:

@@ -62,14 +62,17 @@ class DialfredEnv(gym.Env):
     def __init__(self, resolution: int = DEFAULT_RESOLUTION, scene: Optional[str] = None,
                  max_steps: int = 1000, max_failures: int = 10, dirty_probability: float = 0.25,
                  render_mode: Optional[str] = 'rgb_array'):
-        if not isinstance(resolution, (int, np.integer)) or not 16 <= resolution <= 1024:
+        if not _is_integer(resolution) or not 16 <= resolution <= 1024:
             raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')
         if scene is not None:
             scene_number(scene)   # raises ValueError for an unknown scene
+        _check_count('max_steps', max_steps)
+        _check_count('max_failures', max_failures)
+        _check_probability('dirty_probability', dirty_probability)
         self.resolution = int(resolution)
         self.scene = scene
-        self.max_steps, self.max_failures = max_steps, max_failures
-        self.dirty_probability = dirty_probability
+        self.max_steps, self.max_failures = int(max_steps), int(max_failures)
+        self.dirty_probability = float(dirty_probability)
         self.render_mode = render_mode
         self.client, self.world = None, None
         self._builds = 0
@@ -90,24 +93,29 @@ class DialfredEnv(gym.Env):
         self.done = True
         self.last_result = ActionResult(True)
         self.task = None                  # the DialFRED task being played, if any
-        self.goal_met: list[bool] = []
+        self.goal_met: list[bool] = []             # per goal condition of the task: holds now
+        self.goal_met_at_start: list[bool] = []    # ... held when the task started (GC leaves those out)
 
     # ------------------------------------------------------------------ Gymnasium API
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict[str, Any]] = None):
-        """Start an episode. options: {'scene': 'FloorPlanN'} picks the floor plan; {'task_id':
-        'valid_unseen/000012'} (or {'task': Task}) starts that DialFRED task (the seed is then the task's)."""
+        """Start an episode. options: {'scene': 'FloorPlanN'} picks the floor plan and
+        {'dirty_probability': p} overrides the constructor's; {'task_id': 'valid_unseen/000012'} (or
+        {'task': Task}) starts that DialFRED task (the seed is then the task's, and no other option
+        may be given). Bad options raise TypeError (wrong type) or ValueError (unknown key, scene or
+        task, a value out of range) and change nothing. A task whose start state the world refuses
+        to rebuild (its split made under older rules) raises ValueError after the room was rebuilt:
+        the env then needs a new reset."""
+        options = _check_options(options)     # TypeError / ValueError before anything changes
+        if 'task' in options:
+            return self._reset_to_task(options['task'])
         super().reset(seed=seed)
-        options = options or {}
-        if options.get('task_id') or options.get('task') is not None:
-            return self._reset_to_task(options.get('task') or options['task_id'])
-        self.task, self.goal_met = None, []
+        self.task, self.goal_met, self.goal_met_at_start = None, [], []
         scene = options.get('scene') or self.scene
         if scene is None:
             scenes = all_scenes()
             scene = scenes[int(self.np_random.integers(len(scenes)))]
-        layout = room_layout(scene)       # ValueError for an unknown scene, before anything changes
-        self._build(layout, options.get('dirty_probability', self.dirty_probability))
+        self._build(room_layout(scene), options.get('dirty_probability', self.dirty_probability))
         self.steps, self.failures, self.done = 0, 0, False
         self.last_result = ActionResult(True)
         self._frame = self.world.render()
@@ -139,15 +147,21 @@ class DialfredEnv(gym.Env):
 
     def _reset_to_task(self, task):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
-        from .tasks import get_task
         from .tasks.expert import replay
         from .tasks.generator import apply_setup
-        task = get_task(task) if isinstance(task, str) else task   # ValueError for an unknown id
         episode = task.episode
         super().reset(seed=episode.seed)
         self._build(room_layout(episode.scene), self.dirty_probability)
         apply_setup(self.world, episode.setup)
-        replay(self.world, episode.actions[:task.start])
+        try:
+            replay(self.world, episode.actions[:task.start])
+        except RuntimeError as exc:
+            # The task's split was made under other rules (before a physics change): its start state
+            # cannot be rebuilt. The room is half built, so the env needs a new reset.
+            self.task, self.goal_met, self.goal_met_at_start = None, [], []
+            self._frame, self.done = None, True
+            raise ValueError(f'task {task.task_id} cannot be set up in this simulator: {exc}; its split '
+                             'predates the simulator\'s rules and must be regenerated') from None
         a = self.world.agent
         a.i, a.j, a.rotation, a.horizon = task.start_pose
         self.world.update_held_pose()
@@ -156,6 +170,7 @@ class DialfredEnv(gym.Env):
         self.task = task
         self._frame = self.world.render()
         self._check_goal()
+        self.goal_met_at_start = list(self.goal_met)
         return self._observation(), self._info()
 
     def _check_goal(self) -> bool:
@@ -170,7 +185,8 @@ class DialfredEnv(gym.Env):
         """Put the agent on grid point (i, j) facing `rotation` degrees with camera pitch `horizon`.
 
         For experts, tests and tools (not an agent action; it does not count as a step). ValueError
-        if the point is not free floor or the pose is off the action grid. Returns the observation.
+        if the point is not free floor (furniture, walls, an open door) or the pose is off the action
+        grid or leaves no room for the object in hand. Returns the observation.
         """
         if self._frame is None:
             raise RuntimeError('teleport() before reset()')
@@ -179,6 +195,14 @@ class DialfredEnv(gym.Env):
         if rotation % 90 or not HORIZON_MIN <= horizon <= HORIZON_MAX or horizon % 15:
             raise ValueError(f'rotation must be a multiple of 90 and horizon a multiple of 15 in '
                              f'[{HORIZON_MIN:g}, {HORIZON_MAX:g}], got {rotation}, {horizon}')
+        door = self.world.open_blocker(i, j)
+        if door is not None:
+            raise ValueError(f'grid point ({i}, {j}) is taken by the open {door}')
+        if self.world.held is not None:
+            spot, hit = self.world.carry_spot(self.world.objects[self.world.held], i, j, int(rotation) % 360)
+            if spot is None:
+                raise ValueError(f'no room at ({i}, {j}, {rotation}) for the {self.world.held} in hand: '
+                                 f'it would pass into {hit}')
         a = self.world.agent
         a.i, a.j, a.rotation, a.horizon = int(i), int(j), int(rotation) % 360, float(horizon)
         self.world.update_held_pose()
@@ -232,10 +256,11 @@ class DialfredEnv(gym.Env):
             name = action
         act = parse_action(name)
         if act.is_interaction:
-            try:
-                px, py = (int(v) for v in pixel)
-            except (TypeError, ValueError):
-                raise ValueError(f'{act.name} needs a target pixel (x, y), got {pixel!r}') from None
+            # Exactly two integers: a float, a digit string or a bool is a caller's bug, not a pixel.
+            values = list(pixel) if isinstance(pixel, (tuple, list, np.ndarray)) else None
+            if values is None or len(values) != 2 or not all(_is_integer(v) for v in values):
+                raise ValueError(f'{act.name} needs a target pixel (x, y) of two integers, got {pixel!r}')
+            px, py = int(values[0]), int(values[1])
             if not (0 <= px < self.resolution and 0 <= py < self.resolution):
                 raise ValueError(f'pixel ({px}, {py}) is outside the {self.resolution}x{self.resolution} frame')
             return act, (px, py)
@@ -248,7 +273,9 @@ class DialfredEnv(gym.Env):
         return {'rgb': rgb, 'depth': depth, 'segmentation': seg, 'pose': pose}
 
     def _info(self) -> dict[str, Any]:
+        from .tasks.goals import goal_progress
         ids, names = self.world.instance_table()
+        achieved, to_achieve = goal_progress(self.goal_met, self.goal_met_at_start)
         return {
             'scene': self.world.layout.scene,
             'room_type': self.world.layout.room_type,
@@ -261,9 +288,74 @@ class DialfredEnv(gym.Env):
             'instances': (ids, names),
             'task_id': self.task.task_id if self.task is not None else '',
             'success': bool(self.goal_met) and all(self.goal_met),
-            'goal_conditions_met': int(sum(self.goal_met)),
-            'goal_conditions_total': len(self.goal_met),
+            # GC counts only the conditions that did not hold when the task started (tasks.goals)
+            'goal_conditions_met': achieved,
+            'goal_conditions_total': to_achieve,
         }
+
+
+# ---------------------------------------------------------------------- argument checks
+
+RESET_OPTIONS = ('scene', 'task_id', 'task', 'dirty_probability')
+
+
+def _is_integer(value) -> bool:
+    """A Python or numpy integer, and not a bool (True is an int to Python, never a count or a pixel)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _check_count(name: str, value) -> None:
+    if not _is_integer(value):
+        raise TypeError(f'{name} must be an integer, got {value!r} ({type(value).__name__})')
+    if value < 1:
+        raise ValueError(f'{name} must be at least 1, got {value!r}')
+
+
+def _check_probability(name: str, value) -> None:
+    if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
+        raise TypeError(f'{name} must be a number, got {value!r} ({type(value).__name__})')
+    if not 0.0 <= value <= 1.0:     # also refuses nan
+        raise ValueError(f'{name} must be in [0, 1], got {value!r}')
+
+
+def _check_options(options) -> dict:
+    """reset()'s options, checked; a task is resolved to its Task under 'task'. Changes nothing."""
+    from .tasks.schema import Task
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(f'options must be a dict, got {options!r} ({type(options).__name__})')
+    unknown = sorted(map(repr, set(options) - set(RESET_OPTIONS)))
+    if unknown:
+        raise ValueError(f'unknown reset option(s) {", ".join(unknown)}: expected {", ".join(RESET_OPTIONS)}')
+    checked = dict(options)
+    if 'task_id' in options or 'task' in options:
+        others = sorted(set(options) - {'task_id', 'task'})
+        if others or ('task_id' in options and 'task' in options):
+            raise ValueError(f"a task sets its own room and state: give 'task_id' or 'task' alone, got "
+                             f"{sorted(options)}")
+        if 'task_id' in options:
+            from .tasks import get_task
+            task_id = checked.pop('task_id')
+            if not isinstance(task_id, str):
+                raise TypeError(f"task_id must be a string such as 'valid_unseen/000012', got {task_id!r} "
+                                f'({type(task_id).__name__})')
+            if not task_id:
+                raise ValueError("task_id must name a task such as 'valid_unseen/000012', got '' "
+                                 "(leave it out for free exploration)")
+            checked['task'] = get_task(task_id)     # ValueError for an unknown id
+        elif not isinstance(options['task'], Task):
+            raise TypeError(f"task must be a dialfred_sim.tasks.Task, got {options['task']!r:.80} "
+                            f"({type(options['task']).__name__})")
+        return checked
+    if 'scene' in options:
+        scene = options['scene']
+        if not isinstance(scene, str):
+            raise TypeError(f"scene must be a string such as 'FloorPlan7', got {scene!r} ({type(scene).__name__})")
+        scene_number(scene)      # ValueError for an unknown scene
+    if 'dirty_probability' in options:
+        _check_probability('dirty_probability', options['dirty_probability'])
+    return checked
 
 
 __all__ = ['DialfredEnv', 'ACTION_NAMES', 'DEFAULT_RESOLUTION']

@@ -1,8 +1,11 @@
 """DialFRED's evaluation metrics over episode results: SR, PWSR, GC and NQ (no ROS).
 
 Per episode (Gao et al., 2022, after ALFRED): success s in {0, 1}; goal-condition fraction
-GC = met / total; path-weighted success p = s * L* / max(L*, L) with L* the expert's length and L the
-agent's steps; NQ the number of questions asked (NQ_invalid: those the oracle could not answer).
+GC = met / total, where total counts the goal conditions that did not hold at the task's start and
+met those of them that hold at its end (tasks.goals.goal_progress; ALFRED counts every condition,
+see docs/dataset.md "Metrics"); path-weighted success p = s * L* / max(L*, L) with L* the expert's
+length and L the agent's steps; NQ the number of questions asked (NQ_invalid: those the oracle could
+not answer).
 `summarize` averages them overall and per task type (SR, PWSR and GC in percent, NQ and NQ_invalid
 as mean counts), in the task order of the paper's table.
 
@@ -58,7 +61,8 @@ class EpisodeResult:
 
     @property
     def gc(self) -> float:
-        """Fraction of the goal conditions met (a task without conditions counts its success)."""
+        """Fraction of the goal conditions left to do at the start that hold at the end (a task with
+        none left to do counts its success)."""
         if self.goal_conditions_total <= 0:
             return float(self.success)
         return self.goal_conditions_met / self.goal_conditions_total

@@ -8,9 +8,11 @@ node only converts messages. Bad requests get ok=false and an error text, and th
 from __future__ import annotations
 
 import array as pyarray
+import sys
 import time
 
 import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
@@ -20,6 +22,7 @@ from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
 from .ground_truth import GroundTruthCache
+from .tasks.splits import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
 from .ros_util import SERVICE_QOS, error_reply, run_node
@@ -64,11 +67,12 @@ def task_description(task) -> TaskDescription:
                            instruction=public.instruction, object_nouns=list(public.object_nouns))
 
 
-def task_answer_key(task) -> TaskAnswerKey:
-    """What only the checker and the oracle may know of a tasks.Task (sent on /sim/ground_truth only)."""
+def task_answer_key(task, goal_conditions_total: int) -> TaskAnswerKey:
+    """What only the checker and the oracle may know of a tasks.Task (sent on /sim/ground_truth only);
+    `goal_conditions_total` is the env's count of the conditions left to do at the task's start."""
     i, j, rot, horizon = task.expert_end_pose
     return TaskAnswerKey(task_type=task.task_type, step_instructions=list(task.step_instructions),
-                         expert_length=task.expert_length, goal_conditions_total=len(task.goal),
+                         expert_length=task.expert_length, goal_conditions_total=int(goal_conditions_total),
                          expert_end_pose=AgentPose(x=i * GRID, y=j * GRID, camera_height=CAMERA_HEIGHT,
                                                    rotation_deg=float(rot), horizon_deg=float(horizon)))
 
@@ -85,6 +89,10 @@ def object_fact_msg(f) -> ObjectFact:
                       seen_z=float(seen_z))
 
 
+class TasksFileError(RuntimeError):
+    """The tasks_file parameter names no readable split file."""
+
+
 class SimNode(Node):
     """Thin ROS adapter over DialfredEnv."""
 
@@ -96,7 +104,15 @@ class SimNode(Node):
         self.declare_parameter('max_steps', 1000)
         self.declare_parameter('max_failures', 10)
         self.declare_parameter('publish_observations', True)
+        self.declare_parameter('tasks_file', '', ParameterDescriptor(
+            description='a split file of your own (e.g. a test_unseen split): /sim/reset task ids are looked up '
+                        "there first, then in the shipped splits; '' = shipped splits only", read_only=True))
         p = self.get_parameter
+        # Read once, at start: a missing or malformed file stops the node here with the reason.
+        try:
+            self.tasks_file = read_tasks_file(p('tasks_file').value) if p('tasks_file').value else None
+        except (FileNotFoundError, ValueError) as exc:
+            raise TasksFileError(str(exc)) from None
         scene = p('scene').value or None
         self.default_seed = int(p('seed').value)
         self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
@@ -112,7 +128,8 @@ class SimNode(Node):
         self.clock = self.get_clock()
         self.obs = None
         self.info = None
-        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}')
+        self.get_logger().info(f'serving /sim/reset and /sim/step at {self.env.resolution}x{self.env.resolution}'
+                               + (f', tasks of {self.tasks_file.path}' if self.tasks_file else ''))
 
     # ------------------------------------------------------------------ services
 
@@ -140,7 +157,8 @@ class SimNode(Node):
 
     def _reset_to_task(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
         try:
-            self.obs, self.info = self.env.reset(options={'task_id': request.task_id})
+            task = resolve_task(request.task_id, self.tasks_file)
+            self.obs, self.info = self.env.reset(options={'task': task})
         except (ValueError, FileNotFoundError) as exc:
             response.ok, response.error = False, str(exc)
             return response
@@ -175,7 +193,7 @@ class SimNode(Node):
         if self.env.task is not None:
             response.has_task = True
             response.task = task_description(self.env.task)
-            response.answer_key = task_answer_key(self.env.task)
+            response.answer_key = task_answer_key(self.env.task, self.info['goal_conditions_total'])
         response.task_nouns = list(snap.task_objects)
         response.task_object_ids = list(snap.task_objects.values())
         if self._fact_msgs[0] != version:
@@ -246,7 +264,11 @@ class SimNode(Node):
 
 
 def main(args=None):
-    run_node(SimNode, args)
+    try:
+        run_node(SimNode, args)
+    except TasksFileError as exc:      # said in one line, not a traceback
+        print(f'dialfred_sim node: {exc}', file=sys.stderr)
+        return 1
 
 
 if __name__ == '__main__':

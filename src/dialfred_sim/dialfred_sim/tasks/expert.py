@@ -67,11 +67,14 @@ class Expert:
     # ------------------------------------------------------------------ navigation
 
     def _bfs(self) -> dict:
-        """Shortest action paths from the current (i, j, rotation) to every reachable one."""
+        """Shortest action paths from the current (i, j, rotation) to every reachable one: over the
+        floor that open doors leave free, and with the object in hand, only where there is room to
+        carry it (the same rules as actions.move_ahead and rotate)."""
         start = self.pose()[:3]
         parent = {start: None}
         queue = deque([start])
-        free = self.world.layout.navigable
+        free = self.world.free_floor()
+        held = self.world.objects[self.world.held] if self.world.held else None
         while queue:
             s = queue.popleft()
             i, j, r = s
@@ -80,9 +83,18 @@ class Expert:
                              (Action.RotateRight, (i, j, (r - 90) % 360))):
                 if nxt in parent or (act == Action.MoveAhead and nxt[:2] not in free):
                     continue
+                if held is not None and self.world.carry_spot(held, *nxt)[0] is None:
+                    continue
                 parent[nxt] = (s, act)
                 queue.append(nxt)
         return parent
+
+    def _clear_to_open(self, focus: Sequence[str], i: int, j: int) -> bool:
+        """Whether every closed openable in `focus` (the expert goes to it to open it) can open
+        without its door or drawer hitting an agent on (i, j)."""
+        objects = self.world.objects
+        return not any(objects[f].otype.openable and not objects[f].is_open and objects[f].spec.articulation
+                       is not None and self.world.would_hit_agent(objects[f], i, j) for f in focus)
 
     @staticmethod
     def _path(parent: dict, goal) -> list[Action]:
@@ -113,7 +125,7 @@ class Expert:
     def find_pose(self, focus: Sequence[str]) -> tuple[Pose, list[Action]]:
         """The cheapest pose (fewest actions) from which every object in `focus` can be acted on."""
         here = self.pose()
-        if self._sees(focus):
+        if self._sees(focus) and self._clear_to_open(focus, here[0], here[1]):
             return here, []
         parent = self._bfs()
         centre = self._centre(focus[0])
@@ -129,7 +141,7 @@ class Expert:
             if any(np.linalg.norm(eye - np.clip(eye, lo, hi)) > 1.5 - MARGIN for lo, hi in boxes):
                 continue
             facing = round(math.degrees(math.atan2(dy, dx)) / 90) * 90 % 360
-            if r != facing:
+            if r != facing or not self._clear_to_open(focus, i, j):
                 continue
             pitch = math.degrees(math.atan2(CAMERA_HEIGHT - centre[2], d))
             h0 = min(max(round(pitch / LOOK_STEP) * LOOK_STEP, HORIZON_MIN), HORIZON_MAX)

@@ -1,5 +1,6 @@
 """Goal conditions of the 25 task types and their check against the world (like ALFRED's
-`goal_conditions_met`): which conditions hold now, and success when all do."""
+`goal_conditions_met`): which conditions hold now, success when all do, and the goal-condition
+progress GC counts (`goal_progress`: only the conditions that did not hold at the task's start)."""
 
 from __future__ import annotations
 
@@ -84,6 +85,22 @@ def condition_met(world: World, c: Condition, frame: Optional[tuple] = None) -> 
 def conditions_met(world: World, goal: Sequence[Condition], frame: Optional[tuple] = None) -> list[bool]:
     """Per condition, whether it holds now. `frame` = (rgb, depth, segmentation) of the current view."""
     return [condition_met(world, c, frame) for c in goal]
+
+
+def goal_progress(met_now: Sequence[bool], met_at_start: Sequence[bool]) -> tuple[int, int]:
+    """(achieved, to_achieve): of the goal conditions that did not hold when the task started
+    (`met_at_start`), how many there are and how many hold now (`met_now`).
+
+    This is what GC counts. A condition that already held at the start (the apple in hand in a
+    Heat task, the microwave closed) is left out of both: doing nothing scores 0, and undoing such
+    a condition on the way (putting the apple into the microwave) does not lower GC. Success still
+    needs every condition, those that held at the start included. ALFRED instead counts every
+    condition of the goal; its tasks start from scratch, where hardly any holds (docs/dataset.md).
+    """
+    if len(met_now) != len(met_at_start):
+        raise ValueError(f'{len(met_now)} conditions now but {len(met_at_start)} at the start')
+    open_at_start = [now for now, before in zip(met_now, met_at_start) if not before]
+    return int(sum(open_at_start)), len(open_at_start)
 
 
 # ---------------------------------------------------------------------- goals of the task types

@@ -16,6 +16,8 @@ import numpy as np
 from .bodies import ShapeCache, build_body, set_articulation
 from .catalog import ObjectType, load_catalog
 from .geometry import ShapeSpec
+from .hand import carry_spot, hand_spot, solids_of
+from .open_parts import blocks, footprints, moving_part_boxes
 from .palette import rgba
 from .rooms import GRID, WALL_HEIGHT, RoomLayout, local_to_world
 from .shapes import shape_for
@@ -28,6 +30,7 @@ START_HORIZON = 30.0         # ALFRED starts every episode looking 30 degrees do
 LIGHT_DIRECTION = (0.3, 0.5, 1.0)
 
 COLD, ROOM, HOT = 'cold', 'room', 'hot'
+OPENING_SWEEP = (0.25, 0.5, 0.75, 1.0)   # fractions of a door's swing checked against the agent
 SLICES_PER_OBJECT = {'Bread': 5}
 DEFAULT_SLICES = 4
 
@@ -128,6 +131,8 @@ class World:
         self._projection = client.computeProjectionMatrixFOV(FOV_DEG, width / height, NEAR, FAR)
         self._counts: dict[str, int] = {}
         self._fixture_bodies: dict[str, int] = {}      # the current room's furniture, kept for its next episode
+        self._carry_cache: dict[tuple, tuple] = {}     # carry_spot per (size, pose), for this room
+        self._outline_cache: dict[tuple, list] = {}    # open_part_outlines per (object, pose, fraction)
 
     # ------------------------------------------------------------------ building
 
@@ -148,6 +153,7 @@ class World:
         self.layout = layout
         self.objects, self.body_to_object = {}, {}
         self.held = None
+        self._carry_cache, self._outline_cache = {}, {}
         self._counts = {}
         if not reuse:
             self.structure_bodies, self._fixture_bodies = {}, {}
@@ -341,14 +347,26 @@ class World:
         self.held = obj.object_id
         self.update_held_pose()
 
+    def carry_spot(self, obj: WorldObject, i: int, j: int, rotation: int) -> tuple[Optional[tuple], str]:
+        """(spot, '') where the agent on (i, j) facing `rotation` would carry `obj` (and what it
+        carries), clear of the walls and fixtures; (None, what it would hit) if there is no room (hand.py)."""
+        # what it carries (an apple on a plate) adds to its height
+        height = obj.spec.size[2] + max((o.spec.size[2] for o in self.descendants(obj)), default=0.0)
+        size = (obj.spec.size[0], obj.spec.size[1], height)
+        key = (size, i, j, rotation % 360)
+        if key not in self._carry_cache:
+            self._carry_cache[key] = carry_spot(solids_of(self.layout.scene), i * GRID, j * GRID, rotation, size)
+        return self._carry_cache[key]
+
     def update_held_pose(self) -> None:
         if self.held is None:
             return
         obj = self.objects[self.held]
-        yaw = math.radians(self.agent.rotation)
-        # Carried in front of the agent, low and to the right so it hides little of the view.
-        pos = local_to_world((self.agent.x, self.agent.y, 0.0), yaw, (0.42, -0.16, 0.95))
-        obj.position, obj.yaw = pos, yaw
+        a = self.agent
+        spot, _ = self.carry_spot(obj, a.i, a.j, a.rotation)
+        if spot is None:     # only where a pose was set directly (teleport, the expert's look-ahead)
+            spot = hand_spot(0, a.x, a.y, a.rotation)
+        obj.position, obj.yaw = spot, math.radians(a.rotation)
         self._move_body(obj)
 
     def _update_pose(self, obj: WorldObject) -> None:
@@ -374,6 +392,41 @@ class World:
                 child = self.objects[cid]
                 if not child.fixture:
                     self._update_pose(child)
+
+    # ------------------------------------------------------------------ floor taken by open doors
+
+    def open_part_outlines(self, obj: WorldObject, fraction: float = 1.0) -> list:
+        """Floor outlines of `obj`'s door, lid or drawer opened to `fraction`, where they reach the
+        agent's height (see open_parts)."""
+        key = (obj.object_id, obj.position, obj.yaw, fraction)
+        if key not in self._outline_cache:
+            self._outline_cache[key] = footprints(moving_part_boxes(obj.spec, obj.position, obj.yaw, fraction))
+        return self._outline_cache[key]
+
+    def open_blocker(self, i: int, j: int) -> Optional[str]:
+        """The open object whose door or drawer stands where an agent on grid point (i, j) would."""
+        for obj in self.objects.values():
+            if obj.is_open and obj.spec.articulation is not None and \
+                    blocks(i * GRID, j * GRID, self.open_part_outlines(obj)):
+                return obj.object_id
+        return None
+
+    def free_floor(self) -> set:
+        """Grid points the agent may stand on now: the layout's free floor less what open doors take."""
+        free = set(self.layout.navigable)
+        for obj in self.objects.values():
+            if obj.is_open and obj.spec.articulation is not None:
+                outlines = self.open_part_outlines(obj)
+                if outlines:
+                    free -= {(i, j) for i, j in free if blocks(i * GRID, j * GRID, outlines)}
+        return free
+
+    def would_hit_agent(self, obj: WorldObject, i: Optional[int] = None, j: Optional[int] = None) -> bool:
+        """Whether opening `obj` would swing or slide its moving part into an agent on (i, j) (the
+        agent's own point by default), anywhere on its way open."""
+        i = self.agent.i if i is None else i
+        j = self.agent.j if j is None else j
+        return any(blocks(i * GRID, j * GRID, self.open_part_outlines(obj, f)) for f in OPENING_SWEEP)
 
     # ------------------------------------------------------------------ queries
 

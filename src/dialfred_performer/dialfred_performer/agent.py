@@ -1,0 +1,128 @@
+"""`PerformerAgent`: the performer as an agent of the evaluation (no ROS).
+
+`reset(task, seed)` starts an episode of a `dialfred_sim.tasks.PublicTask` (the instruction and its
+nouns; an agent never gets more); `hear(qa)` adds a QA of the dialogue, asked at the current step
+(the number of actions taken so far), so it is seen from this step on, as in training;
+`act(observation)` returns (action, x, y) with the pixel in the observation's frame (-1, -1 for
+moves); `action_probabilities(observation)` gives the probabilities over `ACTIONS` of the action
+`act` would choose now (for the model-confusion questioner), computed once per step and observation.
+
+The observation may be an HxWx3 uint8 RGB array, a dict or object with `rgb` being such an array,
+or an object whose `rgb` is a sensor_msgs/Image-like message (encoding rgb8, height, width, data),
+as the dialfred_msgs/Observation message is. Frames go through `preprocess.frame_tensor`, the path
+training uses. Each frame is encoded once; at every step the transformer reads the whole episode.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import torch
+
+from dialfred_sim.agents import ACTIONS, QA, Decision
+
+from .data import START
+from .model import INTERACTION_IDS, Performer, load_checkpoint
+from .nn.heads import cell_centre_pixel
+from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
+
+
+def observation_rgb(observation: Any) -> np.ndarray:
+    """The HxWx3 uint8 RGB frame of an observation (array, {'rgb': ...}, or .rgb array / rgb8 Image)."""
+    if isinstance(observation, np.ndarray):
+        return observation
+    rgb = observation.get('rgb') if isinstance(observation, dict) else getattr(observation, 'rgb', None)
+    if rgb is None:
+        raise ValueError(f'no RGB frame in the observation ({type(observation).__name__})')
+    if isinstance(rgb, np.ndarray):
+        return rgb
+    if getattr(rgb, 'encoding', None) != 'rgb8':      # dialfred_launch.image_array's semantics, rgb8 only
+        raise ValueError(f'expected an rgb8 image, got encoding {getattr(rgb, "encoding", None)!r}')
+    return np.frombuffer(bytes(rgb.data), dtype=np.uint8).reshape(rgb.height, rgb.width, 3)
+
+
+class PerformerAgent:
+    """A trained (or untrained) `Performer` playing one episode at a time; greedy decisions."""
+
+    name = 'performer'
+
+    def __init__(self, model: Performer, vocab: Vocabulary):
+        if len(vocab) != model.vocab_size:
+            raise ValueError(f'the vocabulary has {len(vocab)} words, the model {model.vocab_size}')
+        self.model = model.eval()
+        self.vocab = vocab
+        self.config = model.config
+        self.reset_state()
+
+    @classmethod
+    def from_checkpoint(cls, path: Path) -> 'PerformerAgent':
+        model, vocab, _ = load_checkpoint(path)
+        return cls(model, vocab)
+
+    def reset_state(self) -> None:
+        self.task = None
+        self.instruction = ''
+        self.dialogue: list[AskedQA] = []
+        self.step = 0
+        self._embeddings: list[torch.Tensor] = []     # [d] per past step
+        self._grids: list[torch.Tensor] = []          # [C, d] per past step
+        self._previous_actions: list[int] = [START]
+        self._pending: Optional[tuple] = None        # (observation, (step, dialogue length), outputs)
+
+    def reset(self, task: Any, seed: int = 0) -> None:
+        """Start an episode of `task` (a PublicTask: only its instruction is read)."""
+        self.reset_state()
+        self.task = task
+        self.instruction = task.instruction
+        torch.manual_seed(seed)
+
+    def hear(self, qa: QA) -> None:
+        """A QA of the dialogue, asked now (before the action of the current step)."""
+        self.dialogue.append(AskedQA(qa, self.step))
+
+    def language_input(self):
+        """The language the model reads now (preprocess.encode_language over the dialogue so far)."""
+        return encode_language(self.vocab, self.instruction, self.dialogue, self.config.max_tokens)
+
+    @torch.inference_mode()
+    def _outputs(self, observation: Any) -> tuple[torch.Tensor, torch.Tensor, int]:
+        """(action logits [13], pointer logits [C], (height, width), frame embedding, grid) for the current step and observation."""
+        if self.task is None:
+            raise RuntimeError('reset() the agent before it acts')
+        key = (self.step, len(self.dialogue))
+        if self._pending is not None and self._pending[0] is observation and self._pending[1] == key:
+            return self._pending[2]
+        rgb = observation_rgb(observation)
+        emb, grid = self.model.encode_frames(frame_tensor(rgb, self.config.resolution)[None])
+        lang = self.language_input()
+        ids = torch.tensor([lang.ids], dtype=torch.long)
+        embeddings = torch.stack([*self._embeddings, emb[0]])[None]
+        grids = torch.stack([*self._grids, grid[0]])[None]
+        T = embeddings.shape[1]
+        action_logits, pointer_logits = self.model.decode(
+            ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
+            embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
+        result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid[0])
+        self._pending = (observation, key, result)
+        return result
+
+    def action_probabilities(self, observation: Any) -> np.ndarray:
+        """Probabilities over ACTIONS of the next action given `observation`."""
+        return torch.softmax(self._outputs(observation)[0], -1).numpy()
+
+    def act(self, observation: Any) -> Decision:
+        """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
+        in the observation's frame."""
+        action_logits, pointer_logits, (height, width), emb, grid = self._outputs(observation)
+        action = int(action_logits.argmax())
+        x = y = -1
+        if action in INTERACTION_IDS:
+            x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width, height)
+        self._embeddings.append(emb)
+        self._grids.append(grid)
+        self._previous_actions.append(action)
+        self.step += 1
+        self._pending = None
+        return ACTIONS[action], x, y

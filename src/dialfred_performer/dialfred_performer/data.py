@@ -1,0 +1,192 @@
+"""Training data for the performer: expert demonstrations with their dialogues, as padded batches.
+
+`DemonstrationDataset` reads a demonstrations folder (`dialfred_sim.tasks.demonstrations`:
+frames.npy + tasks.jsonl) and, if there is one, `dialogues.jsonl` beside it. An episode of a task
+with n expert actions has n + 1 steps: the frame before each action with that action as the target,
+then the frame after the last action with Stop (only where the expert reached the goal).
+
+The paper's augmentation (DialFRED, "Performer": the performer is pre-trained "with instructions and
+all possible questions, including a combination of question types and answers"): each task appears
+once per combination of question types in `COMBINATIONS` (none; location; appearance; direction; each
+pair; all three). A combination includes, for each of its types, every QA of that type (about each of
+the instruction's objects) that the oracle gave at one of the steps recorded for the task (0 or a
+mid-episode step), drawn per sample from the dataset's seed.
+
+`dialogues.jsonl`, one line per task: {"task_id": ..., "qas": [{"question_type", "object_noun",
+"valid", "answer", "reason", "step"}, ...]} (`preprocess.qa_to_dict`). `generate_dialogues` makes it
+by replaying the expert's recorded actions in `DialfredEnv` and asking the real oracle core
+(`dialfred_oracle.answers.answer` over `dialfred_sim.ground_truth.snapshot`) at each chosen step.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from dialfred_sim.agents import ACTIONS, QA, QUESTION_TYPES, Question
+from dialfred_sim.tasks.demonstrations import load_demonstrations
+
+from .nn.heads import pixel_cell
+from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
+
+COMBINATIONS: tuple[tuple[str, ...], ...] = tuple(
+    c for r in range(len(QUESTION_TYPES) + 1) for c in itertools.combinations(QUESTION_TYPES, r))
+DIALOGUES_FILE = 'dialogues.jsonl'
+STOP = ACTIONS.index('Stop')
+START = len(ACTIONS)          # the "previous action" of step 0 (ActionEmbedding's <start>)
+
+
+def load_dialogues(path: Path) -> dict[str, list[AskedQA]]:
+    """{task_id: [AskedQA]} from a dialogues.jsonl; {} if the file does not exist."""
+    path = Path(path)
+    if not path.exists():
+        return {}
+    out = {}
+    for line in path.read_text().splitlines():
+        row = json.loads(line)
+        out[row['task_id']] = [qa_from_dict(d) for d in row['qas']]
+    return out
+
+
+def vocabulary_texts(demonstrations_dir: Path) -> list[str]:
+    """Every text a performer reads in a demonstrations folder: instructions, nouns, and each QA of
+    dialogues.jsonl as the model reads it (so the marker tokens are counted once as themselves)."""
+    demo = load_demonstrations(demonstrations_dir)
+    texts = [t['instruction'] for t in demo.tasks] + [n for t in demo.tasks for n in t['object_nouns']]
+    for qas in load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE).values():
+        texts += [' '.join(qa_tokens(a.qa)) for a in qas]
+    return texts
+
+
+class DemonstrationDataset(Dataset):
+    """Episodes of a demonstrations folder, each task once per combination of question types (once
+    in all if there is no dialogues.jsonl). An item is a dict of tensors (see `collate`)."""
+
+    def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
+                 combinations: Sequence[tuple[str, ...]] = COMBINATIONS, seed: int = 0,
+                 only_successful: bool = True):
+        self.demo = load_demonstrations(demonstrations_dir)
+        self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
+        self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
+        self.combinations = tuple(combinations) if self.dialogues else ((),)
+        self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
+        self.frame_size = self.demo.meta['resolution']
+
+    def __len__(self) -> int:
+        return len(self.task_indices) * len(self.combinations)
+
+    def dialogue(self, index: int) -> list[AskedQA]:
+        """The QAs of item `index`: for each type of its combination, the QAs of that type at one of
+        the steps the task has them for (drawn from the seed and the index), in step order."""
+        k, c = divmod(index, len(self.combinations))
+        task = self.demo.tasks[self.task_indices[k]]
+        qas = self.dialogues.get(task['task_id'], [])
+        rng = np.random.default_rng([self.seed, index])
+        chosen = []
+        for qtype in self.combinations[c]:
+            of_type = [a for a in qas if a.qa.question.question_type == qtype]
+            steps = sorted({a.step for a in of_type})
+            if steps:
+                step = steps[int(rng.integers(len(steps)))]
+                chosen += [a for a in of_type if a.step == step]
+        return sorted(chosen, key=lambda a: a.step)
+
+    def __getitem__(self, index: int) -> dict:
+        k = self.task_indices[index // len(self.combinations)]
+        task = self.demo.tasks[k]
+        n = len(task['actions'])
+        names = [a[0] for a in task['actions']] + (['Stop'] if task['success'] else [])
+        frames = np.asarray(self.demo.frames_of(k)[:len(names)])
+        actions = torch.tensor([ACTIONS.index(a) for a in names], dtype=torch.long)
+        grid = self.resolution // 8
+        cells = [pixel_cell(x, y, grid, self.frame_size) for _, x, y, _ in task['actions']] + [-1] * (len(names) - n)
+        lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens)
+        return {'task_id': task['task_id'], 'frames': frame_tensor(frames, self.resolution), 'actions': actions,
+                'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),
+                'target_cells': torch.tensor(cells, dtype=torch.long),
+                'lang_ids': torch.tensor(lang.ids, dtype=torch.long),
+                'lang_types': torch.tensor(lang.types, dtype=torch.long),
+                'lang_steps': torch.tensor(lang.steps, dtype=torch.long)}
+
+
+def collate(items: Sequence[dict]) -> dict:
+    """Pad items to a batch: frames [B, T, 3, R, R], actions / previous_actions / target_cells [B, T]
+    (padding: Stop / <start> / -1), step_valid [B, T]; lang_ids / types / steps [B, L] (padding 0),
+    lang_valid [B, L]."""
+    B = len(items)
+    T = max(len(it['actions']) for it in items)
+    L = max(max(len(it['lang_ids']) for it in items), 1)
+    R = items[0]['frames'].shape[-1]
+    out = {'task_ids': [it['task_id'] for it in items],
+           'frames': torch.zeros(B, T, 3, R, R), 'actions': torch.full((B, T), STOP, dtype=torch.long),
+           'previous_actions': torch.full((B, T), START, dtype=torch.long),
+           'target_cells': torch.full((B, T), -1, dtype=torch.long),
+           'step_valid': torch.zeros(B, T, dtype=torch.bool),
+           'lang_ids': torch.zeros(B, L, dtype=torch.long), 'lang_types': torch.zeros(B, L, dtype=torch.long),
+           'lang_steps': torch.zeros(B, L, dtype=torch.long), 'lang_valid': torch.zeros(B, L, dtype=torch.bool)}
+    for b, it in enumerate(items):
+        t, n = len(it['actions']), len(it['lang_ids'])
+        out['frames'][b, :t] = it['frames']
+        for key in ('actions', 'previous_actions', 'target_cells'):
+            out[key][b, :t] = it[key]
+        out['step_valid'][b, :t] = True
+        for key in ('lang_ids', 'lang_types', 'lang_steps'):
+            out[key][b, :n] = it[key]
+        out['lang_valid'][b, :n] = True
+    return out
+
+
+def oracle_qas(env, nouns: Sequence[str], step: int) -> list[AskedQA]:
+    """The real oracle's answers now (env at some step of a task): location and appearance of each
+    noun, and direction, each marked as asked at `step`."""
+    from dialfred_oracle.answers import answer
+    from dialfred_sim.ground_truth import snapshot, task_object_ids
+    snap = snapshot(env, task_object_ids(env))
+    questions = [Question(q, n) for n in nouns for q in ('location', 'appearance')] + [Question('direction')]
+    out = []
+    for q in questions:
+        a = answer(snap, q.question_type, q.object_noun)
+        out.append(AskedQA(QA(q, a.valid, a.text, a.reason), step))
+    return out
+
+
+def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, out: Optional[Path] = None) -> Path:
+    """Write dialogues.jsonl for (the first `limit` tasks of) a demonstrations folder: the oracle's
+    answers at step 0 and at the middle of each expert episode, replaying the recorded actions in
+    DialfredEnv at the demonstrations' resolution. Returns the file's path."""
+    from dialfred_sim.env import DialfredEnv
+    demonstrations_dir = Path(demonstrations_dir)
+    demo = load_demonstrations(demonstrations_dir)
+    env = DialfredEnv(resolution=demo.meta['resolution'])
+    out = Path(out) if out else demonstrations_dir / DIALOGUES_FILE
+    lines = [dialogue_line(task, task_dialogue(env, task)) for task in demo.tasks[:limit]]
+    env.close()
+    out.write_text(''.join(lines))
+    return out
+
+
+def task_dialogue(env, task: dict) -> list[AskedQA]:
+    """The oracle's QAs for one task record of tasks.jsonl: `env` (a DialfredEnv at the
+    demonstrations' resolution) replays the recorded actions, asked at step 0 and step n // 2."""
+    env.reset(options={'task_id': task['task_id']})
+    n = len(task['actions'])
+    ask_at = sorted({0, n // 2})
+    qas = []
+    for step in range(n + 1):
+        if step in ask_at:
+            qas += oracle_qas(env, task['object_nouns'], step)
+        if step < n:
+            name, x, y, _ = task['actions'][step]
+            env.step({'action': name, 'pixel': (x, y)})
+    return qas
+
+
+def dialogue_line(task: dict, qas: Sequence[AskedQA]) -> str:
+    """One line of dialogues.jsonl (with its newline)."""
+    return json.dumps({'task_id': task['task_id'], 'qas': [qa_to_dict(a) for a in qas]}) + '\n'

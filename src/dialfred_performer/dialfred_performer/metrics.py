@@ -1,0 +1,76 @@
+"""Training metrics of the performer: per-batch sums (cross-entropies, correct actions and pointer
+cells), their summary (loss, action and pointer accuracy), validation, and metrics.jsonl."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+import torch
+
+from .data import collate
+
+STAT_KEYS = ('steps', 'targets', 'action_ce', 'pointer_ce', 'action_correct', 'pointer_correct', 'episodes')
+
+
+def batch_stats(outputs: dict, batch: dict) -> dict:
+    """Sums over a batch: cross-entropies and correct predictions (action over valid steps, pointer
+    over steps with a target)."""
+    import torch.nn.functional as F
+    valid, has = batch['step_valid'], batch['target_cells'] >= 0
+    a_logits, p_logits = outputs['action_logits'].detach()[valid], outputs['pointer_logits'].detach()[has]
+    a_target, p_target = batch['actions'][valid], batch['target_cells'][has]
+    return {'steps': int(valid.sum()), 'targets': int(has.sum()),
+            'action_ce': float(F.cross_entropy(a_logits, a_target, reduction='sum')),
+            'pointer_ce': float(F.cross_entropy(p_logits, p_target, reduction='sum')) if len(p_target) else 0.0,
+            'action_correct': int((a_logits.argmax(-1) == a_target).sum()),
+            'pointer_correct': int((p_logits.argmax(-1) == p_target).sum()) if len(p_target) else 0,
+            'episodes': int(valid.shape[0])}
+
+
+def summarize(stats: dict, pointer_weight: float) -> dict:
+    steps, targets = max(stats['steps'], 1), max(stats['targets'], 1)
+    action, pointer = stats['action_ce'] / steps, stats['pointer_ce'] / targets
+    return {'loss': action + pointer_weight * pointer, 'action_loss': action, 'pointer_loss': pointer,
+            'action_accuracy': stats['action_correct'] / steps,
+            'pointer_accuracy': stats['pointer_correct'] / targets if stats['targets'] else None,
+            'steps': stats['steps'], 'episodes': stats['episodes']}
+
+
+def to_device(batch: dict, device: torch.device) -> dict:
+    return {k: v.to(device, non_blocking=True) if torch.is_tensor(v) else v for k, v in batch.items()}
+
+
+@torch.no_grad()
+def evaluate(model, ds, items: Sequence[int], lengths: Sequence[int], batch_size: int, pointer_weight: float,
+             device: torch.device) -> dict:
+    """Validation: loss, action and pointer accuracy over `items` of the dataset `ds` (episodes of
+    `lengths` steps, batched shortest first), in eval mode; uses no random numbers."""
+    was_training = model.training
+    model.eval()
+    total = dict.fromkeys(STAT_KEYS, 0)
+    order = [items[k] for k in np.argsort(lengths, kind='stable')]
+    for b in range(0, len(order), batch_size):
+        batch = to_device(collate([ds[i] for i in order[b:b + batch_size]]), device)
+        for k, v in batch_stats(model(batch), batch).items():
+            total[k] += v
+    model.train(was_training)
+    return summarize(total, pointer_weight)
+
+
+class MetricsLog:
+    """metrics.jsonl: appended a line at a time; on resume, lines after the checkpoint are dropped."""
+
+    def __init__(self, path: Path, keep_until: Optional[int]):
+        self.path = path
+        if keep_until is None:
+            path.write_text('')
+        elif path.exists():
+            kept = [line for line in path.read_text().splitlines() if line and json.loads(line)['update'] <= keep_until]
+            path.write_text(''.join(line + '\n' for line in kept))
+
+    def write(self, row: dict) -> None:
+        with open(self.path, 'a') as f:
+            f.write(json.dumps(row) + '\n')

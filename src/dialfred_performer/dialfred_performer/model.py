@@ -1,0 +1,186 @@
+"""The Episodic-Transformer performer (DialFRED paper, "Performer"; Pashevich et al. 2021), trained
+from scratch: `PerformerConfig`, `Performer`, its loss, and checkpoints.
+
+`Performer.forward(batch)` runs whole episodes with teacher forcing (a padded batch made by
+`dialfred_performer.data.collate`); at step t it predicts the expert's action from the instruction,
+the QAs asked at steps <= t, the frames of steps <= t and the actions before t, and, for an
+interaction, the cell of the frame's feature grid that holds the target pixel.
+The agent (`agent.py`) calls the same `encode_frames` and `decode` one step at a time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from dialfred_sim.agents import ACTIONS
+
+from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PointerHead, VisualEncoder
+from .preprocess import N_TOKEN_TYPES, Vocabulary
+
+# Actions that name a target pixel (the pointer is trained and used on these only).
+INTERACTIONS = ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice')
+INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
+CHECKPOINT_FORMAT = 'dialfred-performer/1'
+
+
+@dataclass(frozen=True)
+class PerformerConfig:
+    """Sizes of the performer. The vocabulary size comes from the vocabulary it is built with."""
+
+    resolution: int = 64           # frames are resized to resolution x resolution (a multiple of 8)
+    d_model: int = 128
+    heads: int = 4
+    layers: int = 2
+    ff: int = 256
+    dropout: float = 0.1
+    max_tokens: int = 256          # language tokens: instruction + every QA
+    max_steps: int = 1000          # frames of one episode (the simulator truncates at 1000 steps)
+
+    @property
+    def grid_size(self) -> int:
+        return self.resolution // 8
+
+
+class Performer(nn.Module):
+    def __init__(self, config: PerformerConfig, vocab_size: int):
+        super().__init__()
+        self.config = config
+        self.vocab_size = vocab_size
+        d = config.d_model
+        self.language = LanguageEncoder(vocab_size, d, config.max_tokens, N_TOKEN_TYPES, config.dropout)
+        self.visual = VisualEncoder(d, config.resolution)
+        self.actions = ActionEmbedding(len(ACTIONS), d)
+        self.encoder = MultimodalEncoder(d, config.heads, config.layers, config.ff, config.max_steps, config.dropout)
+        self.action_head = ActionHead(d, len(ACTIONS))
+        self.pointer_head = PointerHead(d)
+
+    def encode_frames(self, frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """frames [N, 3, R, R] -> (embedding [N, d], grid [N, C, d])."""
+        return self.visual(frames)
+
+    def decode(self, lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, grid, previous_actions,
+               step_valid) -> tuple[torch.Tensor, torch.Tensor]:
+        """Language [B, L], frame embeddings [B, T, d] with grids [B, T, C, d], previous actions
+        [B, T] and valid steps [B, T] -> (action logits [B, T, 13], pointer logits [B, T, C])."""
+        lang = self.language(lang_ids, lang_types)
+        h = self.encoder(lang, lang_steps, lang_valid, frame_embedding, self.actions(previous_actions), step_valid)
+        return self.action_head(h), self.pointer_head(h, grid)
+
+    def forward(self, batch: dict) -> dict:
+        """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],
+        'pointer_logits' [B, T, C]}."""
+        frames = batch['frames']
+        B, T = frames.shape[:2]
+        emb, grid = self.encode_frames(frames.reshape(B * T, *frames.shape[2:]))
+        action_logits, pointer_logits = self.decode(
+            batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
+            emb.view(B, T, -1), grid.view(B, T, grid.shape[1], -1), batch['previous_actions'], batch['step_valid'])
+        return {'action_logits': action_logits, 'pointer_logits': pointer_logits}
+
+
+def performer_loss(outputs: dict, batch: dict, pointer_weight: float = 1.0) -> tuple[torch.Tensor, dict]:
+    """Cross-entropy of the expert's actions over valid steps + `pointer_weight` x cross-entropy of
+    the target cell over interaction steps (target_cells >= 0). Returns (loss, {'action', 'pointer'})."""
+    valid = batch['step_valid']
+    action = F.cross_entropy(outputs['action_logits'][valid], batch['actions'][valid])
+    has_target = batch['target_cells'] >= 0
+    if has_target.any():
+        pointer = F.cross_entropy(outputs['pointer_logits'][has_target], batch['target_cells'][has_target])
+    else:
+        pointer = outputs['pointer_logits'].sum() * 0.0
+    loss = action + pointer_weight * pointer
+    return loss, {'action': float(action.detach()), 'pointer': float(pointer.detach())}
+
+
+# ---------------------------------------------------------------------- checkpoints
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be loaded, with what does not match."""
+
+
+def git_commit() -> str:
+    """The commit of the repository this file is in (with '+dirty' for uncommitted changes), or 'unknown'."""
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=here, capture_output=True, text=True,
+                              timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(['git', 'status', '--porcelain'], cwd=here, capture_output=True, text=True,
+                               timeout=10).stdout.strip()
+        return head + ('+dirty' if dirty else '')
+    except (OSError, subprocess.SubprocessError):
+        return 'unknown'
+
+
+def save_checkpoint(path: Path, model: Performer, vocab: Vocabulary, command: Optional[str] = None,
+                    extra: Optional[dict] = None) -> None:
+    """Write everything needed to rebuild `model`: config, vocabulary, weights, the git commit and the
+    command that made it (default: this process's command line)."""
+    if len(vocab) != model.vocab_size:
+        raise ValueError(f'the vocabulary has {len(vocab)} words, the model {model.vocab_size}')
+    state = {'format': CHECKPOINT_FORMAT, 'config': dataclasses.asdict(model.config), 'vocab': vocab.to_json(),
+             'state_dict': model.state_dict(), 'git_commit': git_commit(),
+             'command': command if command is not None else ' '.join(sys.argv), 'extra': extra or {}}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + '.tmp')
+    torch.save(state, tmp)
+    tmp.replace(path)
+
+
+REQUIRED_KEYS = ('format', 'config', 'vocab', 'state_dict', 'git_commit', 'command')
+
+
+def load_checkpoint(path: Path) -> tuple[Performer, Vocabulary, dict]:
+    """(model in eval mode, vocabulary, {'git_commit', 'command', 'extra', 'config'}) from a checkpoint
+    of `save_checkpoint`. FileNotFoundError if there is none; CheckpointError saying what is wrong if
+    it is not readable, lacks a part, or its weights do not fit its config and vocabulary."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f'no performer checkpoint at {path}')
+    try:
+        state = torch.load(path, map_location='cpu', weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - torch raises many kinds for a damaged file
+        raise CheckpointError(f'{path} is not a readable checkpoint ({type(exc).__name__}: {exc})') from exc
+    if not isinstance(state, dict):
+        raise CheckpointError(f'{path}: expected a dict, found {type(state).__name__}')
+    missing = [k for k in REQUIRED_KEYS if k not in state]
+    if missing:
+        raise CheckpointError(f'{path}: missing {missing} (a performer checkpoint has {list(REQUIRED_KEYS)})')
+    if state['format'] != CHECKPOINT_FORMAT:
+        raise CheckpointError(f'{path}: format {state["format"]!r}, this code reads {CHECKPOINT_FORMAT!r}')
+    fields = {f.name for f in dataclasses.fields(PerformerConfig)}
+    unknown = sorted(set(state['config']) - fields)
+    if unknown:
+        raise CheckpointError(f'{path}: config fields {unknown} are not in PerformerConfig')
+    config = PerformerConfig(**state['config'])
+    try:
+        vocab = Vocabulary.from_json(state['vocab'])
+    except (ValueError, TypeError) as exc:
+        raise CheckpointError(f'{path}: bad vocabulary ({exc})') from exc
+    model = Performer(config, len(vocab))
+    expected, found = model.state_dict(), state['state_dict']
+    problems = []
+    if sorted(set(expected) - set(found)):
+        problems.append(f'missing weights {sorted(set(expected) - set(found))[:8]}')
+    if sorted(set(found) - set(expected)):
+        problems.append(f'unexpected weights {sorted(set(found) - set(expected))[:8]}')
+    shapes = [f'{k}: {tuple(found[k].shape)} != {tuple(v.shape)}' for k, v in expected.items()
+              if k in found and tuple(found[k].shape) != tuple(v.shape)]
+    if shapes:
+        problems.append(f'shape mismatch (checkpoint != config) {shapes[:8]}')
+    if problems:
+        raise CheckpointError(f'{path}: weights do not fit config {config} with {len(vocab)} words: '
+                              + '; '.join(problems))
+    model.load_state_dict(found)
+    model.eval()
+    return model, vocab, {'git_commit': state['git_commit'], 'command': state['command'],
+                          'extra': state.get('extra', {}), 'config': config}

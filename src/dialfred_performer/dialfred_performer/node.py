@@ -1,0 +1,257 @@
+"""`dialfred_performer node`: the performer as a ROS 2 node, serving the action `performer/run_task`.
+
+A goal (dialfred_msgs/action/RunTask: a task id and the episode's seed) is played to its end through
+the graph: `sim/reset` (the public TaskDescription and RGB only), then before each action, when the
+`questioner` parameter is on, `questioner/ask` (with the policy's top-2 action-probability gap) and
+`oracle/answer` for each question it asks, and `sim/step` with the policy's decision. Every QA is
+published on `dialogue/qa` (dialfred_msgs/QAPair) and every action command on `performer/action`
+(dialfred_msgs/Action); feedback after each step. The result comes from the simulator's step
+replies (the simulator is the checker). All names are relative: in a namespace /w0 they are
+/w0/sim/reset, /w0/performer/run_task, ...
+
+The decisions come from a policy object of the core (`agent.PerformerAgent`: reset/hear/act/
+action_probabilities); this node only converts messages. The server has the shape of ros2/demos'
+fibonacci_action_server: one goal at a time (a goal sent while one runs is rejected), cancel checked
+before every question and action. Its clients live in a reentrant callback group on a multi-threaded
+executor and wait for replies with a timeout (never spin inside a callback); a reset or question
+that got no reply is sent again, a step never is. A bad goal (unknown task, missing or corrupt
+checkpoint, negative seed) ends aborted with end_reason 'error' and the reason; the node keeps serving.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import traceback
+from pathlib import Path
+
+import torch
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+
+from dialfred_msgs.action import RunTask
+from dialfred_msgs.msg import Action, QAPair
+from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
+from dialfred_questioner.baselines import top2_gap
+from dialfred_sim.agents import QA, Question
+from dialfred_sim.messages import public_task_from_msg, qa_msg, task_description_msg
+from dialfred_sim.metrics import end_reason
+from dialfred_sim.ros_util import SERVICE_QOS, run_node
+
+from .agent import PerformerAgent
+from .model import CheckpointError
+
+RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again
+SETTLE_S = 0.2           # after a service first appears: its reply path may match a moment later
+
+
+class GoalFailed(RuntimeError):
+    """The goal cannot be played on: its result says why (end_reason 'error')."""
+
+
+class GoalCanceled(Exception):
+    pass
+
+
+class PerformerNode(Node):
+    def __init__(self):
+        super().__init__('dialfred_performer')
+        ro = dict(read_only=True)
+        self.declare_parameter('checkpoint', '', ParameterDescriptor(
+            description="the performer checkpoint (dialfred_performer.model.save_checkpoint); a goal may name "
+                        "another", **ro))
+        self.declare_parameter('questioner', False, ParameterDescriptor(
+            description='ask questioner/ask before every action (and oracle/answer what it asks)', **ro))
+        self.declare_parameter('request_timeout', 60.0, ParameterDescriptor(
+            description='seconds one reset, step, question or answer may take before the goal fails'))
+        self.declare_parameter('max_questions', 20, ParameterDescriptor(
+            description='questions in a row without acting before the goal fails'))
+        self.declare_parameter('torch_threads', 1, ParameterDescriptor(
+            description='torch intra-op threads (1: the simulators and other workers share the cores)', **ro))
+        p = self.get_parameter
+        torch.set_num_threads(max(1, int(p('torch_threads').value)))
+        self.checkpoint = p('checkpoint').value
+        self.use_questioner = bool(p('questioner').value)
+        group = ReentrantCallbackGroup()
+        self.reset_cli = self.create_client(SimReset, 'sim/reset', qos_profile=SERVICE_QOS, callback_group=group)
+        self.step_cli = self.create_client(SimStep, 'sim/step', qos_profile=SERVICE_QOS, callback_group=group)
+        self.oracle_cli = self.create_client(OracleAnswer, 'oracle/answer', qos_profile=SERVICE_QOS,
+                                             callback_group=group)
+        self.questioner_cli = self.create_client(QuestionerAsk, 'questioner/ask', qos_profile=SERVICE_QOS,
+                                                 callback_group=group)
+        self.qa_pub = self.create_publisher(QAPair, 'dialogue/qa', 100)
+        self.action_pub = self.create_publisher(Action, 'performer/action', 100)
+        self._policies: dict = {}     # checkpoint path -> ((mtime, size), PerformerAgent)
+        self._busy = False
+        self._lock = threading.Lock()
+        self._settled: set = set()
+        self.server = ActionServer(self, RunTask, 'performer/run_task', execute_callback=self.execute,
+                                   goal_callback=self.on_goal, cancel_callback=self.on_cancel,
+                                   callback_group=group)
+        if self.checkpoint:
+            try:
+                self.policy(self.checkpoint)
+            except (FileNotFoundError, CheckpointError, ValueError) as exc:   # goals will say it too
+                self.get_logger().error(f'checkpoint: {exc}')
+        self.get_logger().info(f'serving performer/run_task (checkpoint {self.checkpoint or "none"}, '
+                               f'questioner {"on" if self.use_questioner else "off"})')
+
+    # ------------------------------------------------------------------ action server
+
+    def on_goal(self, goal: RunTask.Goal) -> GoalResponse:
+        with self._lock:
+            if self._busy:
+                self.get_logger().warning(f'goal {goal.task_id!r} rejected: a goal is running')
+                return GoalResponse.REJECT
+            self._busy = True
+        return GoalResponse.ACCEPT
+
+    def on_cancel(self, goal_handle) -> CancelResponse:
+        return CancelResponse.ACCEPT
+
+    def execute(self, goal_handle) -> RunTask.Result:
+        result = RunTask.Result()
+        try:
+            self.play(goal_handle, result)
+            goal_handle.succeed()
+        except GoalCanceled:
+            result.end_reason = 'canceled'
+            goal_handle.canceled()
+        except GoalFailed as exc:
+            result.end_reason, result.error = 'error', str(exc)
+            goal_handle.abort()
+        except Exception as exc:   # the node keeps serving whatever a goal does
+            self.get_logger().error(f'goal {goal_handle.request.task_id!r} failed: {exc!r}\n{traceback.format_exc()}')
+            result.end_reason, result.error = 'error', f'internal error: {type(exc).__name__}: {str(exc)[:200]}'
+            goal_handle.abort()
+        finally:
+            with self._lock:
+                self._busy = False
+        return result
+
+    def play(self, goal_handle, result: RunTask.Result) -> None:
+        """Play the goal's task to its end, filling `result` as it goes."""
+        goal = goal_handle.request
+        if goal.seed < 0:
+            raise GoalFailed(f'seed must be a non-negative integer, got {goal.seed}')
+        try:
+            policy = self.policy(goal.checkpoint or self.checkpoint)
+        except (FileNotFoundError, CheckpointError, ValueError) as exc:
+            raise GoalFailed(f'checkpoint: {exc}') from None
+        reply = self.call(self.reset_cli, SimReset.Request(task_id=goal.task_id, with_depth=False,
+                                                           with_segmentation=False), resend=True)
+        if not reply.ok:
+            raise GoalFailed(f'reset: {reply.error}')
+        task = public_task_from_msg(reply.task)     # the public view: all the simulator tells any client
+        policy.reset(task, int(goal.seed))
+        result.goal_conditions_total = int(reply.goal_conditions_total)
+        observation, dialogue, last_error = reply.observation, [], ''
+        while True:
+            if self.use_questioner:
+                self.ask_questions(goal_handle, policy, task, observation, dialogue, result)
+            if goal_handle.is_cancel_requested:
+                raise GoalCanceled
+            name, x, y = policy.act(observation)
+            action = Action(action=name, x=int(x), y=int(y))
+            self.action_pub.publish(action)
+            reply = self.call(self.step_cli, SimStep.Request(action=action, with_depth=False,
+                                                             with_segmentation=False), resend=False)
+            if not reply.ok:
+                raise GoalFailed(f'step {result.steps + 1} ({name}): {reply.error}')
+            observation = reply.observation
+            result.steps, result.failed_actions = int(observation.step_count), int(observation.failed_actions)
+            result.goal_conditions_met = int(reply.goal_conditions_met)
+            result.goal_conditions_total = int(reply.goal_conditions_total)
+            result.last_action = name
+            if not observation.last_action_success:
+                last_error = observation.last_action_error
+            goal_handle.publish_feedback(RunTask.Feedback(step=result.steps, action=action,
+                                                          action_success=observation.last_action_success,
+                                                          questions=result.questions))
+            if reply.terminated or reply.truncated:
+                result.success = bool(reply.success)
+                result.end_reason = end_reason(result.success, name, result.failed_actions, reply.truncated)
+                result.error = '' if result.success else last_error
+                return
+
+    def ask_questions(self, goal_handle, policy, task, observation, dialogue: list, result) -> None:
+        """Ask what the questioner asks before this action, the oracle answering; every QA goes to the
+        policy (hear) and on dialogue/qa."""
+        max_questions = int(self.get_parameter('max_questions').value)
+        for asked in range(max_questions + 1):
+            if goal_handle.is_cancel_requested:
+                raise GoalCanceled
+            probabilities = getattr(policy, 'action_probabilities', None)
+            gap = top2_gap(probabilities(observation)) if probabilities is not None else -1.0
+            reply = self.call(self.questioner_cli, QuestionerAsk.Request(
+                task=task_description_msg(task), seed=int(goal_handle.request.seed), step=result.steps,
+                rgb=observation.rgb, dialogue=[qa_msg(qa) for qa in dialogue], confusion_gap=gap), resend=True)
+            if not reply.ok:
+                raise GoalFailed(f'questioner: {reply.error}')
+            if not reply.ask:
+                return
+            if asked == max_questions:
+                raise GoalFailed(f'the questioner asked more than {max_questions} questions without acting')
+            question = Question(reply.question_type, reply.object_noun)
+            answer = self.call(self.oracle_cli, OracleAnswer.Request(question_type=question.question_type,
+                                                                     object_noun=question.object_noun), resend=True)
+            qa = QA(question, bool(answer.valid), answer.answer, answer.reason)
+            dialogue.append(qa)
+            result.questions += 1
+            result.invalid_questions += not qa.valid
+            policy.hear(qa)
+            self.qa_pub.publish(qa_msg(qa))
+
+    # ------------------------------------------------------------------ helpers
+
+    def policy(self, path: str) -> PerformerAgent:
+        """The policy of checkpoint `path`, loaded once (again if the file changed)."""
+        if not path:
+            raise FileNotFoundError('no checkpoint: set the node\'s `checkpoint` parameter or the goal\'s')
+        path = str(Path(path).expanduser())
+        try:
+            st = os.stat(path)
+        except OSError:
+            raise FileNotFoundError(f'no performer checkpoint at {path}') from None
+        stamp = (st.st_mtime_ns, st.st_size)
+        cached = self._policies.get(path)
+        if cached is None or cached[0] != stamp:
+            self._policies[path] = (stamp, PerformerAgent.from_checkpoint(Path(path)))
+        return self._policies[path][1]
+
+    def call(self, client, request, resend: bool):
+        """The reply to `request`, waited for (this thread blocks; the executor's other threads
+        deliver it); GoalFailed after request_timeout. `resend`: send again after RESEND_AFTER_S
+        without a reply (only for requests that may be repeated)."""
+        timeout = float(self.get_parameter('request_timeout').value)
+        deadline = time.monotonic() + timeout
+        if client.srv_name not in self._settled:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise GoalFailed(f'no {client.srv_name} service after {timeout:g} s')
+            time.sleep(SETTLE_S)
+            self._settled.add(client.srv_name)
+        while True:
+            done = threading.Event()
+            future = client.call_async(request)
+            future.add_done_callback(lambda _: done.set())
+            wait = min(RESEND_AFTER_S, deadline - time.monotonic()) if resend else deadline - time.monotonic()
+            if done.wait(max(0.0, wait)):
+                reply = future.result()
+                if reply is None:
+                    raise GoalFailed(f'{client.srv_name} returned no reply')
+                return reply
+            client.remove_pending_request(future)
+            if time.monotonic() >= deadline:
+                raise GoalFailed(f'no reply from {client.srv_name} after {timeout:g} s')
+
+
+def main(args=None):
+    run_node(PerformerNode, args, executor_factory=lambda: MultiThreadedExecutor(num_threads=4))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,201 @@
+"""Everything the performer's training needs from a split, in its demonstrations folder (no ROS).
+
+    ./dialfred prepare-performer --split train --resolution 64 --workers 2
+
+1. the expert demonstrations (`dialfred_sim.tasks.demonstrations`: frames.npy, tasks.jsonl, meta.json);
+2. `dialogues.jsonl`: the real oracle's answers at step 0 and at the middle of each expert episode
+   (`data.task_dialogue`, replaying the expert in DialfredEnv). Workers each take every n-th task
+   and append a line per task to `dialogues-<worker>.part` as it is produced, so an interrupted run
+   resumes where it stopped; the parts are merged in task order at the end (same bytes with any
+   number of workers);
+3. `vocabulary.json`: every token of the instructions, nouns and QAs of the folder, plus every word
+   the oracle can say (templates, object nouns, colours, materials), so that no answer heard at
+   evaluation is <unk>.
+
+Each stage is skipped when its output is complete. Prints a JSON report with each stage's seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import resource
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations
+from dialfred_sim.tasks.splits import SPLIT_SIZES
+
+from .cli import arg, ensure_malloc_settings, parse
+from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
+from .preprocess import Vocabulary
+
+VOCABULARY_FILE = 'vocabulary.json'
+SYNC_EVERY = 10          # tasks between fsyncs of a worker's part file
+
+
+@dataclass(frozen=True)
+class PrepareConfig:
+    """Prepare a split for performer training: demonstrations, dialogues.jsonl, vocabulary.json."""
+
+    split: str = arg('train', f'one of {sorted(SPLIT_SIZES)}')
+    resolution: int = arg(64, 'frame size of the demonstrations')
+    workers: int = arg(2, 'processes for rendering and for the dialogues')
+    limit: int = arg(0, 'only the first N tasks of the split (0: all); use with --out')
+    out: str = arg('', 'the demonstrations folder (default: ~/.cache/dialfred/demonstrations/<split>_<resolution>)')
+    progress: bool = arg(True, 'progress bars on stderr')
+
+    def __post_init__(self):
+        if self.split not in SPLIT_SIZES:
+            raise ValueError(f'split must be one of {sorted(SPLIT_SIZES)}, got {self.split!r}')
+        if self.resolution < 16:
+            raise ValueError(f'resolution must be at least 16, got {self.resolution}')
+        if self.workers < 1:
+            raise ValueError(f'workers must be at least 1, got {self.workers}')
+        if self.limit < 0:
+            raise ValueError(f'limit must be >= 0 (0: all tasks), got {self.limit}')
+
+    @property
+    def folder(self) -> Path:
+        return Path(self.out).expanduser() if self.out else default_dir(self.split, self.resolution)
+
+
+def oracle_texts() -> list[str]:
+    """Every word the oracle's answers can contain: its fixed sentences and templates, and every
+    object noun, colour and material of the catalogue."""
+    from dialfred_oracle import answers
+    from dialfred_sim.world.catalog import load_catalog
+    from dialfred_sim.world.palette import COLOUR_NAMES
+    texts = [*answers.DIRECTION_BINS, answers.GO_STRAIGHT, answers.TURN_LEFT, answers.TURN_RIGHT,
+             answers.TURN_AROUND, answers.STAY, answers.WITHHELD,
+             'The is in on the you are holding. You are holding the. The is and made of.', *COLOUR_NAMES]
+    for t in load_catalog().values():
+        texts += [t.noun, *t.nouns, *t.materials]
+    return texts
+
+
+def build_vocabulary(folder: Path) -> Vocabulary:
+    return Vocabulary.build(vocabulary_texts(folder) + oracle_texts())
+
+
+# ---------------------------------------------------------------------- dialogues
+
+def _part_path(folder: Path, shard: int) -> Path:
+    return folder / f'dialogues-{shard}.part'
+
+
+def _finished_lines(folder: Path) -> dict[str, str]:
+    """{task_id: line} of every part file; a line an interruption cut off is skipped."""
+    done = {}
+    for path in sorted(folder.glob('dialogues-*.part')):
+        for line in path.read_text().splitlines():
+            try:
+                done[json.loads(line)['task_id']] = line + '\n'
+            except (ValueError, KeyError, TypeError):
+                continue
+    return done
+
+
+def _dialogue_worker(folder: str, shard: int, shards: int) -> None:
+    from dialfred_sim.env import DialfredEnv
+    folder = Path(folder)
+    demo = load_demonstrations(folder)
+    done = _finished_lines(folder)
+    env = DialfredEnv(resolution=demo.meta['resolution'])
+    path = _part_path(folder, shard)
+    cut_off = path.exists() and path.stat().st_size > 0 and not path.read_bytes().endswith(b'\n')
+    with open(path, 'a') as part:
+        if cut_off:
+            part.write('\n')              # never glue a line onto one an interruption cut off
+        for n, task in enumerate(demo.tasks[shard::shards]):
+            if task['task_id'] in done:
+                continue
+            part.write(dialogue_line(task, task_dialogue(env, task)))
+            part.flush()
+            if n % SYNC_EVERY == 0:
+                os.fsync(part.fileno())
+    env.close()
+
+
+def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Path:
+    """dialogues.jsonl for every task of the demonstrations `folder` (resumable; see the module doc)."""
+    from tqdm import tqdm
+    folder = Path(folder)
+    demo = load_demonstrations(folder)
+    out = folder / DIALOGUES_FILE
+    total = len(demo.tasks)
+    if out.exists() and sum(1 for _ in out.open()) == total:
+        return out
+    workers = max(1, min(workers, total))
+    args = [(str(folder), k, workers) for k in range(workers)]
+
+    def count() -> int:
+        return sum(p.read_bytes().count(b'\n') for p in folder.glob('dialogues-*.part'))
+
+    with tqdm(total=total, initial=min(count(), total), unit='task', desc='dialogues', file=sys.stderr,
+              disable=not progress, dynamic_ncols=True) as bar:
+        if workers == 1:
+            _dialogue_worker(*args[0])
+        else:
+            with multiprocessing.get_context('spawn').Pool(workers) as pool:
+                result = pool.starmap_async(_dialogue_worker, args)
+                while not result.ready():
+                    result.wait(1.0)
+                    bar.n = min(count(), total)
+                    bar.refresh()
+                result.get()               # re-raises a worker's exception
+        bar.n = min(count(), total)
+        bar.refresh()
+    done = _finished_lines(folder)
+    missing = [t['task_id'] for t in demo.tasks if t['task_id'] not in done]
+    if missing:
+        raise RuntimeError(f'{len(missing)} tasks have no dialogue (first: {missing[0]})')
+    tmp = out.with_name(out.name + '.tmp')
+    tmp.write_text(''.join(done[t['task_id']] for t in demo.tasks))
+    tmp.replace(out)
+    for p in folder.glob('dialogues-*.part'):
+        p.unlink()
+    return out
+
+
+def _clock() -> tuple[float, float]:
+    """(wall seconds, CPU seconds of this process and its finished children)."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.monotonic(), own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def prepare(config: PrepareConfig) -> dict:
+    """Run the three stages for `config` (each skipped when complete); the report, with each stage's
+    wall and CPU seconds (CPU: this process and its workers; on a shared machine the better measure)."""
+    folder = config.folder
+    report = {'split': config.split, 'resolution': config.resolution, 'workers': config.workers,
+              'folder': str(folder)}
+    c0 = _clock()
+    meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
+                                limit=config.limit or None, progress=config.progress)
+    c1 = _clock()
+    write_dialogues(folder, config.workers, config.progress)
+    c2 = _clock()
+    vocab = build_vocabulary(folder)
+    vocab.save(folder / VOCABULARY_FILE)
+    c3 = _clock()
+    stages = {'demonstrations': (c0, c1), 'dialogues': (c1, c2), 'vocabulary': (c2, c3)}
+    report.update(tasks=meta['tasks'], frames=meta['frames'], vocabulary=len(vocab),
+                  seconds={k: round(b[0] - a[0], 1) for k, (a, b) in stages.items()},
+                  cpu_seconds={k: round(b[1] - a[1], 1) for k, (a, b) in stages.items()})
+    return report
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    config = parse(PrepareConfig, argv, prog='python -m dialfred_performer.prepare')
+    print(json.dumps(prepare(config)))
+    return 0
+
+
+if __name__ == '__main__':
+    ensure_malloc_settings('dialfred_performer.prepare')
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""The one path from a task and its dialogue to the performer's input (no ROS, no torch model).
+
+Training (`data.py`) and the agent at evaluation (`agent.py`) both call `encode_language` and
+`frame_tensor`, so the tokens a model trains on are the tokens it sees when it acts. (The original
+DialFRED split its QA markers one way at training and another at evaluation; here a marker is
+inserted as one vocabulary token by `qa_tokens`, and `tokenize` also keeps any `<marker>` whole.)
+
+The language input is the task's main-action instruction followed by every QA of the dialogue so
+far, in the order asked, each as
+
+    <q> <loc> apple <a> the apple is to your left in the fridge .
+
+and each token carries its type (instruction, or the QA's question type) and the step at which it
+became known (0 for the instruction; for a QA, the number of actions taken before it was asked).
+The multimodal encoder lets the decision at step t see a QA only if it was asked at a step <= t.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from dialfred_sim.agents import QA, QUESTION_TYPES, Question
+
+PAD, UNK = '<pad>', '<unk>'
+QUESTION_MARK, ANSWER_MARK, INVALID_MARK = '<q>', '<a>', '<invalid>'
+TYPE_MARKS = {'location': '<loc>', 'appearance': '<app>', 'direction': '<dir>'}
+SPECIAL_TOKENS = (PAD, UNK, QUESTION_MARK, ANSWER_MARK, INVALID_MARK, *TYPE_MARKS.values())
+
+# Token types, the language encoder's type embedding: 0 = padding, 1 = instruction, 2.. = a QA's type.
+TYPE_PAD, TYPE_INSTRUCTION = 0, 1
+TYPE_OF_QUESTION = {q: 2 + k for k, q in enumerate(QUESTION_TYPES)}
+N_TOKEN_TYPES = 2 + len(QUESTION_TYPES)
+
+_TOKEN_RE = re.compile(r"<[a-z_]+>|[a-z0-9]+(?:'[a-z]+)?|[^\sa-z0-9]")
+
+
+def tokenize(text: str) -> list[str]:
+    """Lower-cased words and punctuation marks of `text`; a `<marker>` stays one token."""
+    return _TOKEN_RE.findall(text.lower())
+
+
+@dataclass(frozen=True)
+class AskedQA:
+    """A QA of the dialogue and the step at which it was asked (actions taken before it)."""
+
+    qa: QA
+    step: int
+
+
+class Vocabulary:
+    """Word <-> id. Ids 0.. are SPECIAL_TOKENS (<pad> = 0, <unk> = 1), then words by frequency."""
+
+    def __init__(self, words: Sequence[str]):
+        if tuple(words[:len(SPECIAL_TOKENS)]) != SPECIAL_TOKENS:
+            raise ValueError(f'a vocabulary starts with {SPECIAL_TOKENS}, got {tuple(words[:len(SPECIAL_TOKENS)])}')
+        if len(set(words)) != len(words):
+            raise ValueError('a vocabulary has no repeated words')
+        self.words = tuple(words)
+        self.index = {w: k for k, w in enumerate(self.words)}
+
+    @classmethod
+    def build(cls, texts: Iterable[str], min_count: int = 1) -> 'Vocabulary':
+        """A vocabulary of every token of `texts` seen at least `min_count` times (ties by spelling)."""
+        counts = Counter(tok for text in texts for tok in tokenize(text))
+        words = sorted((w for w, c in counts.items() if c >= min_count and w not in SPECIAL_TOKENS),
+                       key=lambda w: (-counts[w], w))
+        return cls([*SPECIAL_TOKENS, *words])
+
+    def __len__(self) -> int:
+        return len(self.words)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Vocabulary) and self.words == other.words
+
+    def ids(self, tokens: Sequence[str]) -> list[int]:
+        unk = self.index[UNK]
+        return [self.index.get(t, unk) for t in tokens]
+
+    def to_json(self) -> list[str]:
+        return list(self.words)
+
+    @classmethod
+    def from_json(cls, words: Sequence[str]) -> 'Vocabulary':
+        return cls(list(words))
+
+    def save(self, path: Path) -> None:
+        Path(path).write_text(json.dumps(self.to_json()) + '\n')
+
+    @classmethod
+    def load(cls, path: Path) -> 'Vocabulary':
+        return cls.from_json(json.loads(Path(path).read_text()))
+
+
+def qa_tokens(qa: QA) -> list[str]:
+    """`<q> <type> noun words <a> answer words` (`<a> <invalid>` when the oracle could not answer)."""
+    q = qa.question
+    if q.question_type not in TYPE_MARKS:
+        raise ValueError(f'unknown question type {q.question_type!r}; expected one of {QUESTION_TYPES}')
+    answer = tokenize(qa.answer) if qa.valid else [INVALID_MARK]
+    return [QUESTION_MARK, TYPE_MARKS[q.question_type], *tokenize(q.object_noun), ANSWER_MARK, *answer]
+
+
+def qa_text(qa: QA) -> str:
+    """The QA as the model reads it, for people: '<q> <loc> apple <a> the apple is ... .'."""
+    return ' '.join(qa_tokens(qa))
+
+
+@dataclass(frozen=True)
+class LanguageInput:
+    """Token ids with, per token, its type (TYPE_*) and the step from which it is known."""
+
+    ids: tuple[int, ...]
+    types: tuple[int, ...]
+    steps: tuple[int, ...]
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA] = (),
+                    max_tokens: int | None = None) -> LanguageInput:
+    """The instruction, then every QA of `dialogue` in order, as ids, types and steps. With
+    `max_tokens`, the instruction is kept and the oldest QAs are dropped first until it fits."""
+    ins = tokenize(instruction)
+    ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
+    parts = []
+    for asked in dialogue:
+        if asked.step < 0:
+            raise ValueError(f'a QA is asked at a step >= 0, got {asked.step}')
+        toks = qa_tokens(asked.qa)
+        parts.append((vocab.ids(toks), [TYPE_OF_QUESTION[asked.qa.question.question_type]] * len(toks),
+                      [asked.step] * len(toks)))
+    if max_tokens is not None:
+        ids, types, steps = ids[:max_tokens], types[:max_tokens], steps[:max_tokens]
+        while parts and len(ids) + sum(len(p[0]) for p in parts) > max_tokens:
+            parts.pop(0)
+    for p_ids, p_types, p_steps in parts:
+        ids, types, steps = ids + p_ids, types + p_types, steps + p_steps
+    return LanguageInput(tuple(ids), tuple(types), tuple(steps))
+
+
+def qa_to_dict(asked: AskedQA) -> dict:
+    """The JSON form of an asked QA (a line's entry in dialogues.jsonl)."""
+    q = asked.qa
+    return {'question_type': q.question.question_type, 'object_noun': q.question.object_noun,
+            'valid': q.valid, 'answer': q.answer, 'reason': q.reason, 'step': asked.step}
+
+
+def qa_from_dict(d: dict) -> AskedQA:
+    return AskedQA(QA(Question(d['question_type'], d.get('object_noun', '')), bool(d['valid']),
+                      d.get('answer', ''), d.get('reason', '')), int(d['step']))
+
+
+def frame_tensor(rgb: np.ndarray, resolution: int):
+    """An HxWx3 uint8 RGB frame (or a stack TxHxWx3) as a float tensor [3, R, R] (or [T, 3, R, R])
+    in [0, 1] at R = `resolution`, resized by area averaging: the same for the frames of training
+    and the frames the agent sees."""
+    import torch
+    import torch.nn.functional as F
+    rgb = np.asarray(rgb)
+    if rgb.ndim not in (3, 4) or rgb.shape[-1] != 3 or rgb.dtype != np.uint8:
+        raise ValueError(f'expected HxWx3 uint8 RGB frames, got {rgb.dtype} {rgb.shape}')
+    one = rgb.ndim == 3
+    x = torch.from_numpy(np.array(rgb[None] if one else rgb)).permute(0, 3, 1, 2).float().div_(255.0)
+    if x.shape[2:] != (resolution, resolution):
+        x = F.interpolate(x, size=(resolution, resolution), mode='area')
+    return x[0] if one else x

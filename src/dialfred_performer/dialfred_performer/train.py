@@ -1,0 +1,445 @@
+"""Train the performer on expert demonstrations and their dialogues (imitation with teacher forcing).
+
+    ./dialfred prepare-performer --split train --resolution 64 --workers 2      # once: data + vocabulary
+    ./dialfred train-performer --out out/performer                              # CPU, all cores
+    ./dialfred train-performer --out out/performer --resume                     # continue after a stop
+
+`TrainConfig` is the command line (`--help` lists every field with its default). The data are a
+demonstrations folder made by `dialfred_performer.prepare` (frames, tasks, dialogues.jsonl,
+vocabulary.json); validation is a second folder (`--validation`, e.g. valid_seen) or the training
+tasks whose id hashes below `--val-fraction`. Batches are padded episodes, grouped by length within
+buckets of a seeded shuffle. AdamW, linear warmup then cosine decay, gradient clipping.
+
+Written to `--out`: `last.pt` (every `--checkpoint-every` updates, at each epoch's end and when a
+session stops; with the optimiser, schedule and RNG state, so `--resume` continues to the very
+weights of an uninterrupted run), `epoch-NNN.pt` and `best.pt` (lowest validation loss),
+`metrics.jsonl` (a line per `--log-every` updates and per validation), `curves.png`. Every checkpoint
+is a `model.save_checkpoint` file, loadable by `PerformerAgent.from_checkpoint`. A first Ctrl-C
+stops after the current update and writes last.pt; --resume goes on from there.
+
+An epoch shows every training task once per question-type combination (8x its frames; the paper's
+augmentation); --no-every-combination shows each once, with a combination drawn per epoch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import random
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+import torch
+
+from dialfred_sim.tasks.demonstrations import default_dir
+
+from .cli import MALLOC_SETTINGS, arg, command_line, ensure_malloc_settings, parse
+from .curves import draw_curves
+from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
+from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
+from .model import Performer, PerformerConfig, load_checkpoint, performer_loss, save_checkpoint
+from .prepare import VOCABULARY_FILE
+from .preprocess import Vocabulary
+
+MODULE = 'dialfred_performer.train'
+# Fields that may change between a run and its --resume (all must match otherwise). Only the same
+# device and thread count give bit-identical weights; another may change the last bits.
+RESUMABLE_CHANGES = ('resume', 'progress', 'device', 'threads', 'loader_workers', 'stop_after', 'checkpoint_every')
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Train the DialFRED performer (Episodic Transformer) on expert demonstrations with dialogues."""
+
+    demonstrations: str = arg(str(default_dir('train', 64)),
+                              'training demonstrations folder (made by python -m dialfred_performer.prepare)')
+    validation: str = arg('', "validation demonstrations folder (e.g. valid_seen's); '' = hold out training tasks")
+    val_fraction: float = arg(0.05, 'without --validation: hold out the training tasks whose id hashes below this')
+    dialogues: bool = arg(True, "train with the folder's dialogues.jsonl (--no-dialogues: instructions only)")
+    every_combination: bool = arg(True, 'an epoch shows each task once per question-type combination (8x); '
+                                        '--no-every-combination: once, with a combination drawn per epoch')
+    vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
+    out: str = arg('out/performer', 'folder for checkpoints, metrics.jsonl and curves.png')
+    model: PerformerConfig = field(default_factory=PerformerConfig)
+    epochs: int = arg(10, 'passes over the training episodes (each task once per question-type combination)')
+    max_updates: int = arg(0, 'stop after this many optimiser updates in all (0: epochs x updates per epoch)')
+    batch_size: int = arg(16, 'episodes per update')
+    bucket: int = arg(32, 'episodes are sorted by length within shuffled groups of bucket x batch_size '
+                          '(less padding; 1: no grouping)')
+    lr: float = arg(1e-3, 'peak learning rate (AdamW)')
+    final_lr_fraction: float = arg(0.01, 'the cosine decays to lr x this')
+    warmup_updates: int = arg(500, 'linear warmup from 0 to lr')
+    weight_decay: float = arg(0.01, 'AdamW weight decay (matrices only; not biases, norms)')
+    grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
+    pointer_weight: float = arg(1.0, 'weight of the pointer loss')
+    seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
+    deterministic: bool = arg(True, 'torch.use_deterministic_algorithms (warn only on CUDA)')
+    device: str = arg('auto', "'auto' (cuda if present, else cpu), 'cpu', 'cuda' or 'cuda:N'")
+    threads: int = arg(0, 'torch CPU threads (0: every core this process may use)')
+    loader_workers: int = arg(0, 'DataLoader worker processes (0: load in the training process)')
+    log_every: int = arg(50, 'updates per line of metrics.jsonl')
+    checkpoint_every: int = arg(500, 'updates between writes of last.pt')
+    stop_after: int = arg(0, 'end this session after this many updates (0: run to the end); --resume continues')
+    resume: bool = arg(False, 'continue from out/last.pt (same config required)')
+    progress: bool = arg(True, 'progress bar on stderr')
+
+    def __post_init__(self):
+        positive = ('epochs', 'batch_size', 'bucket', 'log_every', 'checkpoint_every')
+        for name in positive:
+            if getattr(self, name) < 1:
+                raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
+        at_least_zero = ('max_updates', 'warmup_updates', 'weight_decay', 'grad_clip', 'pointer_weight',
+                         'threads', 'loader_workers', 'stop_after', 'seed')
+        for name in at_least_zero:
+            if getattr(self, name) < 0:
+                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise ValueError(f'lr must be a positive number, got {self.lr}')
+        if not 0 <= self.final_lr_fraction <= 1:
+            raise ValueError(f'final_lr_fraction must be in [0, 1], got {self.final_lr_fraction}')
+        if not 0 <= self.val_fraction < 1:
+            raise ValueError(f'val_fraction must be in [0, 1), got {self.val_fraction}')
+        if not (self.device in ('auto', 'cpu', 'cuda') or self.device.startswith('cuda:')):
+            raise ValueError(f"device must be 'auto', 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
+        m = self.model
+        if m.resolution < 8 or m.resolution % 8:
+            raise ValueError(f'resolution must be a positive multiple of 8, got {m.resolution}')
+        if m.d_model < 8 or m.d_model % 8 or m.heads < 1 or m.d_model % m.heads:
+            raise ValueError(f'd_model ({m.d_model}) must be a multiple of 8 and of heads ({m.heads})')
+        for name in ('layers', 'ff', 'max_tokens', 'max_steps'):
+            if getattr(m, name) < 1:
+                raise ValueError(f'{name} must be at least 1, got {getattr(m, name)}')
+        if not 0 <= m.dropout < 1:
+            raise ValueError(f'dropout must be in [0, 1), got {m.dropout}')
+
+
+# ---------------------------------------------------------------------- set-up
+
+def seed_everything(seed: int, deterministic: bool, device: torch.device) -> None:
+    """The one seeding block: python, numpy, torch (CPU and CUDA), deterministic kernels."""
+    if device.type == 'cuda':
+        os.environ.setdefault('CUBLAS_WORKSPACE_CONFIG', ':4096:8')    # before cuBLAS starts
+        torch.backends.cudnn.benchmark = False
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)            # also seeds every CUDA device
+    torch.use_deterministic_algorithms(deterministic, warn_only=device.type == 'cuda')
+
+
+def pick_device(name: str) -> torch.device:
+    if name == 'auto':
+        return torch.device('cuda' if torch.cuda.is_available() else 'cpu')
+    if name.startswith('cuda') and not torch.cuda.is_available():
+        raise ValueError(f'--device {name}: torch sees no CUDA device here')
+    return torch.device(name)
+
+
+def check_folder(path: Path, what: str, need_dialogues: bool) -> None:
+    if not (path / 'meta.json').is_file():
+        raise FileNotFoundError(f'no finished {what} demonstrations in {path} (no meta.json); make them with '
+                                '`./dialfred prepare-performer --split SPLIT --resolution R`')
+    if need_dialogues and not (path / DIALOGUES_FILE).is_file():
+        raise FileNotFoundError(f'no {DIALOGUES_FILE} in {path}; make it with `./dialfred prepare-performer` '
+                                '(or train on instructions only with --no-dialogues)')
+
+
+def held_out(task_id: str, fraction: float) -> bool:
+    """Whether a task is in the validation part: its id's hash (stable across runs) below `fraction`."""
+    return int(hashlib.sha256(task_id.encode()).hexdigest()[:12], 16) / 16 ** 12 < fraction
+
+
+@dataclass
+class Data:
+    train: DemonstrationDataset
+    train_items: list[int]            # indices into `train`
+    val: Optional[DemonstrationDataset]
+    val_items: list[int]
+
+    @staticmethod
+    def item_lengths(ds: DemonstrationDataset, items: Sequence[int]) -> list[int]:
+        combos = len(ds.combinations)
+        tasks = ds.demo.tasks
+        return [len(tasks[ds.task_indices[i // combos]]['actions']) + 1 for i in items]
+
+
+def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
+    m = cfg.model
+    train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed)
+    if not cfg.dialogues:
+        train.combinations = ((),)
+    combos = len(train.combinations)
+    every = list(range(len(train)))
+    if cfg.validation:
+        val = DemonstrationDataset(Path(cfg.validation), vocab, m.resolution, m.max_tokens, seed=cfg.seed)
+        if not cfg.dialogues:
+            val.combinations = ((),)
+        return Data(train, every, val, list(range(len(val))))
+    ids = [train.demo.tasks[k]['task_id'] for k in train.task_indices]
+    out = {i for i, t in enumerate(ids) if held_out(t, cfg.val_fraction)}
+    if cfg.val_fraction > 0 and not out and len(ids) > 1:      # a tiny folder still gets one
+        out = {min(range(len(ids)), key=lambda i: hashlib.sha256(ids[i].encode()).hexdigest())}
+    train_items = [i for i in every if i // combos not in out]
+    if not train_items:
+        raise ValueError(f'no training tasks left in {cfg.demonstrations} after holding out {len(out)}')
+    return Data(train, train_items, train if out else None, [i for i in every if i // combos in out])
+
+
+def load_vocabulary(cfg: TrainConfig) -> Vocabulary:
+    path = Path(cfg.vocabulary) if cfg.vocabulary else Path(cfg.demonstrations) / VOCABULARY_FILE
+    if path.is_file():
+        return Vocabulary.load(path)
+    if cfg.vocabulary:
+        raise FileNotFoundError(f'no vocabulary at {path}')
+    from .prepare import oracle_texts
+    return Vocabulary.build(vocabulary_texts(Path(cfg.demonstrations)) + oracle_texts())
+
+
+def epoch_items(data: Data, cfg: TrainConfig, epoch: int) -> list[int]:
+    """The training items of `epoch`: all of them, or (--no-every-combination) one per task, its
+    question-type combination drawn from (seed, epoch, task)."""
+    if cfg.every_combination:
+        return data.train_items
+    combos = len(data.train.combinations)
+    tasks = sorted({i // combos for i in data.train_items})
+    draws = np.random.default_rng([cfg.seed, epoch, 1]).integers(combos, size=len(tasks))
+    return [k * combos + int(c) for k, c in zip(tasks, draws)]
+
+
+def epoch_batches(lengths: Sequence[int], batch_size: int, seed: int, epoch: int, bucket: int) -> list[list[int]]:
+    """Positions 0..len(lengths)-1 in batches for one epoch: a seeded shuffle, cut into groups of
+    bucket x batch_size sorted by length (less padding), batched, and the batches shuffled."""
+    rng = np.random.default_rng([seed, epoch])
+    order = rng.permutation(len(lengths))
+    lengths = np.asarray(lengths)
+    batches = []
+    for g in range(0, len(order), batch_size * bucket):
+        group = order[g:g + batch_size * bucket]
+        group = group[np.argsort(lengths[group], kind='stable')] if bucket > 1 else group
+        batches += [group[j:j + batch_size].tolist() for j in range(0, len(group), batch_size)]
+    return [batches[k] for k in rng.permutation(len(batches))] if bucket > 1 else batches
+
+
+def lr_factor(update: int, warmup: int, total: int, final: float) -> float:
+    """Linear warmup to 1 over `warmup` updates, then cosine to `final` at `total`."""
+    if update < warmup:
+        return (update + 1) / warmup
+    progress = min(1.0, (update - warmup) / max(1, total - warmup))
+    return final + (1 - final) * 0.5 * (1 + math.cos(math.pi * progress))
+
+
+def make_optimizer(model: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
+    decay = [p for n, p in model.named_parameters() if p.ndim >= 2 and 'norm' not in n]
+    rest = [p for n, p in model.named_parameters() if not (p.ndim >= 2 and 'norm' not in n)]
+    return torch.optim.AdamW([{'params': decay, 'weight_decay': cfg.weight_decay},
+                              {'params': rest, 'weight_decay': 0.0}], lr=cfg.lr)
+
+
+# ---------------------------------------------------------------------- checkpoints
+
+@dataclass
+class Progress:
+    epoch: int = 0
+    batch_in_epoch: int = 0           # batches of `epoch` already trained on
+    update: int = 0
+    best_val_loss: float = math.inf
+    window: dict = field(default_factory=lambda: dict.fromkeys(STAT_KEYS, 0))
+
+
+def save_training(path: Path, model, vocab, cfg, optimizer, scheduler, progress: Progress, full: bool = True) -> None:
+    extra = {'train_config': json.dumps(dataclasses.asdict(cfg)), 'progress': dataclasses.asdict(progress)}
+    if full:
+        extra.update(optimizer=optimizer.state_dict(), scheduler=scheduler.state_dict(),
+                     torch_rng=torch.get_rng_state(),
+                     cuda_rng=torch.cuda.get_rng_state_all() if torch.cuda.is_available() else [])
+    save_checkpoint(path, model, vocab, command=command_line(MODULE, cfg), extra=extra)
+
+
+def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler) -> tuple[Vocabulary, Progress]:
+    """Load `path` (a full last.pt) into model, optimiser and schedule; restore the RNG; the progress.
+    ValueError if its config differs from `cfg` in anything but RESUMABLE_CHANGES."""
+    loaded, vocab, info = load_checkpoint(path)
+    extra = info['extra']
+    if 'optimizer' not in extra:
+        raise ValueError(f'{path} has no optimiser state: it cannot be resumed from')
+    saved = json.loads(extra['train_config'])
+    now = dataclasses.asdict(cfg)
+    diff = {k: (saved.get(k), now[k]) for k in now if k not in RESUMABLE_CHANGES and saved.get(k) != now[k]}
+    if diff:
+        raise ValueError(f'--resume: the config differs from the one {path} was trained with '
+                         f'(field: (then, now)): {diff}')
+    model.load_state_dict(loaded.state_dict())
+    optimizer.load_state_dict(extra['optimizer'])
+    scheduler.load_state_dict(extra['scheduler'])
+    torch.set_rng_state(extra['torch_rng'])
+    if extra['cuda_rng'] and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(extra['cuda_rng'])
+    return vocab, Progress(**extra['progress'])
+
+
+# ---------------------------------------------------------------------- training
+
+class StopRequest:
+    """While it is held, a first Ctrl-C (SIGINT) asks the loop to stop after the current update and
+    write last.pt (a consistent state to --resume from); a second one stops at once."""
+
+    def __init__(self):
+        self.asked = False
+        self.previous = signal.signal(signal.SIGINT, self._handle)
+
+    def _handle(self, signum, frame) -> None:
+        if self.asked:
+            raise KeyboardInterrupt
+        self.asked = True
+        print('\nCtrl-C: stopping after this update and writing last.pt (again: stop now)', file=sys.stderr)
+
+    def release(self) -> None:
+        signal.signal(signal.SIGINT, self.previous)
+
+
+def ignore_interrupts(_worker_id: int) -> None:
+    """DataLoader workers leave Ctrl-C to the training process (which stops cleanly)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def train(cfg: TrainConfig) -> dict:
+    """Train (or continue) the run of `cfg`; the final summary (also the last line printed by main)."""
+    out = Path(cfg.out)
+    check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
+    if cfg.validation:
+        check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
+    if cfg.resume and not (out / 'last.pt').is_file():
+        raise FileNotFoundError(f'--resume: no {out / "last.pt"} to continue from')
+    device = pick_device(cfg.device)
+    torch.set_num_threads(cfg.threads or len(os.sched_getaffinity(0)))
+    seed_everything(cfg.seed, cfg.deterministic, device)
+    out.mkdir(parents=True, exist_ok=True)
+
+    vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
+    data = load_data(cfg, vocab)
+    per_epoch = math.ceil(len(epoch_items(data, cfg, 0)) / cfg.batch_size)
+    total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
+    model = Performer(cfg.model, len(vocab)).to(device)
+    optimizer = make_optimizer(model, cfg)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(
+        optimizer, lambda u: lr_factor(u, cfg.warmup_updates, total, cfg.final_lr_fraction))
+    progress = Progress()
+    if cfg.resume:
+        _, progress = restore_training(out / 'last.pt', cfg, model, optimizer, scheduler)
+    log = MetricsLog(out / 'metrics.jsonl', progress.update if cfg.resume else None)
+    (out / 'config.json').write_text(json.dumps(dataclasses.asdict(cfg), indent=1) + '\n')
+
+    from tqdm import tqdm
+    bar = tqdm(total=total, initial=progress.update, unit='update', file=sys.stderr, disable=not cfg.progress,
+               dynamic_ncols=True, desc=f'epoch {progress.epoch + 1}/{cfg.epochs}')
+    session_updates, frames_seen, t_start = 0, 0, time.monotonic()
+    t_window, last = time.monotonic(), {}
+
+    def checkpoint(name: str = 'last.pt', full: bool = True) -> None:
+        save_training(out / name, model, vocab, cfg, optimizer, scheduler, progress, full)
+
+    def validate_and_draw() -> None:
+        if data.val is not None and data.val_items:
+            val = evaluate(model, data.val, data.val_items, Data.item_lengths(data.val, data.val_items),
+                           cfg.batch_size, cfg.pointer_weight, device)
+            log.write({'kind': 'val', 'update': progress.update, 'epoch': progress.epoch, **val})
+            last['val'] = val
+            if val['loss'] < progress.best_val_loss:
+                progress.best_val_loss = val['loss']
+                checkpoint('best.pt', full=False)
+        draw_curves(out / 'metrics.jsonl', out / 'curves.png')
+
+    stop_request = StopRequest()
+    try:
+        model.train()
+        halt = False                      # --stop-after reached or Ctrl-C: this session ends
+        while progress.epoch < cfg.epochs and progress.update < total and not halt:
+            items = epoch_items(data, cfg, progress.epoch)
+            batches = epoch_batches(Data.item_lengths(data.train, items), cfg.batch_size, cfg.seed, progress.epoch,
+                                    cfg.bucket)
+            todo = [[items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
+            # Its own generator: a DataLoader iterator draws a seed, which must not come from torch's global
+            # RNG (dropout's), or a resumed run (one more iterator) would draw different dropout masks.
+            loader = torch.utils.data.DataLoader(data.train, batch_sampler=todo, collate_fn=collate,
+                                                 num_workers=cfg.loader_workers,
+                                                 generator=torch.Generator().manual_seed(cfg.seed),
+                                                 worker_init_fn=ignore_interrupts if cfg.loader_workers else None)
+            for batch in loader:
+                batch = to_device(batch, device)
+                outputs = model(batch)
+                loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                if cfg.grad_clip > 0:
+                    torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+                optimizer.step()
+                scheduler.step()
+                progress.update += 1
+                progress.batch_in_epoch += 1
+                session_updates += 1
+                for k, v in batch_stats(outputs, batch).items():
+                    progress.window[k] += v
+                frames_seen += int(batch['step_valid'].sum())
+                bar.update(1)
+                if progress.update % cfg.log_every == 0:
+                    now = time.monotonic()
+                    row = summarize(progress.window, cfg.pointer_weight)
+                    row.update(frames_per_s=round(row['steps'] / max(now - t_window, 1e-9), 2),
+                               lr=scheduler.get_last_lr()[0])
+                    log.write({'kind': 'train', 'update': progress.update, 'epoch': progress.epoch, **row})
+                    bar.set_postfix(loss=f'{row["loss"]:.3f}', act=f'{row["action_accuracy"]:.3f}',
+                                    fps=f'{row["frames_per_s"]:.0f}')
+                    last['train'] = row
+                    progress.window, t_window = dict.fromkeys(STAT_KEYS, 0), now
+                if progress.update % cfg.checkpoint_every == 0:
+                    checkpoint()
+                halt = (bool(cfg.stop_after) and session_updates >= cfg.stop_after) or stop_request.asked
+                if halt or progress.update >= total:
+                    break
+            if progress.batch_in_epoch == len(batches):          # the epoch is complete
+                validate_and_draw()
+                progress.epoch += 1
+                progress.batch_in_epoch = 0
+                checkpoint(f'epoch-{progress.epoch:03d}.pt', full=False)
+                checkpoint()
+                bar.set_description(f'epoch {min(progress.epoch + 1, cfg.epochs)}/{cfg.epochs}')
+                t_window = time.monotonic()                      # frames/s of training only
+        finished = progress.update >= total or progress.epoch >= cfg.epochs
+        if finished and progress.batch_in_epoch and session_updates:   # max_updates ended it inside an epoch
+            validate_and_draw()
+        checkpoint()
+        if not finished:
+            draw_curves(out / 'metrics.jsonl', out / 'curves.png')
+        bar.close()
+    finally:
+        stop_request.release()
+    seconds = time.monotonic() - t_start
+    return {'finished': finished, 'updates': progress.update, 'epoch': progress.epoch, 'total_updates': total,
+            'session_updates': session_updates, 'session_seconds': round(seconds, 2),
+            'frames_per_s': round(frames_seen / max(seconds, 1e-9), 2), 'device': str(device),
+            'threads': torch.get_num_threads(), 'malloc_settings': all(k in os.environ for k in MALLOC_SETTINGS),
+            'train_episodes': len(data.train_items),
+            'val_episodes': len(data.val_items), 'val': last.get('val'), 'out': str(out)}
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    cfg = parse(TrainConfig, argv, prog=f'python -m {MODULE}')
+    try:
+        summary = train(cfg)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == '__main__':
+    ensure_malloc_settings(MODULE)
+    sys.exit(main())

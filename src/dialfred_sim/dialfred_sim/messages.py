@@ -1,0 +1,43 @@
+"""Conversions between dialfred_msgs messages and the ROS-free protocol of `agents` (no rclpy).
+
+The nodes and the evaluation client use these, so that a QA or a task reads the same whichever
+process made it: `qa_msg`/`qa_from_msg` (agents.QA <-> QAPair), `public_task_from_msg`
+(TaskDescription -> tasks.PublicTask: what an agent is told, never more).
+"""
+
+from __future__ import annotations
+
+from dialfred_msgs.msg import QAPair, TaskDescription
+
+from .agents import QA, Question
+from .tasks.schema import PublicTask
+
+
+def question_text(question: Question) -> str:
+    """The question as a person would ask it (what QAPair.question carries)."""
+    if question.question_type == 'direction':
+        return 'Which way should I go?'
+    if question.question_type == 'appearance':
+        return f'What does the {question.object_noun} look like?'
+    return f'Where is the {question.object_noun}?'
+
+
+def qa_msg(qa: QA) -> QAPair:
+    """The QAPair of `qa` (an invalid answer's reason is not carried: the answer is then empty)."""
+    q = qa.question
+    return QAPair(question_type=q.question_type, object_noun=q.object_noun, question=question_text(q),
+                  answer=qa.answer if qa.valid else '', valid=bool(qa.valid))
+
+
+def qa_from_msg(msg: QAPair) -> QA:
+    return QA(Question(msg.question_type, msg.object_noun), bool(msg.valid), msg.answer if msg.valid else '')
+
+
+def public_task_from_msg(msg: TaskDescription) -> PublicTask:
+    return PublicTask(task_id=msg.task_id, scene=msg.scene, split=msg.split, instruction=msg.instruction,
+                      object_nouns=tuple(msg.object_nouns))
+
+
+def task_description_msg(task: PublicTask) -> TaskDescription:
+    return TaskDescription(task_id=task.task_id, scene=task.scene, split=task.split, instruction=task.instruction,
+                           object_nouns=list(task.object_nouns))
