@@ -111,7 +111,9 @@ class OracleNode(Node):
         # An answer waits on the simulator's reply inside the answer callback: the client lives on a
         # node of its own, with an executor of its own that the callback spins until the reply is in
         # (spinning the executor that runs the callback would hang: ros2/rclpy#1313).
-        self.sim_side = rclpy.create_node('dialfred_oracle_sim_client', context=self.context)
+        # It has no parameter services or rosout of its own: fewer endpoints for DDS discovery to match.
+        self.sim_side = rclpy.create_node('dialfred_oracle_sim_client', context=self.context,
+                                          start_parameter_services=False, enable_rosout=False)
         self.sim_cli = self.sim_side.create_client(GroundTruth, 'sim/ground_truth', qos_profile=SERVICE_QOS)
         self.sim_executor = make_executor()
         self.sim_executor.add_node(self.sim_side)
