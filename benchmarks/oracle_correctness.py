@@ -6,7 +6,7 @@ the task and, half of the time, the expert's first actions are played so the age
 elsewhere; then one question (location, appearance or direction, in turn) about one of the task's
 objects goes through the oracle node, and the ground truth of the same moment comes straight from
 `/sim/ground_truth`. Checks: a location answer names the object's parent receptacle (or says it is
-held) and the 45-degree direction bin recomputed from the geometry (to the visible part's mean point
+held) and the 45-degree direction bin recomputed from the geometry (to the visible part's middle
 for an object in view, else to its centre); an appearance answer names the object's assigned colour
 variant and material; a direction answer matches the expert end pose.
 
@@ -102,6 +102,7 @@ def main() -> None:
     large = large_types()
     checks = collections.defaultdict(list)
     confusions = collections.Counter()
+    disagreements = []     # location answers whose bin is not where most of the object's pixels are
     examples = []
     t0 = time.perf_counter()
     with Graph([sim_node(128), oracle_node()]) as graph:
@@ -153,6 +154,9 @@ def main() -> None:
                         for group in ('in_view', 'large_in_view') if fact.type_name in large else ('in_view',):
                             checks[f'location_{group}_answer_is_where_most_pixels_are'].append(f' {most}' in text)
                             checks[f'location_{group}_centre_is_where_most_pixels_are'].append(centre == most)
+                        if f' {most}' not in text:
+                            disagreements.append({'task': task.task_id, 'answer': text, 'pixels_per_bin':
+                                                  dict(collections.Counter(bins).most_common())})
             elif qtype == 'appearance':
                 named = next((c for c in text.replace('.', ' ').split() if c in COLOURS), '')
                 ok = named == fact.colour
@@ -171,6 +175,7 @@ def main() -> None:
         report[name] = {'n': len(vals), 'agree': int(sum(vals)),
                         'rate': round(float(np.mean(vals)), 4) if vals else None}
     report['colour_confusions'] = dict(confusions.most_common(15))
+    report['visible_part_disagreements'] = disagreements[:10]
     report['examples'] = examples[:12]
     print(json.dumps(report, indent=2))
 

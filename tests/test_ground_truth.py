@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -174,19 +175,25 @@ def test_a_snapshot_survives_a_json_round_trip(env, valid_unseen):
     assert empty.appearances['X'].pixels.shape == (0, 3)
 
 
-def test_an_object_in_view_is_seen_at_the_mean_point_of_its_pixels(env):
+def test_an_object_in_view_is_seen_at_the_middle_of_its_visible_pixels(env):
     reset(env, 'FloorPlan1', seed=0)
     world = env.world
     _, depth, seg = env._frame
     seen = seen_positions(world, depth, seg)
     assert seen
+    a = world.agent
     for oid, obj in world.objects.items():
         ys, xs = np.nonzero(seg == obj.body)
         if len(xs) < MIN_SEEN_PIXELS:
             assert oid not in seen
             continue
-        points = np.array([world.pixel_point(x, y, depth)[0] for x, y in zip(xs, ys)])
-        assert seen[oid] == pytest.approx(tuple(points.mean(axis=0)), abs=1e-6), oid
+        points = [world.pixel_point(x, y, depth)[0] for x, y in zip(xs, ys)]
+        def bearing(p):
+            return (math.degrees(math.atan2(p[1] - a.y, p[0] - a.x)) - a.rotation + 180) % 360 - 180
+        bearings = sorted(bearing(p) for p in points)
+        # One of its own pixels' points, with the median bearing of them all.
+        assert min(math.dist(seen[oid], p) for p in points) < 1e-6, oid
+        assert bearing(seen[oid]) == pytest.approx(bearings[(len(bearings) - 1) // 2], abs=1e-6), oid
     s = snapshot(env)
     assert {oid for oid, f in s.objects.items() if f.seen_position is not None} == set(seen)
     for oid, f in s.objects.items():

@@ -52,9 +52,9 @@ class ObjectFact:
     is_sliced: bool
     temperature: str
     held: bool
-    # The mean world point of its pixels in the agent's current view (depth unprojected); None when
-    # fewer than MIN_SEEN_PIXELS show. For a bed or a counter it is where the agent sees it, which
-    # may lie in another direction than its centre.
+    # The middle of what the agent sees of it (seen_positions: the world point of its visible pixel
+    # with the median bearing); None when fewer than MIN_SEEN_PIXELS show. For a bed or a counter it
+    # is where the agent sees it, which may lie in another direction than its centre.
     seen_position: Optional[tuple[float, float, float]] = None
 
     @property
@@ -115,39 +115,43 @@ def object_fact(world: World, obj: WorldObject,
 
 def seen_positions(world: World, depth: np.ndarray, segmentation: np.ndarray,
                    min_pixels: int = MIN_SEEN_PIXELS) -> dict[str, tuple[float, float, float]]:
-    """object id -> the mean world point of its pixels in a frame of the agent's camera (`depth`
-    in metres along the view axis and `segmentation` by body, as World.render gives them), for
-    every object with at least `min_pixels` pixels. The points are World.pixel_point's, summed per
-    body in one pass (a pixel's point is linear in its depth)."""
+    """object id -> the middle of what the agent sees of it: among its pixels in a frame of the
+    agent's camera (`depth` in metres along the view axis and `segmentation` by body, as
+    World.render gives them), the world point (World.pixel_point's) of the one whose bearing from
+    the agent is the median of theirs (the lower middle for an even count). For every object with
+    at least `min_pixels` pixels. Where one 45-degree direction bin holds more than half of an
+    object's pixels, this point lies in it; a mean point can be pulled out of it by perspective."""
     from .world.scene import FOV_DEG
     h, w = segmentation.shape
     bodies = {obj.body: oid for oid, obj in world.objects.items()}
     labels = segmentation.ravel().astype(np.int64)
-    shown = labels >= 0
-    labels = labels[shown]
-    if not len(labels):
+    shown = np.flatnonzero(labels >= 0)
+    if not len(shown):
         return {}
-    z = depth.astype(np.float64).ravel()[shown]
+    labels = labels[shown]
     t = math.tan(math.radians(FOV_DEG) / 2)
-    u = ((np.arange(w) + 0.5) / w * 2 - 1) * t * (w / h)
-    v = (1 - (np.arange(h) + 0.5) / h * 2) * t
-    uu = np.broadcast_to(u[None, :], (h, w)).ravel()[shown]
-    vv = np.broadcast_to(v[:, None], (h, w)).ravel()[shown]
-    n = np.bincount(labels)
-    sz, szu, szv = (np.bincount(labels, weights=wt, minlength=len(n)) for wt in (z, z * uu, z * vv))
+    u = (((shown % w) + 0.5) / w * 2 - 1) * t * (w / h)
+    v = (1 - ((shown // w) + 0.5) / h * 2) * t
+    z = depth.ravel()[shown].astype(np.float64)
     eye, fwd = world.camera()
     yaw = math.radians(world.agent.rotation)
     right = (math.sin(yaw), -math.cos(yaw), 0.0)
     up = (right[1] * fwd[2] - right[2] * fwd[1], right[2] * fwd[0] - right[0] * fwd[2],
           right[0] * fwd[1] - right[1] * fwd[0])
+    points = [eye[i] + z * (fwd[i] + u * right[i] + v * up[i]) for i in range(3)]
+    # Bearings relative to the heading: what is in view lies ahead, so no wrap-around.
+    ahead = (points[0] - eye[0]) * math.cos(yaw) + (points[1] - eye[1]) * math.sin(yaw)
+    left = -(points[0] - eye[0]) * math.sin(yaw) + (points[1] - eye[1]) * math.cos(yaw)
+    order = np.lexsort((np.arctan2(left, ahead), labels))       # by body, then by bearing
+    counts = np.bincount(labels)
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
     out = {}
-    for body in np.nonzero(n >= min_pixels)[0]:
+    for body in np.flatnonzero(counts >= min_pixels):
         oid = bodies.get(int(body))
         if oid is None:
             continue
-        k = n[body]
-        out[oid] = tuple(float(eye[i] + (fwd[i] * sz[body] + right[i] * szu[body] + up[i] * szv[body]) / k)
-                         for i in range(3))
+        k = order[starts[body] + (counts[body] - 1) // 2]
+        out[oid] = (float(points[0][k]), float(points[1][k]), float(points[2][k]))
     return out
 
 
