@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -85,6 +86,37 @@ def test_a_location_answer_names_the_receptacle_and_in_or_on():
     assert answer(s, 'location', 'fridge').text == 'The fridge is to your left.'   # nothing holds it
     behind = scene(fridge, counter, apple, mug, agent=(4.0, 0.0, 0.0, 30.0))
     assert answer(behind, 'location', 'mug').text == 'The mug is behind you on the counter.'
+
+
+def test_a_location_answer_points_at_the_part_of_an_object_the_agent_sees():
+    # A counter whose centre is to the left, of which the agent sees the part ahead.
+    counter = replace(fact('CounterTop_0', 'counter', (0.0, 2.0, 0.45)), seen_position=(2.0, 0.2, 0.9))
+    shut_away = fact('CounterTop_1', 'counter', (0.0, -2.0, 0.45))
+    s = scene(counter, shut_away)
+    assert answer(s, 'location', 'counter').text == 'The counter is in front of you.'
+    assert check_answer(s, answer(s, 'location', 'counter'))['direction_ok'] is True
+    assert check_answer(s, Answer(True, 'The counter is to your left.', '', 'location', 'counter',
+                                  'CounterTop_0'))['direction_ok'] is False
+    far = scene(replace(counter, position=(0.0, 2.0, 0.45), seen_position=None), shut_away)
+    assert answer(far, 'location', 'counter').text == 'The counter is to your left.'   # out of view: its centre
+
+
+def test_a_large_object_in_view_is_where_most_of_its_pixels_are(env):
+    # FloorPlan1 from (3, 4) facing 180: the counter's centre is to the right, what shows is front right.
+    reset(env, 'FloorPlan1', seed=0)
+    env.teleport(3, 4, 180, 30)
+    world = env.world
+    s = snapshot(env)
+    counter = s.objects['CounterTop_0']
+    agent = s.agent
+    assert direction_bin(agent[:2], agent[2], counter.position[:2]) == 'to your right'
+    _, depth, seg = env._frame
+    ys, xs = np.nonzero(seg == world.objects['CounterTop_0'].body)
+    bins = [direction_bin(agent[:2], agent[2], world.pixel_point(x, y, depth)[0][:2]) for x, y in zip(xs, ys)]
+    most = max(set(bins), key=bins.count)
+    assert most == 'to your front right'
+    a = answer(s, 'location', 'counter')
+    assert a.object_id == 'CounterTop_0' and a.text == f'The counter is {most}.'
 
 
 def test_a_held_object_is_being_held():

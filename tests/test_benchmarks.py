@@ -40,10 +40,15 @@ def test_ros_step_reports_both_reply_forms_and_the_ros_floor():
     assert report['rgb_only']['sim_node_peak_rss_mb'] > 50
 
 
-def test_oracle_latency_answers_every_request():
-    report = run_bench('oracle_latency', '--requests', '30')
-    assert report['sequential']['invalid_replies'] == 0
-    assert report['pipelined']['requests_per_s'] > 0
+def test_oracle_latency_times_both_paths_and_answers_every_request():
+    report = run_bench('oracle_latency', '--requests', '30', '--after-steps', '3')
+    assert set(report['paths']) == {'fetch_every_question', 'cached'}
+    for path in report['paths'].values():
+        for group in ('location_direction', 'appearance'):
+            assert path[group]['invalid_replies'] == 0
+            assert path[group]['one_at_a_time']['requests_per_s'] > 0 and path[group]['pipelined']['requests_per_s'] > 0
+        assert path['location_after_a_step']['p50_ms'] > 0
+    assert isinstance(report['goal']['met'], bool)
 
 
 def test_service_flood_answers_every_request_only_with_keep_all():

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
 
-from dialfred_sim.ground_truth import (MAX_APPEARANCE_PIXELS, Appearance, Snapshot, appearance, snapshot,
-                                       snapshot_from_dict, snapshot_to_dict, task_object_ids)
+from dialfred_sim.ground_truth import (MAX_APPEARANCE_PIXELS, MIN_SEEN_PIXELS, Appearance, GroundTruthCache, Snapshot,
+                                       appearance, seen_positions, snapshot, snapshot_from_dict, snapshot_to_dict,
+                                       task_object_ids)
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.expert import replay
 from dialfred_sim.world.catalog import load_catalog
@@ -88,7 +90,7 @@ def test_a_task_snapshot_names_the_tasks_objects_and_the_experts_end_pose(env, v
             assert s.objects[p.target].noun in s.task_objects and s.objects[p.receptacle].noun in s.task_objects
 
 
-def test_a_sliced_target_drops_out_of_the_task_objects(env, valid_unseen):
+def test_a_sliced_target_is_replaced_by_its_slices_among_the_task_objects(env, valid_unseen):
     task = next(t for t in valid_unseen if t.task_type == 'Slice')
     env.reset(options={'task': task})
     target = task.primitives[-1].target
@@ -97,7 +99,10 @@ def test_a_sliced_target_drops_out_of_the_task_objects(env, valid_unseen):
     rerender(env)
     assert target not in env.world.objects
     s = snapshot(env)
-    assert target not in s.task_objects.values() and target not in task_object_ids(env)
+    slices = sorted(o for o, obj in env.world.objects.items() if obj.sliced_from == target)
+    assert len(slices) >= 4 and target not in task_object_ids(env) and target not in s.task_objects.values()
+    assert set(slices) <= set(task_object_ids(env))
+    assert s.task_objects[s.objects[slices[0]].noun] == slices[0]
 
 
 def test_an_object_in_view_is_sampled_from_the_current_frame(env):
@@ -168,6 +173,55 @@ def test_a_snapshot_survives_a_json_round_trip(env, valid_unseen):
     empty = snapshot_from_dict(snapshot_to_dict(Snapshot((0, 0, 0, 30), None, '', '', '', {}, {},
                                                          {'X': Appearance('X', np.zeros((0, 3), np.uint8), False)})))
     assert empty.appearances['X'].pixels.shape == (0, 3)
+
+
+def test_an_object_in_view_is_seen_at_the_middle_of_its_visible_pixels(env):
+    reset(env, 'FloorPlan1', seed=0)
+    world = env.world
+    _, depth, seg = env._frame
+    seen = seen_positions(world, depth, seg)
+    assert seen
+    a = world.agent
+    for oid, obj in world.objects.items():
+        ys, xs = np.nonzero(seg == obj.body)
+        if len(xs) < MIN_SEEN_PIXELS:
+            assert oid not in seen
+            continue
+        points = [world.pixel_point(x, y, depth)[0] for x, y in zip(xs, ys)]
+        def bearing(p):
+            return (math.degrees(math.atan2(p[1] - a.y, p[0] - a.x)) - a.rotation + 180) % 360 - 180
+        bearings = sorted(bearing(p) for p in points)
+        # One of its own pixels' points, with the median bearing of them all.
+        assert min(math.dist(seen[oid], p) for p in points) < 1e-6, oid
+        assert bearing(seen[oid]) == pytest.approx(bearings[(len(bearings) - 1) // 2], abs=1e-6), oid
+    s = snapshot(env)
+    assert {oid for oid, f in s.objects.items() if f.seen_position is not None} == set(seen)
+    for oid, f in s.objects.items():
+        assert f.where == (f.seen_position if oid in seen else f.position)
+
+
+def test_the_cache_gives_the_snapshot_of_the_moment_and_computes_it_once_per_state(env, valid_unseen):
+    cache = GroundTruthCache(env, first_version=100)
+    versions = []
+    for task in valid_unseen[:3]:
+        env.reset(options={'task': task})
+        for action in (None, 'RotateLeft', 'MoveAhead', 'LookDown', 'RotateRight'):
+            if action:
+                env.step({'action': action})
+            ids = task_object_ids(env)
+            version = cache.version()
+            got, want = cache.snapshot(ids), snapshot(env, ids)
+            assert (got.objects, got.agent, got.expert_end, got.task_objects, got.task_id) == \
+                (want.objects, want.agent, want.expert_end, want.task_objects, want.task_id)
+            assert list(got.appearances) == list(want.appearances)
+            for oid, look in want.appearances.items():
+                assert np.array_equal(got.appearances[oid].pixels, look.pixels)
+                assert got.appearances[oid].from_current_view == look.from_current_view
+            # Asked again in the same state: the same version and the very same objects, not recomputed.
+            assert cache.version() == version and cache.snapshot() is cache.snapshot()
+            assert cache.appearances(ids[:1]).get(ids[0]) is got.appearances.get(ids[0])
+            versions.append(version)
+    assert versions == list(range(100, 100 + len(versions)))      # every reset and step is a new state
 
 
 def test_every_receptacle_type_uses_dialfreds_preposition():

@@ -1,14 +1,16 @@
 """The oracle's rules: templated answers to location, appearance and direction questions.
 
 DialFRED's oracle (paper, "Generating answers") answers from the simulator's ground truth:
-  Location:   "The apple is to your left in the fridge."   (direction from the agent, and the
-              receptacle that holds it, "in" for containers and "on" otherwise)
+  Location:   "The apple is to your left in the fridge."   (direction from the agent, to the part
+              of it the agent sees when in view, else to its centre; and the receptacle that holds
+              it, "in" for containers and "on" otherwise)
   Appearance: "The apple is red and made of food."         (colour from rendered pixels, material
               from the object's metadata)
   Direction:  "You should turn left." / "You don't need to move."  (where the expert ends the task,
               seen from the agent now)
 `answer(snapshot, question_type, noun)` never raises: a question it cannot answer gets
-`Answer(valid=False, reason=...)`. Everything here is plain Python over a `Snapshot`
+`Answer(valid=False, reason=...)`. Which object a phrase means ("apples", "the TV", "sliced
+tomato") is decided by nouns.py. Everything here is plain Python over a `Snapshot`
 (dialfred_sim.ground_truth); the ROS node only adapts messages.
 """
 
@@ -26,6 +28,7 @@ from dialfred_sim.agents import QUESTION_TYPES
 from dialfred_sim.ground_truth import ObjectFact, Snapshot
 
 from .colours import colour_name
+from .nouns import meanings
 
 QUESTION_ALIASES = {'loc': 'location', 'app': 'appearance', 'dir': 'direction'}   # the questioner's tokens
 MAX_NOUN_CHARS = 64
@@ -65,7 +68,7 @@ class Answer:
 
 def question_text(question_type: str, noun: str = '') -> str:
     """The question as a person would ask it: 'Where is the apple?'. ValueError for an unknown type."""
-    qtype = _question_type(question_type)
+    qtype = parse_question_type(question_type)
     if qtype == 'location':
         return f'Where is the {noun}?'
     if qtype == 'appearance':
@@ -75,7 +78,9 @@ def question_text(question_type: str, noun: str = '') -> str:
     raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES}')
 
 
-def _question_type(question_type) -> Optional[str]:
+def parse_question_type(question_type) -> Optional[str]:
+    """'location', 'appearance' or 'direction' for any spelling the oracle accepts ('Location',
+    ' LOC ', 'dir'); None for anything else."""
     if not isinstance(question_type, str) or len(question_type) > 32:
         return None
     q = question_type.strip().lower()
@@ -136,31 +141,11 @@ def _noun_problem(noun) -> str:
 
 
 def _normalise(noun: str) -> str:
-    """'  The Sink-Basin? ' -> 'sink-basin' -> compared as 'sinkbasin' (see _key)."""
+    """'  The Sink-Basin? ' -> 'sink-basin' (then compared as 'sinkbasin': nouns.key)."""
     n = ' '.join(noun.strip().strip('.,;:!?"\'()[]{}<>`').split()).lower()
     for article in _ARTICLES:
         n = n.removeprefix(article)
     return n.strip()
-
-
-def _key(text: str) -> str:
-    return re.sub(r'[\s_\-]+', '', text.lower())
-
-
-def _variants(type_name: str) -> tuple[str, ...]:
-    """Other words people use for the type ('couch' for Sofa), from the catalog; () if unknown."""
-    from dialfred_sim.world.catalog import load_catalog
-    t = load_catalog().get(type_name)
-    return t.nouns if t is not None else ()
-
-
-def _candidates(snapshot: Snapshot, noun: str) -> list[ObjectFact]:
-    """Objects that `noun` names: by noun or type name, else by another common word for the type."""
-    key = _key(_normalise(noun))
-    exact = [f for f in snapshot.objects.values() if key in (_key(f.noun), _key(f.type_name))]
-    if exact:
-        return exact
-    return [f for f in snapshot.objects.values() if key in (_key(v) for v in _variants(f.type_name))]
 
 
 def _distance(snapshot: Snapshot, fact: ObjectFact) -> float:
@@ -170,22 +155,32 @@ def _distance(snapshot: Snapshot, fact: ObjectFact) -> float:
 def resolve_object(snapshot: Snapshot, noun) -> tuple[str, str]:
     """(object id, '') of the object a question about `noun` is about, or ('', reason).
 
-    In a task only the task's own objects are answered about (its instance, not a look-alike); in
-    free exploration any object is, the nearest of several."""
+    The phrase's readings (nouns.meanings: as typed, catalog variants, everyday names, singular,
+    without modifiers, slices of a sliced food) are tried in order. In free exploration the first
+    reading that names an object in the scene wins, and the nearest such object is meant. In a task
+    only the task's own objects are answered about (its instance, not a look-alike): the first
+    reading that names one of them wins; if readings name only other objects, the reason says the
+    object is not part of this task."""
     problem = _noun_problem(noun)
     if problem:
         return '', problem
     shown = _normalise(noun)
-    candidates = _candidates(snapshot, noun)
-    if not candidates:
-        return '', f'there is no {shown} here'
-    if snapshot.task_id:
-        task_ids = list(dict.fromkeys(snapshot.task_objects.values()))
+    facts = snapshot.objects.values()
+    task_ids = list(dict.fromkeys(snapshot.task_objects.values())) if snapshot.task_id else None
+    seen_elsewhere = False
+    for meaning in meanings(shown):
+        candidates = [f for f in facts if meaning.matches(f.noun, f.type_name)]
+        if not candidates:
+            continue
+        if task_ids is None:
+            return min(candidates, key=lambda f: (_distance(snapshot, f), f.object_id)).object_id, ''
         relevant = [f for f in candidates if f.object_id in task_ids]
-        if not relevant:
-            return '', f'the {shown} is not part of this task'
-        return min(relevant, key=lambda f: task_ids.index(f.object_id)).object_id, ''
-    return min(candidates, key=lambda f: (_distance(snapshot, f), f.object_id)).object_id, ''
+        if relevant:
+            return min(relevant, key=lambda f: task_ids.index(f.object_id)).object_id, ''
+        seen_elsewhere = True
+    if seen_elsewhere:
+        return '', f'the {shown} is not part of this task'
+    return '', f'there is no {shown} here'
 
 
 # ---------------------------------------------------------------------- answers
@@ -196,7 +191,7 @@ def _location(snapshot: Snapshot, fact: ObjectFact) -> str:
     parent = snapshot.objects.get(fact.parent_id) if fact.parent_id else None
     if parent is not None and parent.held:
         return f'The {fact.noun} is {fact.preposition} the {fact.parent_noun} you are holding.'
-    where = direction_bin(snapshot.agent[:2], snapshot.agent[2], fact.position[:2])
+    where = direction_bin(snapshot.agent[:2], snapshot.agent[2], fact.where[:2])
     if fact.parent_id:
         return f'The {fact.noun} is {where} {fact.preposition} the {fact.parent_noun}.'
     return f'The {fact.noun} is {where}.'
@@ -212,7 +207,7 @@ def _appearance(snapshot: Snapshot, fact: ObjectFact) -> tuple[str, bool]:
 def answer(snapshot: Snapshot, question_type, object_noun='') -> Answer:
     """The oracle's answer to a question of `question_type` ('location', 'appearance',
     'direction'; or the tokens 'loc', 'app', 'dir') about `object_noun`. Never raises."""
-    qtype = _question_type(question_type)
+    qtype = parse_question_type(question_type)
     if qtype is None:
         shown = question_type[:32] if isinstance(question_type, str) else type(question_type).__name__
         return Answer(False, reason=f'unknown question type {shown!r}; expected one of {", ".join(QUESTION_TYPES)}')
@@ -247,7 +242,8 @@ def check_answer(snapshot: Snapshot, ans: Answer) -> dict[str, Optional[bool]]:
     receptacle_ok: a location answer names the object's parent receptacle with the right
     preposition (or none for an object without one, or says it is held when it is);
     direction_ok: a location answer's direction bin, or a direction answer's advice, recomputed
-    from the geometry; colour_ok: an appearance answer names the object's colour variant.
+    from the geometry (for an object in view, from the part the agent sees: ObjectFact.where);
+    colour_ok: an appearance answer names the object's colour variant.
     None where a check does not apply (and for invalid answers)."""
     out: dict[str, Optional[bool]] = {'receptacle_ok': None, 'direction_ok': None, 'colour_ok': None}
     if not ans.valid:
@@ -279,7 +275,7 @@ def check_answer(snapshot: Snapshot, ans: Answer) -> dict[str, Optional[bool]]:
         out['receptacle_ok'] = not fact.parent_id and not fact.held
     else:
         out['receptacle_ok'] = m.group('recep') == fact.parent_noun and m.group('prep') == fact.preposition
-    out['direction_ok'] = m.group('bin') == direction_bin(snapshot.agent[:2], snapshot.agent[2], fact.position[:2])
+    out['direction_ok'] = m.group('bin') == direction_bin(snapshot.agent[:2], snapshot.agent[2], fact.where[:2])
     return out
 
 
@@ -295,7 +291,7 @@ class Perturbation:
     an answer out of a withholding oracle."""
 
     def __init__(self, question_type: str = '', probability: float = 0.0, seed: int = 0):
-        qtype = _question_type(question_type) if question_type else ''
+        qtype = parse_question_type(question_type) if question_type else ''
         if qtype is None:
             raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES} or ""')
         if not 0.0 <= float(probability) <= 1.0:
@@ -304,7 +300,7 @@ class Perturbation:
 
     def withhold(self, question_type: str, key: str) -> bool:
         """Whether to withhold the answer to this question (type `question_type`, identified by `key`)."""
-        qtype = _question_type(question_type)
+        qtype = parse_question_type(question_type)
         if qtype is None or self.probability <= 0.0 or self.question_type not in ('', qtype):
             return False
         digest = zlib.crc32(f'{qtype}|{key}'.encode('utf-8'))
@@ -320,5 +316,5 @@ class Perturbation:
 def situation_key(snapshot: Snapshot, question_type: str, object_noun: str) -> str:
     """What makes two questions the same for `Perturbation`: the task, the question, the agent's pose."""
     x, y, rotation, horizon = snapshot.agent
-    return (f'{snapshot.task_id}|{_question_type(question_type)}|{_normalise(object_noun)}|'
+    return (f'{snapshot.task_id}|{parse_question_type(question_type)}|{_normalise(object_noun)}|'
             f'{x:.2f},{y:.2f},{rotation:.0f},{horizon:.0f}')

@@ -2,7 +2,10 @@
 
 Each question is answered from the simulator's ground truth at the moment of asking, fetched from
 the simulator node over ROS (`sim/ground_truth`; no memory is shared between the processes). The
-rules live in `answers.py`; this node only converts messages. Parameters:
+rules live in `answers.py`; this node only converts messages. The node keeps the last state it
+fetched with the simulator's state version: every question still asks the simulator, but with that
+version, and while nothing has changed the reply is a few bytes instead of the whole world (rendered
+looks are kept per state too). Parameters:
 
 - `perturb_type`, `perturb_probability`, `seed`: withhold answers of one question type with this
   probability (the paper's ablation used 50%); a withheld answer is a valid "I don't know." Which
@@ -12,6 +15,8 @@ rules live in `answers.py`; this node only converts messages. Parameters:
   an empty line accepts it), as a robot running this stack would ask its human.
 - `log_file`: append every question and answer as a JSON line.
 - `sim_timeout`: seconds to wait for the simulator.
+- `cache_ground_truth` (true): keep the state as above; false fetches the whole world for every
+  question (and again for an appearance's pixels), as the oracle did before; the answers are the same.
 
 A malformed request gets valid=false with the reason; the node keeps serving.
 """
@@ -22,18 +27,18 @@ import json
 import sys
 import threading
 import time
+from dataclasses import dataclass, field, replace
+from typing import Optional
 
 import numpy as np
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
+import rclpy
 from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
-from dialfred_sim.ros_util import SERVICE_QOS, run_node
+from dialfred_sim.ros_util import SERVICE_QOS, make_executor, run_node
 
-from .answers import (MAX_NOUN_CHARS, QUESTION_ALIASES, QUESTION_TYPES, Answer, Perturbation, answer,
-                      question_text, situation_key)
+from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, question_text, situation_key
 
 
 class SimulatorUnavailable(RuntimeError):
@@ -52,14 +57,33 @@ def snapshot_from_msg(msg: GroundTruth.Response) -> Snapshot:
         parent_id=f.parent_id, parent_type=f.parent_type, parent_noun=f.parent_noun,
         preposition=f.preposition, colour=f.colour, material=f.material, pickupable=f.pickupable,
         is_open=f.is_open, is_on=f.is_on, is_dirty=f.is_dirty, is_sliced=f.is_sliced,
-        temperature=f.temperature, held=f.held) for f in msg.objects}
-    appearances = {p.object_id: Appearance(
-        object_id=p.object_id, pixels=np.frombuffer(bytes(p.pixels), np.uint8).reshape(-1, 3),
-        from_current_view=p.from_current_view) for p in msg.appearances}
+        temperature=f.temperature, held=f.held,
+        seen_position=(f.seen_x, f.seen_y, f.seen_z) if f.in_view else None) for f in msg.objects}
     return Snapshot(agent=(a.x, a.y, a.rotation_deg, a.horizon_deg), expert_end=expert_end,
                     task_id=msg.task.task_id, task_type=msg.answer_key.task_type, instruction=msg.task.instruction,
                     task_objects=dict(zip(msg.task_nouns, msg.task_object_ids)), objects=objects,
-                    appearances=appearances)
+                    appearances=appearances_from_msg(msg))
+
+
+def appearances_from_msg(msg: GroundTruth.Response) -> dict[str, Appearance]:
+    return {p.object_id: Appearance(object_id=p.object_id,
+                                    pixels=np.frombuffer(bytes(p.pixels), np.uint8).reshape(-1, 3),
+                                    from_current_view=p.from_current_view) for p in msg.appearances}
+
+
+@dataclass
+class WorldState:
+    """One state of the simulator as the oracle holds it: its version, the snapshot (without looks)
+    and the looks fetched so far for it."""
+
+    version: int
+    snapshot: Snapshot
+    appearances: dict[str, Appearance] = field(default_factory=dict)
+
+    def with_appearance(self, object_id: str) -> Snapshot:
+        """The snapshot with the look of `object_id` (if fetched), as `snapshot(env, [object_id])`."""
+        look = self.appearances.get(object_id)
+        return replace(self.snapshot, appearances={object_id: look} if look is not None else {})
 
 
 class OracleNode(Node):
@@ -73,20 +97,30 @@ class OracleNode(Node):
         self.declare_parameter('human', False)
         self.declare_parameter('log_file', '')
         self.declare_parameter('sim_timeout', 5.0)
+        self.declare_parameter('cache_ground_truth', True)
         p = self.get_parameter
         self.perturbation = Perturbation(p('perturb_type').value, float(p('perturb_probability').value),
                                          int(p('seed').value))
         self.human = bool(p('human').value)
         self.log_file = p('log_file').value
         self.sim_timeout = float(p('sim_timeout').value)
+        self.cache = bool(p('cache_ground_truth').value)
+        self._state: Optional[WorldState] = None      # the newest state fetched (with the cache on)
+        self._state_lock = threading.Lock()
         self._sim_settled = False
-        # The answer callback waits on the simulator's reply, which another thread must take.
-        self.sim_cli = self.create_client(GroundTruth, 'sim/ground_truth', qos_profile=SERVICE_QOS,
-                                          callback_group=ReentrantCallbackGroup())
-        self.create_service(OracleAnswer, 'oracle/answer', self.on_answer, qos_profile=SERVICE_QOS,
-                            callback_group=MutuallyExclusiveCallbackGroup())
+        # An answer waits on the simulator's reply inside the answer callback: the client lives on a
+        # node of its own, with an executor of its own that the callback spins until the reply is in
+        # (spinning the executor that runs the callback would hang: ros2/rclpy#1313).
+        # It has no parameter services or rosout of its own: fewer endpoints for DDS discovery to match.
+        self.sim_side = rclpy.create_node('dialfred_oracle_sim_client', context=self.context,
+                                          start_parameter_services=False, enable_rosout=False)
+        self.sim_cli = self.sim_side.create_client(GroundTruth, 'sim/ground_truth', qos_profile=SERVICE_QOS)
+        self.sim_executor = make_executor()
+        self.sim_executor.add_node(self.sim_side)
+        self.create_service(OracleAnswer, 'oracle/answer', self.on_answer, qos_profile=SERVICE_QOS)
         mode = 'asking a person in this terminal' if self.human else 'from the simulator\'s ground truth'
-        self.get_logger().info(f'serving oracle/answer, {mode}')
+        cache = 'kept per simulator state' if self.cache else 'fetched whole for every question'
+        self.get_logger().info(f'serving oracle/answer, {mode} ({cache})')
 
     def on_answer(self, request: OracleAnswer.Request, response: OracleAnswer.Response) -> OracleAnswer.Response:
         qtype, noun = request.question_type, request.object_noun
@@ -104,16 +138,21 @@ class OracleNode(Node):
 
     def answer(self, qtype: str, noun: str) -> Answer:
         # Questions that are malformed on their face never reach the simulator.
-        if qtype not in QUESTION_TYPES and qtype not in QUESTION_ALIASES:
+        parsed = parse_question_type(qtype)
+        if parsed is None:
             return answer(None, qtype, noun)
-        qtype = QUESTION_ALIASES.get(qtype, qtype)
+        qtype = parsed
         if qtype != 'direction' and len(noun) > MAX_NOUN_CHARS:
             return Answer(False, reason=f'the object noun is longer than {MAX_NOUN_CHARS} characters',
                           question_type=qtype)
-        snap = self.ground_truth([])
+        state = self.world_state()
+        snap = state.snapshot
         result = answer(snap, qtype, noun)
         if result.valid and qtype == 'appearance' and result.object_id:
-            result = answer(self.ground_truth([result.object_id]), qtype, noun)
+            oid = result.object_id
+            if not self.cache or oid not in state.appearances:
+                state = self.world_state([oid])
+            result = answer(state.with_appearance(oid), qtype, noun)
         # The paper's ablation: the human does not know (the question itself was fine).
         withheld = self.perturbation.apply(result, situation_key(snap, qtype, noun))
         if withheld is not result:
@@ -122,7 +161,28 @@ class OracleNode(Node):
             result = self.ask_person(qtype, noun, result)
         return result
 
-    def ground_truth(self, appearance_of: list[str]) -> Snapshot:
+    def world_state(self, appearance_of: tuple[str, ...] | list[str] = ()) -> WorldState:
+        """The simulator's state now, with the looks of `appearance_of`. With the cache, the request
+        carries the version held, and an unchanged state costs a reply of a few bytes."""
+        held = self._state if self.cache else None
+        for _ in range(3):
+            need = [oid for oid in appearance_of if held is None or oid not in held.appearances]
+            reply = self.fetch(GroundTruth.Request(appearance_of=need, known_version=held.version if held else 0))
+            if reply.unchanged and held is not None:
+                state = held
+            else:
+                state = WorldState(reply.version, replace(snapshot_from_msg(reply), appearances={}))
+            with self._state_lock:
+                state.appearances.update(appearances_from_msg(reply))
+                if self.cache and (self._state is None or state.version > self._state.version):
+                    self._state = state
+            if all(oid in state.appearances for oid in appearance_of):
+                return state
+            held = state      # the state changed since: the looks kept were of the old one
+        return state
+
+    def fetch(self, request: GroundTruth.Request) -> GroundTruth.Response:
+        """One /sim/ground_truth call; SimulatorUnavailable when it cannot be had."""
         # Right after start-up, discovery may not have found the simulator yet: give it time.
         if not self.sim_cli.service_is_ready() and not self.sim_cli.wait_for_service(timeout_sec=self.sim_timeout):
             raise SimulatorUnavailable('the simulator is not reachable (no sim/ground_truth service)')
@@ -131,16 +191,18 @@ class OracleNode(Node):
             # race): a reply sent before that would be lost, so wait a moment once.
             time.sleep(0.2)
             self._sim_settled = True
-        done = threading.Event()
-        future = self.sim_cli.call_async(GroundTruth.Request(appearance_of=appearance_of))
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(self.sim_timeout):
-            self.sim_cli.remove_pending_request(future)
-            raise SimulatorUnavailable(f'the simulator did not answer within {self.sim_timeout:g} s')
+        future = self.sim_cli.call_async(request)
+        deadline = time.monotonic() + self.sim_timeout
+        while not future.done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                self.sim_cli.remove_pending_request(future)
+                raise SimulatorUnavailable(f'the simulator did not answer within {self.sim_timeout:g} s')
+            self.sim_executor.spin_once(timeout_sec=min(left, 0.1))
         reply = future.result()
         if not reply.ok:
             raise SimulatorUnavailable(f'the simulator refused: {reply.error}')
-        return snapshot_from_msg(reply)
+        return reply
 
     def ask_person(self, qtype: str, noun: str, suggestion: Answer) -> Answer:
         """Print the question and read a person's answer from standard input."""
@@ -154,6 +216,11 @@ class OracleNode(Node):
         text = line.strip() or suggestion.text
         return Answer(True, text, question_type=qtype, object_noun=noun, object_id=suggestion.object_id)
 
+    def destroy_node(self):
+        self.sim_executor.shutdown()
+        self.sim_side.destroy_node()
+        super().destroy_node()
+
     def _log(self, qtype: str, noun: str, result: Answer) -> None:
         if not self.log_file:
             return
@@ -164,7 +231,7 @@ class OracleNode(Node):
 
 
 def main(args=None):
-    run_node(OracleNode, args, executor_factory=lambda: MultiThreadedExecutor(num_threads=4))
+    run_node(OracleNode, args)
 
 
 if __name__ == '__main__':

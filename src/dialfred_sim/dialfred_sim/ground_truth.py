@@ -2,15 +2,17 @@
 
 `snapshot(env)` reads a `DialfredEnv` after reset (a task or free exploration) and returns a
 `Snapshot` of frozen dataclasses, tuples and numpy arrays only, so that the oracle can be answered
-from it anywhere (rebuilt from a ROS message, or from JSON with `snapshot_from_dict`). Nothing here
-changes the world: appearance close-ups are extra camera images of the same scene. Importing this
-module does not import pybullet (the oracle uses the dataclasses without a simulator).
+from it anywhere (rebuilt from a ROS message, or from JSON with `snapshot_from_dict`).
+`GroundTruthCache` computes it once per state of the world and numbers the states, so that a
+client can ask "has anything changed since version v?" instead of fetching the world again. Nothing
+here changes the world: appearance close-ups are extra camera images of the same scene. Importing
+this module does not import pybullet (the oracle uses the dataclasses without a simulator).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 import numpy as np
@@ -26,6 +28,7 @@ CLOSEUP_SIZE = 64               # close-up images are this many pixels square
 CLOSEUP_FOV_DEG = 60.0
 CLOSEUP_DISTANCES = (0.45, 0.6, 0.35)      # metres from the object's centre, tried in this order
 NEAR_DISTANCES = (0.25, 0.15)              # for objects shut in a fridge, cabinet, drawer, ...
+MIN_SEEN_PIXELS = MIN_APPEARANCE_PIXELS    # an object is in view when at least this many pixels show it
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,15 @@ class ObjectFact:
     is_sliced: bool
     temperature: str
     held: bool
+    # The middle of what the agent sees of it (seen_positions: the world point of its visible pixel
+    # with the median bearing); None when fewer than MIN_SEEN_PIXELS show. For a bed or a counter it
+    # is where the agent sees it, which may lie in another direction than its centre.
+    seen_position: Optional[tuple[float, float, float]] = None
+
+    @property
+    def where(self) -> tuple[float, float, float]:
+        """Where a person would say it is: the part the agent sees when in view, else its centre."""
+        return self.seen_position if self.seen_position is not None else self.position
 
 
 @dataclass(frozen=True)
@@ -82,9 +94,11 @@ class Snapshot:
 
 # ---------------------------------------------------------------------- facts
 
-def object_fact(world: World, obj: WorldObject) -> ObjectFact:
+def object_fact(world: World, obj: WorldObject,
+                seen_position: Optional[tuple[float, float, float]] = None) -> ObjectFact:
     """The ground truth of one object of `world`: the world's own ObjectState, flattened for the wire
-    (empty strings for "none") and with the parent's noun and preposition that answers need."""
+    (empty strings for "none") and with the parent's noun and preposition that answers need;
+    `seen_position` as `seen_positions` found it (None: not in view)."""
     state = world.object_state(obj.object_id)
     parent = world.objects.get(state.parent) if state.parent else None
     x, y, z = state.position    # the bottom centre of its footprint; a fact gives its box's centre
@@ -96,21 +110,71 @@ def object_fact(world: World, obj: WorldObject) -> ObjectFact:
         preposition=parent.otype.preposition if parent else '',
         colour=state.colour, material=state.material, pickupable=state.pickupable,
         is_open=state.is_open, is_on=state.is_on, is_dirty=state.is_dirty, is_sliced=state.is_sliced,
-        temperature=state.temperature, held=state.held)
+        temperature=state.temperature, held=state.held, seen_position=seen_position)
+
+
+def seen_positions(world: World, depth: np.ndarray, segmentation: np.ndarray,
+                   min_pixels: int = MIN_SEEN_PIXELS) -> dict[str, tuple[float, float, float]]:
+    """object id -> the middle of what the agent sees of it: among its pixels in a frame of the
+    agent's camera (`depth` in metres along the view axis and `segmentation` by body, as
+    World.render gives them), the world point (World.pixel_point's) of the one whose bearing from
+    the agent is the median of theirs (the lower middle for an even count). For every object with
+    at least `min_pixels` pixels. Where one 45-degree direction bin holds more than half of an
+    object's pixels, this point lies in it; a mean point can be pulled out of it by perspective."""
+    from .world.scene import FOV_DEG
+    h, w = segmentation.shape
+    bodies = {obj.body: oid for oid, obj in world.objects.items()}
+    labels = segmentation.ravel().astype(np.int64)
+    shown = np.flatnonzero(labels >= 0)
+    if not len(shown):
+        return {}
+    labels = labels[shown]
+    t = math.tan(math.radians(FOV_DEG) / 2)
+    u = (((shown % w) + 0.5) / w * 2 - 1) * t * (w / h)
+    v = (1 - ((shown // w) + 0.5) / h * 2) * t
+    z = depth.ravel()[shown].astype(np.float64)
+    eye, fwd = world.camera()
+    yaw = math.radians(world.agent.rotation)
+    right = (math.sin(yaw), -math.cos(yaw), 0.0)
+    up = (right[1] * fwd[2] - right[2] * fwd[1], right[2] * fwd[0] - right[0] * fwd[2],
+          right[0] * fwd[1] - right[1] * fwd[0])
+    points = [eye[i] + z * (fwd[i] + u * right[i] + v * up[i]) for i in range(3)]
+    # Bearings relative to the heading: what is in view lies ahead, so no wrap-around.
+    ahead = (points[0] - eye[0]) * math.cos(yaw) + (points[1] - eye[1]) * math.sin(yaw)
+    left = -(points[0] - eye[0]) * math.sin(yaw) + (points[1] - eye[1]) * math.cos(yaw)
+    order = np.lexsort((np.arctan2(left, ahead), labels))       # by body, then by bearing
+    counts = np.bincount(labels)
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    out = {}
+    for body in np.flatnonzero(counts >= min_pixels):
+        oid = bodies.get(int(body))
+        if oid is None:
+            continue
+        k = order[starts[body] + (counts[body] - 1) // 2]
+        out[oid] = (float(points[0][k]), float(points[1][k]), float(points[2][k]))
+    return out
+
+
+def _with_slices(world: World, object_id: str) -> list[str]:
+    """[object_id] while it exists; once sliced, the slices cut from it (sorted); else []."""
+    if object_id in world.objects:
+        return [object_id]
+    return sorted(o.object_id for o in world.objects.values() if o.sliced_from == object_id)
 
 
 def task_object_ids(env) -> list[str]:
-    """Ids of the objects the current task acts on (targets and receptacles), in primitive order;
-    objects that no longer exist (a sliced target) are left out."""
+    """Ids of the objects the current task acts on (targets and receptacles), in primitive order; a
+    target that has been sliced is replaced by its slices (what is left of it in the world)."""
     task = getattr(env, 'task', None)
     if task is None:
         return []
     ids = [q for p in task.primitives for q in (p.target, p.receptacle) if q]
-    return [q for q in dict.fromkeys(ids) if q in env.world.objects]
+    return list(dict.fromkeys(s for q in dict.fromkeys(ids) for s in _with_slices(env.world, q)))
 
 
 def _task_objects(env) -> dict[str, str]:
-    """noun -> object id; where two task objects share a noun, the one acted on (not walked to) wins."""
+    """noun -> object id; where two task objects share a noun, the one acted on (not walked to) wins.
+    A sliced target counts as its slices ('apple slice' -> the first of them)."""
     task = getattr(env, 'task', None)
     if task is None:
         return {}
@@ -118,8 +182,8 @@ def _task_objects(env) -> dict[str, str]:
     out: dict[str, str] = {}
     ranked = [(p.kind == 'goto', q) for p in task.primitives for q in (p.target, p.receptacle) if q]
     for _, oid in sorted(ranked, key=lambda r: r[0]):   # stable: acted-on first, primitive order
-        if oid in objects:
-            out.setdefault(objects[oid].otype.noun, oid)
+        for q in _with_slices(env.world, oid):
+            out.setdefault(objects[q].otype.noun, q)
     return out
 
 
@@ -138,6 +202,8 @@ def snapshot(env, appearance_of: Sequence[str] = ()) -> Snapshot:
     view = _PartView(world)    # rendered once, if any of them is in view
     appearances = {oid: _appearance(env, oid, MIN_APPEARANCE_PIXELS, view) for oid in dict.fromkeys(appearance_of)
                    if oid in world.objects}
+    _, depth, segmentation = env._frame
+    seen = seen_positions(world, depth, segmentation)
     return Snapshot(
         agent=(float(a.x), float(a.y), float(a.rotation), float(a.horizon)),
         expert_end=expert_end,
@@ -145,8 +211,60 @@ def snapshot(env, appearance_of: Sequence[str] = ()) -> Snapshot:
         task_type=task.task_type if task is not None else '',
         instruction=task.instruction if task is not None else '',
         task_objects=_task_objects(env),
-        objects={oid: object_fact(world, world.objects[oid]) for oid in sorted(world.objects)},
+        objects={oid: object_fact(world, world.objects[oid], seen.get(oid)) for oid in sorted(world.objects)},
         appearances=appearances)
+
+
+class GroundTruthCache:
+    """The ground truth of one DialfredEnv, computed once per state of its world, states numbered.
+
+    The env renders a new frame on every reset, step and teleport (and the world changes only
+    then), so a frame object not seen before starts a new state: `version()` then moves on by one
+    from `first_version`, and the snapshot and appearances are computed afresh, each on first use.
+    A snapshot from here equals `snapshot(env, ids)` of the same moment. Changes made to the world
+    directly, without a new frame, are not noticed (tests re-render after such edits)."""
+
+    def __init__(self, env, first_version: int = 1):
+        self.env = env
+        self._frame = None                  # the frame of the cached state (held: its id stays unique)
+        self._version = first_version - 1
+        self._snapshot: Optional[Snapshot] = None
+        self._appearances: dict[str, Appearance] = {}
+        self._view: Optional[_PartView] = None
+
+    def _sync(self) -> None:
+        frame = self.env._frame
+        if frame is None:
+            raise RuntimeError('snapshot() before reset()')
+        if frame is not self._frame:
+            self._frame, self._version = frame, self._version + 1
+            self._snapshot, self._appearances, self._view = None, {}, _PartView(self.env.world)
+
+    def version(self) -> int:
+        """The number of the world's current state."""
+        self._sync()
+        return self._version
+
+    def snapshot(self, appearance_of: Sequence[str] = ()) -> Snapshot:
+        """`snapshot(env, appearance_of)`, from the cache while the state is unchanged."""
+        self._sync()
+        if self._snapshot is None:
+            self._snapshot = snapshot(self.env)
+        looks = self.appearances(appearance_of)
+        return replace(self._snapshot, appearances=looks) if looks else self._snapshot
+
+    def appearances(self, object_ids: Sequence[str]) -> dict[str, Appearance]:
+        """The appearance of each id in `object_ids` that is in the scene, rendered once per state."""
+        self._sync()
+        world = self.env.world
+        out = {}
+        for oid in dict.fromkeys(object_ids):
+            if oid not in world.objects:
+                continue
+            if oid not in self._appearances:
+                self._appearances[oid] = _appearance(self.env, oid, MIN_APPEARANCE_PIXELS, self._view)
+            out[oid] = self._appearances[oid]
+        return out
 
 
 # ---------------------------------------------------------------------- appearance
@@ -272,7 +390,9 @@ def snapshot_to_dict(s: Snapshot) -> dict[str, Any]:
         'expert_end': list(s.expert_end) if s.expert_end is not None else None,
         'task_id': s.task_id, 'task_type': s.task_type, 'instruction': s.instruction,
         'task_objects': dict(s.task_objects),
-        'objects': {oid: {**f.__dict__, 'position': list(f.position)} for oid, f in s.objects.items()},
+        'objects': {oid: {**f.__dict__, 'position': list(f.position),
+                          'seen_position': list(f.seen_position) if f.seen_position is not None else None}
+                    for oid, f in s.objects.items()},
         'appearances': {oid: {'object_id': a.object_id, 'pixels': np.asarray(a.pixels).tolist(),
                               'from_current_view': a.from_current_view} for oid, a in s.appearances.items()},
     }
@@ -280,7 +400,10 @@ def snapshot_to_dict(s: Snapshot) -> dict[str, Any]:
 
 def snapshot_from_dict(d: dict[str, Any]) -> Snapshot:
     """The Snapshot that `snapshot_to_dict` wrote."""
-    objects = {oid: ObjectFact(**{**f, 'position': tuple(float(v) for v in f['position'])})
+    def point(v):
+        return tuple(float(x) for x in v) if v is not None else None
+    objects = {oid: ObjectFact(**{**f, 'position': point(f['position']),
+                                  'seen_position': point(f.get('seen_position'))})
                for oid, f in d['objects'].items()}
     appearances = {oid: Appearance(a['object_id'], np.asarray(a['pixels'], dtype=np.uint8).reshape(-1, 3),
                                    bool(a['from_current_view'])) for oid, a in d.get('appearances', {}).items()}

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import array as pyarray
 import sys
+import time
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
@@ -20,7 +21,7 @@ from dialfred_msgs.msg import AgentPose, Appearance, ObjectFact, Observation, Ta
 from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
-from .ground_truth import snapshot
+from .ground_truth import GroundTruthCache
 from .tasks.splits import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
@@ -77,12 +78,15 @@ def task_answer_key(task, goal_conditions_total: int) -> TaskAnswerKey:
 
 
 def object_fact_msg(f) -> ObjectFact:
+    seen_x, seen_y, seen_z = f.seen_position if f.seen_position is not None else (0.0, 0.0, 0.0)
     return ObjectFact(object_id=f.object_id, type_name=f.type_name, noun=f.noun, x=float(f.position[0]),
                       y=float(f.position[1]), z=float(f.position[2]), parent_id=f.parent_id,
                       parent_type=f.parent_type, parent_noun=f.parent_noun, preposition=f.preposition,
                       colour=f.colour, material=f.material, pickupable=bool(f.pickupable),
                       is_open=bool(f.is_open), is_on=bool(f.is_on), is_dirty=bool(f.is_dirty),
-                      is_sliced=bool(f.is_sliced), temperature=f.temperature, held=bool(f.held))
+                      is_sliced=bool(f.is_sliced), temperature=f.temperature, held=bool(f.held),
+                      in_view=f.seen_position is not None, seen_x=float(seen_x), seen_y=float(seen_y),
+                      seen_z=float(seen_z))
 
 
 class TasksFileError(RuntimeError):
@@ -118,6 +122,9 @@ class SimNode(Node):
         self.create_service(SimReset, 'sim/reset', self.on_reset, qos_profile=SERVICE_QOS)
         self.create_service(SimStep, 'sim/step', self.on_step, qos_profile=SERVICE_QOS)
         self.create_service(GroundTruth, 'sim/ground_truth', self.on_ground_truth, qos_profile=SERVICE_QOS)
+        # One snapshot per state; versions start at the start time so a restart never reuses one.
+        self.truth = GroundTruthCache(self.env, first_version=time.time_ns())
+        self._fact_msgs: tuple[int, list] = (0, [])     # (version, its ObjectFact messages)
         self.clock = self.get_clock()
         self.obs = None
         self.info = None
@@ -171,8 +178,15 @@ class SimNode(Node):
         if unknown:
             response.ok, response.error = False, f'unknown object id(s) in appearance_of: {unknown[:5]}'
             return response
-        snap = snapshot(self.env, list(request.appearance_of))
-        response.ok = True
+        version = self.truth.version()
+        response.ok, response.version = True, version
+        response.appearances = [Appearance(object_id=a.object_id, pixels=image_bytes(a.pixels),
+                                           from_current_view=bool(a.from_current_view))
+                                for a in self.truth.appearances(list(request.appearance_of)).values()]
+        if request.known_version == version:
+            response.unchanged = True     # the caller holds this state already
+            return response
+        snap = self.truth.snapshot()
         x, y, rot, horizon = snap.agent
         response.agent = AgentPose(x=float(x), y=float(y), camera_height=CAMERA_HEIGHT,
                                    rotation_deg=float(rot), horizon_deg=float(horizon))
@@ -182,10 +196,9 @@ class SimNode(Node):
             response.answer_key = task_answer_key(self.env.task, self.info['goal_conditions_total'])
         response.task_nouns = list(snap.task_objects)
         response.task_object_ids = list(snap.task_objects.values())
-        response.objects = [object_fact_msg(f) for f in snap.objects.values()]
-        response.appearances = [Appearance(object_id=a.object_id, pixels=image_bytes(a.pixels),
-                                           from_current_view=bool(a.from_current_view))
-                                for a in snap.appearances.values()]
+        if self._fact_msgs[0] != version:
+            self._fact_msgs = (version, [object_fact_msg(f) for f in snap.objects.values()])
+        response.objects = self._fact_msgs[1]
         return response
 
     @error_reply()
