@@ -131,14 +131,7 @@ def test_unseen_rooms_never_appear_in_train_and_seen_rooms_do(valid_tasks):
     assert len(train) == 108
 
 
-# Issue 10 changed what the world allows (open doors take floor, a held object stays out of the walls)
-# and the expert with it; the valid splits were regenerated, the shipped train split was not (49 min).
-TRAIN_PREDATES_ISSUE_10 = pytest.mark.xfail(
-    strict=True, reason='the shipped train split predates issue 10\'s physics; regenerate it with '
-                        '`./dialfred env python3 -m dialfred_sim.tasks.splits train --workers 2`, then drop this mark')
-
-
-@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', pytest.param('train', marks=TRAIN_PREDATES_ISSUE_10)])
+@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', 'train'])
 def test_a_split_regenerates_identically_from_its_seeds(split):
     with gzip.open(packaged_path(split), 'rt') as f:
         shipped = [json.loads(next(f)) for _ in range(3)]
