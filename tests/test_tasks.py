@@ -57,17 +57,23 @@ def test_every_task_type_has_a_task_the_expert_solves(valid_tasks, task_type):
         env.close()
 
 
-@pytest.mark.parametrize('task_type', TASK_TYPES)
-def test_gc_is_0_at_the_start_and_never_falls_while_the_expert_works(valid_tasks, task_type):
-    """GC counts only the goal conditions left to do at the start: nothing done scores 0, and the
-    expert's necessary steps (putting the apple down to heat it) never take GC back."""
-    task = next(t for t in valid_tasks['valid_unseen'] if t.task_type == task_type)
+def expert_progress(task) -> list:
+    """`play_expert`'s progress of `task` in an env of its own."""
     env = DialfredEnv(resolution=task.resolution)
     try:
         progress = []
         play_expert(env, task, progress)
     finally:
         env.close()
+    return progress
+
+
+@pytest.mark.parametrize('task_type', TASK_TYPES)
+def test_gc_is_0_at_the_start_and_never_falls_while_the_expert_works(valid_tasks, task_type):
+    """GC counts only the goal conditions left to do at the start: nothing done scores 0, and the
+    expert's necessary steps (putting the apple down to heat it) never take GC back."""
+    task = next(t for t in valid_tasks['valid_unseen'] if t.task_type == task_type)
+    progress = expert_progress(task)
     _, met, total, _ = progress[0]
     assert met == 0 and 1 <= total <= len(task.goal), progress[0]
     assert all(p[2] == total for p in progress), 'the number of conditions to achieve changed'
@@ -83,12 +89,7 @@ def test_gc_of_a_heat_task_counts_the_heating_not_the_apple_already_in_hand(vali
     needs the object back in hand and the microwave closed."""
     task = next(t for t in valid_tasks['valid_unseen'] if t.task_type == 'Heat')
     assert [c.kind for c in task.goal] == ['hot', 'holding', 'closed']
-    env = DialfredEnv(resolution=task.resolution)
-    try:
-        progress = []
-        play_expert(env, task, progress)
-    finally:
-        env.close()
+    progress = expert_progress(task)
     actions = [p[0] for p in progress]
     on = actions.index('ToggleOn')
     assert [p[1:3] for p in progress[:on]] == [(0, 1)] * on
