@@ -577,7 +577,8 @@ def print_report(report: EvalReport) -> None:
 
 def eval_config(args) -> EvalConfig:
     return EvalConfig(split=args.split or 'valid_unseen',
-                      agent=args.agent, questioner=args.questioner or '', limit=args.limit,
+                      agent=args.agent, questioner='' if args.questioner in (None, 'none') else args.questioner,
+                      limit=args.limit,
                       perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
                       workers=args.workers,
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
@@ -622,7 +623,8 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--checkpoint', default=None, metavar='PATH',
                     help='the et performer\'s checkpoint (default out/performer/et.pt)')
     ev.add_argument('--questioner', default=None,
-                    help='ask the oracle (one oracle node per worker): random = one random question at the '
+                    help='ask the oracle (one oracle node per worker): none (the default) = no questions; '
+                         'random = one random question at the '
                          'start; all = location + appearance of every instruction object, then direction; '
                          'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
                          'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')

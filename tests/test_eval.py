@@ -283,6 +283,17 @@ def test_the_default_results_file_names_the_questioner():
     assert EvalConfig(split=SPLIT, agent='random').results_path.name == 'valid_unseen_random.jsonl'
 
 
+def test_questioner_none_on_the_command_line_means_no_questions():
+    from dialfred_eval import add_eval_parser, eval_config
+    import argparse
+    parser = argparse.ArgumentParser()
+    add_eval_parser(parser.add_subparsers())
+    for argv in (['eval'], ['eval', '--questioner', 'none']):
+        config = eval_config(parser.parse_args(argv))
+        assert config.questioner == '' and config.agent_name == 'expert'
+    assert eval_config(parser.parse_args(['eval', '--questioner', 'all'])).questioner == 'all'
+
+
 def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, monkeypatch):
     import dialfred_eval
     from dialfred_questioner import baselines
