@@ -40,7 +40,7 @@ from dialfred_questioner.baselines import top2_gap
 from dialfred_sim.agents import QA, Question
 from dialfred_sim.messages import public_task_from_msg, qa_msg, task_description_msg
 from dialfred_sim.metrics import end_reason
-from dialfred_sim.ros_util import SERVICE_QOS, run_node
+from dialfred_sim.ros_util import SERVICE_QOS, refused_request, run_node
 
 from .agent import PerformerAgent
 from .model import CheckpointError
@@ -232,8 +232,14 @@ class PerformerNode(Node):
         if client.srv_name not in self._settled:
             if not client.wait_for_service(timeout_sec=timeout):
                 raise GoalFailed(f'no {client.srv_name} service after {timeout:g} s')
-            time.sleep(SETTLE_S)
             self._settled.add(client.srv_name)
+            # The reply path may match a moment after the service appears: a request the server
+            # refuses without changing anything, resent until answered, proves it (as Graph.client).
+            probe = refused_request(client.srv_type)
+            if probe is not None:
+                self.call(client, probe, resend=True)
+            else:
+                time.sleep(SETTLE_S)
         while True:
             done = threading.Event()
             future = client.call_async(request)

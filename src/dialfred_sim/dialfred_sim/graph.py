@@ -137,19 +137,6 @@ class NodeProcess:
         return self.proc.poll()
 
 
-def refused_request(srv_type):
-    """A request of `srv_type` that its dialfred server refuses without changing anything (an empty
-    action, an unknown scene or object id), or None for other types."""
-    from dialfred_msgs.msg import Action
-    from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
-    probes = {SimStep: lambda: SimStep.Request(action=Action(action=''), with_depth=False, with_segmentation=False),
-              SimReset: lambda: SimReset.Request(scene='-', with_depth=False, with_segmentation=False),
-              GroundTruth: lambda: GroundTruth.Request(appearance_of=['-'])}
-    # (No OracleAnswer probe: the oracle logs every question it is asked, and its callers resend.)
-    make = probes.get(srv_type)
-    return make() if make else None
-
-
 class Graph:
     """The running node graph plus a client node in this process to talk to it."""
 
@@ -214,6 +201,7 @@ class Graph:
         # discovery race, ros2/rmw_fastrtps#390; under load it outlasted a fixed 0.2 s wait).
         # A request the server refuses without changing anything, sent until one reply comes
         # back, proves the reply path; services without such a request get a moment of discovery.
+        from dialfred_sim.ros_util import refused_request
         probe = refused_request(srv_type)
         if probe is not None:
             self.call(cli, probe, timeout=max(1.0, deadline - time.monotonic()), retry_after=0.5)

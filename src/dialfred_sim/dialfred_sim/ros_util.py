@@ -15,6 +15,19 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE, depth=1)
 
 
+def refused_request(srv_type):
+    """A request of `srv_type` that its dialfred server refuses without changing anything (an empty
+    action, an unknown scene or object id), or None for other types."""
+    from dialfred_msgs.msg import Action
+    from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
+    probes = {SimStep: lambda: SimStep.Request(action=Action(action=''), with_depth=False, with_segmentation=False),
+              SimReset: lambda: SimReset.Request(scene='-', with_depth=False, with_segmentation=False),
+              GroundTruth: lambda: GroundTruth.Request(appearance_of=['-'])}
+    # (No OracleAnswer probe: the oracle logs every question it is asked, and its callers resend.)
+    make = probes.get(srv_type)
+    return make() if make else None
+
+
 def make_executor():
     """The EventsExecutor (measured about 4x lower service latency here), else single-threaded."""
     try:
