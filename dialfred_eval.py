@@ -52,7 +52,7 @@ class EvalConfig:
     tasks_file: Optional[Path] = None   # a split file of your own (a test_unseen split) instead of `split`
     performer: str = ''                 # 'et': a performer node per worker plays each task (RunTask goals);
                                         # '' = the agent is a Python object of this process (the in-process path)
-    checkpoint: Optional[Path] = None   # the `et` performer's checkpoint (default out/performer/et.pt)
+    checkpoint: Optional[Path] = None   # the `et` performer's checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)
     episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
 
     @functools.cached_property
@@ -63,7 +63,10 @@ class EvalConfig:
 
     @property
     def checkpoint_path(self) -> Path:
-        return Path(self.checkpoint) if self.checkpoint else REPO / 'out' / 'performer' / 'et.pt'
+        if self.checkpoint:
+            return Path(self.checkpoint)
+        from dialfred_performer.model import SHIPPED_CHECKPOINT
+        return SHIPPED_CHECKPOINT
 
     @functools.cached_property
     def checkpoint_sha256(self) -> str:
@@ -621,7 +624,7 @@ def add_eval_parser(sub) -> None:
                          'and questioner nodes in its namespace); this process only sends goals and records '
                          'results. (--agent et plays the same performer in this process.)')
     ev.add_argument('--checkpoint', default=None, metavar='PATH',
-                    help='the et performer\'s checkpoint (default out/performer/et.pt)')
+                    help='the et performer\'s checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)')
     ev.add_argument('--questioner', default=None,
                     help='ask the oracle (one oracle node per worker): none (the default) = no questions; '
                          'random = one random question at the '

@@ -1,8 +1,11 @@
-"""Decision time of PerformerAgent (untrained, default PerformerConfig) on one CPU thread: ms per
-step at steps 1, 20 and 60 of an episode with a 3-QA dialogue, on random 128x128 frames resized to
-the model's resolution. Prints JSON.
+"""Decision time of PerformerAgent (default PerformerConfig; the shipped checkpoint's weights when
+it is there, else untrained: the time does not depend on the weights) on one CPU thread: ms per step
+at steps 1, 20, 60 and 200 of an episode with a 3-QA dialogue, on random 128x128 frames resized to the
+model's resolution. The incremental agent (the default: a step computes its own tokens against cached
+keys and values) and the baseline that reads the whole episode again at every step, in the same run.
+Prints JSON.
 
-    ./dialfred bench performer_decision
+    ./dialfred bench performer_decision [--repeats 5]
 """
 
 from __future__ import annotations
@@ -15,10 +18,12 @@ import numpy as np
 import torch
 
 from dialfred_performer.agent import PerformerAgent
-from dialfred_performer.model import Performer, PerformerConfig
+from dialfred_performer.model import SHIPPED_CHECKPOINT, Performer, PerformerConfig, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_sim.agents import QA, Question
 from dialfred_sim.tasks import PublicTask
+
+STEPS = (1, 20, 60, 200)
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -31,25 +36,33 @@ def main() -> None:
     answers = ['The apple is to your left in the fridge.', 'The apple is red and made of food.',
                'You should turn left.']
     vocab = Vocabulary.build([instruction, *answers])
-    agent = PerformerAgent(Performer(config, len(vocab)), vocab)
+    if SHIPPED_CHECKPOINT.is_file():
+        model, vocab, _ = load_checkpoint(SHIPPED_CHECKPOINT)
+        config = model.config
+    else:
+        model = Performer(config, len(vocab))
+    agent = PerformerAgent(model, vocab)
     task = PublicTask('bench/0', 'FloorPlan1', 'bench', instruction, ('apple', 'fridge'))
-    frames = np.random.default_rng(0).integers(0, 256, (REPEATS, 61, 128, 128, 3), dtype=np.uint8)
-    times = {1: [], 20: [], 60: []}
-    for r in range(REPEATS):
-        agent.reset(task, seed=r)
-        for qtype, noun, text in zip(('location', 'appearance', 'direction'), ('apple', 'apple', ''), answers):
-            agent.hear(QA(Question(qtype, noun), True, text))
-        for step in range(1, 61):
-            t0 = time.perf_counter()
-            agent.act(frames[r, step])
-            dt = (time.perf_counter() - t0) * 1000
-            if step in times:
-                times[step].append(dt)
-    print(json.dumps({'config': {'resolution': config.resolution, 'd_model': config.d_model,
-                                 'layers': config.layers}, 'threads': torch.get_num_threads(),
-                      'ms_per_step_median': {f'step_{k}': round(float(np.median(v)), 2) for k, v in times.items()},
-                      'ms_per_step_max': {f'step_{k}': round(float(np.max(v)), 2) for k, v in times.items()},
-                      'repeats': REPEATS}))
+    rng = np.random.default_rng(0)
+    report = {'config': {'resolution': config.resolution, 'd_model': config.d_model, 'layers': config.layers},
+              'threads': torch.get_num_threads(), 'repeats': REPEATS}
+    for name, incremental in (('incremental', True), ('whole_episode', False)):
+        agent.incremental = incremental
+        times = {s: [] for s in STEPS}
+        for r in range(REPEATS):
+            agent.reset(task, seed=r)
+            for qtype, noun, text in zip(('location', 'appearance', 'direction'), ('apple', 'apple', ''), answers):
+                agent.hear(QA(Question(qtype, noun), True, text))
+            for step in range(1, STEPS[-1] + 1):
+                frame = rng.integers(0, 256, (128, 128, 3), dtype=np.uint8)
+                t0 = time.perf_counter()
+                agent.act(frame)
+                dt = (time.perf_counter() - t0) * 1000
+                if step in times:
+                    times[step].append(dt)
+        report[name] = {'ms_per_step_median': {f'step_{k}': round(float(np.median(v)), 2) for k, v in times.items()},
+                        'ms_per_step_max': {f'step_{k}': round(float(np.max(v)), 2) for k, v in times.items()}}
+    print(json.dumps(report))
 
 
 if __name__ == '__main__':

@@ -68,4 +68,56 @@ def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():
     proc = subprocess.run([sys.executable, str(script), '--repeats', '1'], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     report = json.loads(proc.stdout[proc.stdout.index('{'):])
-    assert report['threads'] == 1 and set(report['ms_per_step_median']) == {'step_1', 'step_20', 'step_60'}
+    assert report['threads'] == 1
+    for path in ('incremental', 'whole_episode'):
+        assert set(report[path]['ms_per_step_median']) == {'step_1', 'step_20', 'step_60', 'step_200'}
+
+
+def _twin_agents(max_tokens: int = 256):
+    from types import SimpleNamespace as NS
+    vocab = Vocabulary.build(['put the red apple in the fridge', 'the apple is to your left in the fridge .',
+                              'you should turn around', 'it is red and made of plastic'])
+    torch.manual_seed(3)
+    model = Performer(PerformerConfig(resolution=RES, d_model=32, heads=2, layers=2, ff=64, max_tokens=max_tokens),
+                      len(vocab))
+    task = NS(instruction='put the red apple in the fridge', object_nouns=['apple', 'fridge'])
+    return PerformerAgent(model, vocab, incremental=True), PerformerAgent(model, vocab, incremental=False), task
+
+
+def _play_twins(incremental, full, task, frames, qas_at):
+    incremental.reset(task, 0)
+    full.reset(task, 0)
+    logits = []
+    for t, frame in enumerate(frames):
+        if t in qas_at:
+            # the confusion questioner's look before a QA arrives must not be committed
+            assert np.allclose(incremental.action_probabilities(frame), full.action_probabilities(frame), atol=1e-5)
+            for qa in qas_at[t]:
+                incremental.hear(qa)
+                full.hear(qa)
+        a = incremental._outputs(frame)
+        b = full._outputs(frame)
+        assert torch.allclose(a[0], b[0], atol=1e-4) and torch.allclose(a[1], b[1], atol=1e-4), t
+        logits.append(a[0])
+        assert incremental.act(frame) == full.act(frame)
+    return logits
+
+
+def test_incremental_decisions_equal_reading_the_whole_episode_again():
+    incremental, full, task = _twin_agents()
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 256, (RES, RES, 3), dtype=np.uint8) for _ in range(14)]
+    loc = QA(Question('location', 'apple'), True, 'The apple is to your left in the fridge.')
+    app = QA(Question('appearance', 'apple'), True, 'It is red and made of plastic.')
+    dirn = QA(Question('direction'), True, 'You should turn around.')
+    _play_twins(incremental, full, task, frames, {0: [loc, app], 5: [dirn], 9: [loc]})
+    assert incremental._cache is not None and incremental._cache[0].keys.shape[1] > 3 * 14
+
+
+def test_when_qas_outgrow_max_tokens_the_agent_falls_back_to_the_whole_episode():
+    incremental, full, task = _twin_agents(max_tokens=40)
+    rng = np.random.default_rng(1)
+    frames = [rng.integers(0, 256, (RES, RES, 3), dtype=np.uint8) for _ in range(8)]
+    loc = QA(Question('location', 'apple'), True, 'The apple is to your left in the fridge.')
+    _play_twins(incremental, full, task, frames, {0: [loc], 2: [loc], 4: [loc, loc]})
+    assert incremental._cache is None          # the oldest QAs were dropped, positions moved

@@ -44,22 +44,30 @@ def observation_rgb(observation: Any) -> np.ndarray:
 
 
 class PerformerAgent:
-    """A trained (or untrained) `Performer` playing one episode at a time; greedy decisions."""
+    """A trained (or untrained) `Performer` playing one episode at a time; greedy decisions.
+
+    With `incremental` (the default) a step computes only its own tokens against cached keys and
+    values of the earlier steps (`Performer.decode_step`), so a decision does not slow down as the
+    episode grows; without it, or once the dialogue outgrows the model's `max_tokens` (the oldest QAs
+    are then dropped, which moves every later token), the transformer reads the whole episode again
+    at every step (`Performer.decode`, the training path). Both give the same decisions up to float
+    rounding (tested)."""
 
     name = 'performer'
 
-    def __init__(self, model: Performer, vocab: Vocabulary):
+    def __init__(self, model: Performer, vocab: Vocabulary, incremental: bool = True):
         if len(vocab) != model.vocab_size:
             raise ValueError(f'the vocabulary has {len(vocab)} words, the model {model.vocab_size}')
         self.model = model.eval()
         self.vocab = vocab
         self.config = model.config
+        self.incremental = incremental
         self.reset_state()
 
     @classmethod
-    def from_checkpoint(cls, path: Path) -> 'PerformerAgent':
+    def from_checkpoint(cls, path: Path, incremental: bool = True) -> 'PerformerAgent':
         model, vocab, _ = load_checkpoint(path)
-        return cls(model, vocab)
+        return cls(model, vocab, incremental)
 
     def reset_state(self) -> None:
         self.task = None
@@ -70,6 +78,8 @@ class PerformerAgent:
         self._grids: list[torch.Tensor] = []          # [C, d] per past step
         self._previous_actions: list[int] = [START]
         self._pending: Optional[tuple] = None        # (observation, (step, dialogue length), outputs)
+        self._cache = self.model.encoder.empty_cache() if self.incremental else None
+        self._lang_cached = 0                         # language tokens in the cache
 
     def reset(self, task: Any, seed: int = 0) -> None:
         """Start an episode of `task` (a PublicTask: only its instruction is read)."""
@@ -87,8 +97,9 @@ class PerformerAgent:
         return encode_language(self.vocab, self.instruction, self.dialogue, self.config.max_tokens)
 
     @torch.inference_mode()
-    def _outputs(self, observation: Any) -> tuple[torch.Tensor, torch.Tensor, int]:
-        """(action logits [13], pointer logits [C], (height, width), frame embedding, grid) for the current step and observation."""
+    def _outputs(self, observation: Any) -> tuple:
+        """(action logits [13], pointer logits [C], (height, width), frame embedding, grid, extended
+        cache or None, language tokens) for the current step and observation."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, len(self.dialogue))
@@ -97,14 +108,22 @@ class PerformerAgent:
         rgb = observation_rgb(observation)
         emb, grid = self.model.encode_frames(frame_tensor(rgb, self.config.resolution)[None])
         lang = self.language_input()
-        ids = torch.tensor([lang.ids], dtype=torch.long)
-        embeddings = torch.stack([*self._embeddings, emb[0]])[None]
-        grids = torch.stack([*self._grids, grid[0]])[None]
-        T = embeddings.shape[1]
-        action_logits, pointer_logits = self.model.decode(
-            ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
-            embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
-        result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid[0])
+        if self._cache is not None and len(lang) < len(encode_language(self.vocab, self.instruction, self.dialogue)):
+            self._cache = None           # QAs were dropped to fit max_tokens: positions moved
+        if self._cache is not None:
+            action_logits, pointer_logits, cache = self.model.decode_step(
+                self._cache, torch.tensor(lang.ids), torch.tensor(lang.types), self._lang_cached, emb[0], grid[0],
+                self._previous_actions[-1], self.step)
+            result = (action_logits, pointer_logits, rgb.shape[:2], emb[0], grid[0], cache, len(lang))
+        else:
+            ids = torch.tensor([lang.ids], dtype=torch.long)
+            embeddings = torch.stack([*self._embeddings, emb[0]])[None]
+            grids = torch.stack([*self._grids, grid[0]])[None]
+            T = embeddings.shape[1]
+            action_logits, pointer_logits = self.model.decode(
+                ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
+                embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
+            result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid[0], None, len(lang))
         self._pending = (observation, key, result)
         return result
 
@@ -115,7 +134,7 @@ class PerformerAgent:
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
         in the observation's frame."""
-        action_logits, pointer_logits, (height, width), emb, grid = self._outputs(observation)
+        action_logits, pointer_logits, (height, width), emb, grid, cache, n_lang = self._outputs(observation)
         action = int(action_logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
@@ -123,6 +142,8 @@ class PerformerAgent:
         self._embeddings.append(emb)
         self._grids.append(grid)
         self._previous_actions.append(action)
+        if self._cache is not None:
+            self._cache, self._lang_cached = cache, n_lang
         self.step += 1
         self._pending = None
         return ACTIONS[action], x, y

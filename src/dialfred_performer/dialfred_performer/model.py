@@ -30,6 +30,9 @@ from .preprocess import N_TOKEN_TYPES, Vocabulary
 INTERACTIONS = ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice')
 INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
+# The trained checkpoint shipped in the package (the command that made it is stored inside it and in
+# docs/benchmarks.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
+SHIPPED_CHECKPOINT = Path(__file__).resolve().parent / 'checkpoints' / 'et.pt'
 
 
 @dataclass(frozen=True)
@@ -74,6 +77,18 @@ class Performer(nn.Module):
         lang = self.language(lang_ids, lang_types)
         h = self.encoder(lang, lang_steps, lang_valid, frame_embedding, self.actions(previous_actions), step_valid)
         return self.action_head(h), self.pointer_head(h, grid)
+
+    @torch.no_grad()
+    def decode_step(self, cache, lang_ids: torch.Tensor, lang_types: torch.Tensor, first_new: int,
+                    frame_embedding: torch.Tensor, grid: torch.Tensor, previous_action: int, t: int):
+        """Step t of one episode, incrementally (the agent's path; see MultimodalEncoder.step): the
+        language so far (lang_ids, lang_types [L]; the tokens from `first_new` on became known at
+        step t), the frame's embedding [d] and grid [C, d], the previous action. Returns (action
+        logits [13], pointer logits [C], the extended cache)."""
+        lang = self.language(lang_ids[None], lang_types[None])[0, first_new:]
+        action = self.actions(torch.tensor([[previous_action]]))[0, 0]
+        h, cache = self.encoder.step(cache, lang, frame_embedding, action, t)
+        return self.action_head(h), self.pointer_head(h, grid), cache
 
     def forward(self, batch: dict) -> dict:
         """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],

@@ -43,7 +43,7 @@ from dialfred_sim.metrics import end_reason
 from dialfred_sim.ros_util import SERVICE_QOS, refused_request, run_node
 
 from .agent import PerformerAgent
-from .model import CheckpointError
+from .model import SHIPPED_CHECKPOINT, CheckpointError
 
 RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again
 SETTLE_S = 0.2           # after a service first appears: its reply path may match a moment later
@@ -61,9 +61,9 @@ class PerformerNode(Node):
     def __init__(self):
         super().__init__('dialfred_performer')
         ro = dict(read_only=True)
-        self.declare_parameter('checkpoint', '', ParameterDescriptor(
-            description="the performer checkpoint (dialfred_performer.model.save_checkpoint); a goal may name "
-                        "another", **ro))
+        self.declare_parameter('checkpoint', str(SHIPPED_CHECKPOINT), ParameterDescriptor(
+            description="the performer checkpoint (dialfred_performer.model.save_checkpoint; default the one "
+                        "shipped in the package; '' = none); a goal may name another", **ro))
         self.declare_parameter('questioner', False, ParameterDescriptor(
             description='ask questioner/ask before every action (and oracle/answer what it asks)', **ro))
         self.declare_parameter('request_timeout', 60.0, ParameterDescriptor(

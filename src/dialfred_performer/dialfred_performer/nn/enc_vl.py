@@ -54,6 +54,35 @@ class Block(nn.Module):
         x = x + self.dropout(self.out(a.transpose(1, 2).reshape(B, S, D)))
         return x + self.dropout(self.ff(self.norm2(x)))
 
+    def forward_new(self, x: torch.Tensor, is_lang: torch.Tensor, past: 'LayerCache') -> tuple:
+        """The tokens of the current step only (x [N, d]; is_lang [N]), attending to the cached keys
+        and values of every earlier step (`past`) and to each other under the same rule as
+        `attention_allowed` (all of them have the current step: language sees language only).
+        Returns (outputs [N, d], their keys and values [heads, N, d / heads] each)."""
+        N, D = x.shape
+        q, k, v = self.qkv(self.norm1(x)).view(N, 3, self.heads, D // self.heads).permute(1, 2, 0, 3)
+        keys, values = torch.cat([past.keys, k], 1), torch.cat([past.values, v], 1)
+        key_is_lang = torch.cat([past.is_lang, is_lang])
+        allowed = ~is_lang[:, None] | key_is_lang[None, :]                       # [N, M + N]
+        a = F.scaled_dot_product_attention(q[None], keys[None], values[None], attn_mask=allowed[None, None])[0]
+        x = x + self.out(a.transpose(0, 1).reshape(N, D))
+        return x + self.ff(self.norm2(x)), k, v
+
+
+class LayerCache:
+    """One layer's keys and values of the tokens of the steps already taken, and which are language."""
+
+    def __init__(self, heads: int, head_dim: int):
+        self.keys = torch.zeros(heads, 0, head_dim)
+        self.values = torch.zeros(heads, 0, head_dim)
+        self.is_lang = torch.zeros(0, dtype=torch.bool)
+
+    def extended(self, keys: torch.Tensor, values: torch.Tensor, is_lang: torch.Tensor) -> 'LayerCache':
+        out = LayerCache.__new__(LayerCache)
+        out.keys, out.values = torch.cat([self.keys, keys], 1), torch.cat([self.values, values], 1)
+        out.is_lang = torch.cat([self.is_lang, is_lang])
+        return out
+
 
 class MultimodalEncoder(nn.Module):
     def __init__(self, d_model: int, heads: int, layers: int, ff: int, max_steps: int, dropout: float = 0.0):
@@ -78,3 +107,30 @@ class MultimodalEncoder(nn.Module):
         for block in self.blocks:
             x = block(x, allowed)
         return self.norm(x[:, L:L + T])
+
+    def empty_cache(self) -> list[LayerCache]:
+        block = self.blocks[0]
+        return [LayerCache(block.heads, block.qkv.in_features // block.heads) for _ in self.blocks]
+
+    @torch.no_grad()
+    def step(self, cache: list[LayerCache], lang_new: torch.Tensor, frame: torch.Tensor, action: torch.Tensor,
+             t: int) -> tuple[torch.Tensor, list[LayerCache]]:
+        """One step of an episode, incrementally (inference only: no dropout). `cache` holds the
+        tokens of steps < t; lang_new [n, d] the language tokens that became known at step t (the
+        instruction at step 0, the QAs asked at step t), frame and action [d] the step's tokens.
+        Returns (the frame token's output [d], the cache extended with this step's tokens): the
+        same numbers as `forward` over the whole episode, up to float rounding. Only this step's
+        tokens are computed; they attend to the cached ones, so a step costs O(episode) instead of
+        the O(episode^2) of running `forward` again."""
+        if t >= self.time.num_embeddings:
+            raise ValueError(f'step {t}; this model takes at most {self.time.num_embeddings} steps')
+        time = self.time.weight[t]
+        x = torch.cat([lang_new, (frame + time + self.modality.weight[0])[None],
+                       (action + time + self.modality.weight[1])[None]])
+        is_lang = torch.zeros(x.shape[0], dtype=torch.bool)
+        is_lang[:lang_new.shape[0]] = True
+        new_cache = []
+        for block, past in zip(self.blocks, cache):
+            x, k, v = block.forward_new(x, is_lang, past)
+            new_cache.append(past.extended(k, v, is_lang))
+        return self.norm(x[lang_new.shape[0]]), new_cache
