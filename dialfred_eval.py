@@ -627,8 +627,10 @@ def add_eval_parser(sub) -> None:
                     help='the et performer\'s checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)')
     ev.add_argument('--questioner', default=None,
                     help='ask the oracle (one oracle node per worker): none (the default) = no questions; '
-                         'random = one random question at the '
-                         'start; all = location + appearance of every instruction object, then direction; '
+                         'random = the paper\'s Random QA: at the start, a type drawn with 25%% each for '
+                         'location, appearance, direction and no question, then every question of that type '
+                         '(one per instruction object, or one direction question); '
+                         'all = location + appearance of every instruction object, then direction; '
                          'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
                          'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')
     ev.add_argument('--perturb-type', default=None, choices=['location', 'appearance', 'direction'],

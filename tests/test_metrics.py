@@ -1,5 +1,6 @@
 """DialFRED's metrics (no ROS): success, path-weighted success, goal conditions, questions, per-type
-summaries in the paper's order, and the JSON-lines results file an evaluation resumes from."""
+summaries in the paper's order, their 95% bootstrap intervals, and the JSON-lines results file an
+evaluation resumes from."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import warnings
 import pytest
 
 from dialfred_sim.metrics import (END_REASONS, EpisodeResult, TruncatedResultsWarning, append_result, end_reason,
-                                  failures, format_table, load_results, results_by_task, summarize)
+                                  failures, format_table, intervals, load_results, results_by_task, summarize)
 from dialfred_sim.tasks.schema import TASK_TYPES
 
 
@@ -135,6 +136,48 @@ def test_an_empty_summary_has_zero_episodes():
     s = summarize([])
     assert s['overall']['n'] == 0 and s['per_type'] == {}
     assert 'overall' in format_table(s)
+
+
+def mixed(n, seed=0):
+    """n episodes with every metric varying: ~40% successes, some long, 0-3 questions, partial GC."""
+    import numpy as np
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        ok = bool(rng.random() < 0.4)
+        out.append(result(task_id=f'valid_unseen/{k:06d}', success=ok, met=int(rng.integers(0, 3)) if not ok else 2,
+                          total=2, steps=int(rng.integers(5, 40)), expert=10, questions=int(rng.integers(0, 4)),
+                          end='success' if ok else 'stop'))
+    return out
+
+
+def test_the_bootstrap_interval_holds_the_point_estimate_in_the_summarys_units():
+    results = mixed(300)
+    point, ci = summarize(results)['overall'], intervals(results)
+    assert set(ci) == {'SR', 'PWSR', 'GC', 'NQ'}
+    for k, (lo, hi) in ci.items():
+        assert lo < point[k] < hi, (k, lo, point[k], hi)
+    assert 0 < ci['SR'][0] and ci['SR'][1] < 100 and ci['NQ'][1] < 3
+
+
+def test_the_bootstrap_interval_narrows_as_episodes_grow():
+    small, large = intervals(mixed(100)), intervals(mixed(1600))
+    for k in small:
+        assert large[k][1] - large[k][0] < 0.6 * (small[k][1] - small[k][0]), (k, small[k], large[k])
+
+
+def test_the_bootstrap_interval_repeats_itself_for_a_seed():
+    results = mixed(200)
+    assert intervals(results, seed=3) == intervals(results, seed=3)
+    assert intervals(results, seed=3) != intervals(results, seed=4)
+
+
+def test_all_successes_give_a_degenerate_interval_and_no_results_give_zeros():
+    ci = intervals([result(task_id=f'valid_unseen/{k:06d}') for k in range(50)])
+    assert ci['SR'] == (100.0, 100.0) and ci['PWSR'] == (100.0, 100.0) and ci['NQ'] == (0.0, 0.0)
+    assert intervals([]) == {k: (0.0, 0.0) for k in ('SR', 'PWSR', 'GC', 'NQ')}
+    with pytest.raises(ValueError, match='resamples'):
+        intervals(mixed(5), resamples=0)
 
 
 def test_the_table_has_a_line_per_type_and_an_overall_line():

@@ -1,7 +1,8 @@
 """The questioners that need no training and how a questioner joins an agent (no ROS).
 
-Claims (the paper's baselines): the random questioner asks one question at the beginning of a task,
-of a uniformly drawn type, about an object of the instruction; the all-questions questioner asks the
+Claims (the paper's baselines): the random questioner ("Random QA") draws at the beginning of a task
+location, appearance, direction or no question with 25% each and asks every question of the drawn
+type (one per object of the instruction, or one direction question); the all-questions questioner asks the
 location and appearance of every object of the instruction and then for directions; the agent hands
 every answer to its performer and keeps the dialogue.
 """
@@ -34,26 +35,45 @@ def questions_of(questioner, t, seed=0, steps=3):
     return asked
 
 
-def test_the_random_questioner_asks_one_question_at_the_beginning_only():
-    asked = questions_of(RandomQuestioner(), task(), seed=3)
-    assert len(asked) == 1 and asked[0][0] == 0
-    q = asked[0][1]
-    assert q.question_type in QUESTION_TYPES
-    assert q.object_noun == '' if q.question_type == 'direction' else q.object_noun in ('fridge', 'apple')
+def test_the_random_questioner_asks_only_at_the_beginning_every_question_of_the_drawn_type():
+    for seed in range(40):
+        questioner = RandomQuestioner()
+        asked = questions_of(questioner, task(), seed=seed)
+        assert all(step == 0 for step, _ in asked)
+        expected = {'location': [Question('location', 'fridge'), Question('location', 'apple')],
+                    'appearance': [Question('appearance', 'fridge'), Question('appearance', 'apple')],
+                    'direction': [Question('direction', '')], None: []}[questioner.drawn]
+        assert [q for _, q in asked] == expected
 
 
-def test_the_random_questioner_draws_types_and_nouns_uniformly_and_repeats_itself_per_seed():
+def asked_type(t, seed):
+    """The type of the questions the random questioner asks in an episode (None: it asks nothing)."""
+    asked = {q.question_type for _, q in questions_of(RandomQuestioner(), t, seed=seed)}
+    assert len(asked) <= 1
+    return asked.pop() if asked else None
+
+
+def test_the_random_questioner_draws_each_type_and_no_question_a_quarter_of_the_time_per_seed():
     t = task(('fridge', 'apple'))
-    drawn = [questions_of(RandomQuestioner(), t, seed=s)[0][1] for s in range(3000)]
-    types = Counter(q.question_type for q in drawn)
-    assert all(abs(types[k] / 3000 - 1 / 3) < 0.04 for k in QUESTION_TYPES), types
-    nouns = Counter(q.object_noun for q in drawn if q.question_type != 'direction')
-    assert abs(nouns['fridge'] / sum(nouns.values()) - 0.5) < 0.05, nouns
-    assert drawn[:50] == [questions_of(RandomQuestioner(), t, seed=s)[0][1] for s in range(50)]
+    drawn = [asked_type(t, s) for s in range(4000)]
+    shares = Counter(drawn)
+    assert set(shares) == {*QUESTION_TYPES, None}
+    assert all(abs(shares[k] / 4000 - 0.25) < 0.03 for k in shares), shares
+    assert drawn[:50] == [asked_type(t, s) for s in range(50)]          # the same seed, the same draw
 
 
-def test_without_an_object_in_the_instruction_only_directions_are_asked():
-    assert questions_of(RandomQuestioner(), task(()), seed=1) == [(0, Question('direction', ''))]
+def test_a_drawn_location_type_asks_where_every_noun_of_the_instruction_is():
+    t = task(('fridge', 'apple', 'apple', 'knife'))
+    seed = next(s for s in range(100) if asked_type(t, s) == 'location')
+    assert [q for _, q in questions_of(RandomQuestioner(), t, seed=seed)] == [
+        Question('location', 'fridge'), Question('location', 'apple'), Question('location', 'knife')]
+
+
+def test_without_an_object_in_the_instruction_only_a_drawn_direction_asks_anything():
+    for seed in range(20):
+        questioner = RandomQuestioner()
+        asked = questions_of(questioner, task(()), seed=seed)
+        assert asked == ([(0, Question('direction', ''))] if questioner.drawn == 'direction' else [])
 
 
 def test_the_all_questions_questioner_asks_about_every_object_then_for_directions():
@@ -98,8 +118,9 @@ def test_no_questioner_leaves_the_agent_as_it_is_and_an_unknown_one_is_named():
 def test_the_random_questioner_asks_about_the_shipped_tasks_nouns():
     tasks = load_split('valid_unseen')[:40]
     for k, t in enumerate(tasks):
-        (step, q), = questions_of(RandomQuestioner(), t, seed=k, steps=2)
-        assert step == 0 and (q.object_noun in t.object_nouns or q.question_type == 'direction')
+        asked = questions_of(RandomQuestioner(), t, seed=k, steps=2)
+        assert all(step == 0 for step, _ in asked)
+        assert all(q.object_noun in t.object_nouns or q.question_type == 'direction' for _, q in asked)
 
 
 class Performer(ExpertAgent):

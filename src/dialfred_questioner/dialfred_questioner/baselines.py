@@ -4,10 +4,10 @@ A questioner decides what to ask the oracle and when: `ask(observation, step)` i
 the agent's actions (`step` = actions taken so far in the episode) and returns a `Question` or None;
 the oracle's reply comes back through `hear(qa)`. The paper's baselines that need no model:
 
-- `RandomQuestioner` ("random"): one random question at the beginning of the task. Its type is
-  uniform over location, appearance and direction; location and appearance questions name an object
-  of the instruction, drawn uniformly. (Paper, Table 4: "a questioner that asks a random question at
-  the beginning".)
+- `RandomQuestioner` ("random"): the paper's baseline 3, "Random QA": at the beginning of the task a
+  question type is drawn, 25% each for location, appearance and direction and 25% for no question;
+  for the drawn type it asks about every relevant object: a location or appearance question per
+  object of the instruction, or one direction question. (Paper, Baselines, item 3.)
 - `AllQuestioner` ("all"): at the beginning, a location and an appearance question about every object
   of the instruction, then one direction question. This is the "instruction + all QAs" setting of
   Table 3. The performer keeps the valid answers.
@@ -62,23 +62,41 @@ def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:
     return Question(qtype, '' if qtype == 'direction' else nouns[int(rng.integers(len(nouns)))])
 
 
+# What RandomQuestioner draws at the beginning of a task, each with probability 1/4; None = no question.
+RANDOM_QA_CHOICES = (*QUESTION_TYPES, None)
+
+
+def questions_of_type(question_type: Optional[str], nouns: list[str]) -> list[Question]:
+    """Every question of `question_type` about a task whose instruction names `nouns`: one location or
+    appearance question per noun (none without nouns), one direction question, or none for None."""
+    if question_type is None:
+        return []
+    if question_type == 'direction':
+        return [Question('direction')]
+    return [Question(question_type, n) for n in nouns]
+
+
 class RandomQuestioner:
-    """One question at the beginning: a uniform type, and for location/appearance a uniform noun."""
+    """The paper's "Random QA": at the beginning, a type drawn from location / appearance / direction /
+    no question (1/4 each), then every question of that type (`questions_of_type`); nothing later.
+    The draw comes from the episode's seed, in a stream apart from the performer's."""
 
     name = 'random'
 
     def __init__(self):
-        self._question: Optional[Question] = None
+        self.drawn: Optional[str] = None       # the type drawn for the episode (None: no question)
+        self._queue: list[Question] = []
 
     def reset(self, task: Any, seed: int) -> None:
         # A stream apart from the performer's, which is seeded with `seed` itself.
-        self._question = random_question(np.random.default_rng([seed, 1]), task_nouns(task))
+        rng = np.random.default_rng([seed, 1])
+        self.drawn = RANDOM_QA_CHOICES[int(rng.integers(len(RANDOM_QA_CHOICES)))]
+        self._queue = questions_of_type(self.drawn, task_nouns(task))
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
-        if step > 0:
+        if step > 0 or not self._queue:
             return None
-        question, self._question = self._question, None
-        return question
+        return self._queue.pop(0)
 
     def hear(self, qa: QA) -> None:
         pass
@@ -108,7 +126,7 @@ class AllQuestioner:
 class ModelConfusionQuestioner:
     """Asks when the performer is unsure: before an action whose two most likely choices differ by less
     than `epsilon` in probability (the paper's model-confusion criterion, epsilon = 0.5 there), one
-    random question as `RandomQuestioner` draws it. At most one question per action.
+    random question as `random_question` draws it. At most one question per action.
 
     The performer must expose `action_probabilities(observation)`: its probabilities over
     `dialfred_sim.agents.ACTIONS` for the action it is about to choose."""

@@ -7,7 +7,8 @@ see docs/dataset.md "Metrics"); path-weighted success p = s * L* / max(L*, L) wi
 length and L the agent's steps; NQ the number of questions asked (NQ_invalid: those the oracle could
 not answer).
 `summarize` averages them overall and per task type (SR, PWSR and GC in percent, NQ and NQ_invalid
-as mean counts), in the task order of the paper's table.
+as mean counts), in the task order of the paper's table; `intervals` gives their 95% percentile-
+bootstrap intervals (seeded: the same results and seed, the same numbers).
 
 Results are kept one JSON object per line (`append_result`, `load_results`), written and synced
 episode by episode so that an interrupted evaluation loses nothing and can resume.
@@ -21,6 +22,8 @@ import warnings
 from dataclasses import MISSING, asdict, dataclass, fields
 from pathlib import Path
 from typing import Iterable, Optional, Union
+
+import numpy as np
 
 from .tasks.schema import TASK_TYPES
 
@@ -169,6 +172,32 @@ def summarize(results: Iterable[EpisodeResult]) -> dict:
         'per_type': {t: _row(by_type[t]) for t in sorted(by_type, key=type_order)},
         'end_reasons': {k: v for k, v in reasons.items() if v},
     }
+
+
+INTERVAL_METRICS = ('SR', 'PWSR', 'GC', 'NQ')
+
+
+def intervals(results: Iterable[EpisodeResult], resamples: int = 2000, seed: int = 0,
+              confidence: float = 0.95) -> dict:
+    """{'SR': (lo, hi), 'PWSR': ..., 'GC': ..., 'NQ': ...}: percentile-bootstrap intervals of the overall
+    row of `summarize` (same units: percent, NQ per episode). `resamples` resamplings of the episodes
+    with replacement, drawn from numpy's generator seeded with `seed`. No results: (0.0, 0.0) each,
+    as `summarize` gives 0.0."""
+    results = list(results)
+    if resamples < 1:
+        raise ValueError(f'resamples must be >= 1, got {resamples}')
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f'confidence must be in (0, 1), got {confidence}')
+    if not results:
+        return {k: (0.0, 0.0) for k in INTERVAL_METRICS}
+    per_episode = np.array([[100.0 * r.success for r in results], [100.0 * r.path_weighted_success for r in results],
+                            [100.0 * r.gc for r in results], [float(r.questions) for r in results]])
+    n = len(results)
+    picks = np.random.default_rng(seed).integers(0, n, size=(resamples, n))      # episode indices, per resample
+    means = np.stack([values[picks].mean(axis=1) for values in per_episode], axis=1)    # (resamples, metrics)
+    tail = 100.0 * (1.0 - confidence) / 2.0
+    lo, hi = np.percentile(means, [tail, 100.0 - tail], axis=0)
+    return {k: (float(lo[j]), float(hi[j])) for j, k in enumerate(INTERVAL_METRICS)}
 
 
 def format_table(summary: dict) -> str:
