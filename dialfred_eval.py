@@ -315,7 +315,7 @@ class PerformerWorker:
     accepted: wait for its result; the result: the episode's EpisodeResult). A goal running longer
     than `episode_timeout` is cancelled, and its episode recorded as an error."""
 
-    def __init__(self, graph: Graph, namespace: str, config: EvalConfig):
+    def __init__(self, graph: Graph, namespace: str, config: EvalConfig, on_feedback=None):
         from rclpy.action import ActionClient
 
         from dialfred_msgs.action import RunTask
@@ -328,6 +328,7 @@ class PerformerWorker:
                 raise TimeoutError(f'action server {self.name} not available after 60 s')
         graph.spin_until_any([], SETTLE_S)       # the reply paths may match a moment later (see Graph.client)
         self.namespace, self.config = namespace, config
+        self.on_feedback = on_feedback    # called with (task, RunTask.Feedback) as each step's feedback comes
         self.future = self.goal_handle = self.cancel_future = None
         self.task = None
         self.pending = ''       # 'goal' (waiting for acceptance) or 'result'
@@ -349,6 +350,8 @@ class PerformerWorker:
         def feedback(msg) -> None:
             a = msg.feedback.action
             trace.append((a.action, int(a.x), int(a.y)))
+            if self.on_feedback is not None:
+                self.on_feedback(task, msg.feedback)
 
         goal = RunTask.Goal(task_id=task.task_id, seed=episode_seed(self.config.seed, index))
         self.future = self.client.send_goal_async(goal, feedback_callback=feedback)
@@ -422,6 +425,26 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
                 node = {'question': 'oracle', 'goal': 'performer', 'result': 'performer'}.get(w.pending, 'sim')
                 raise TimeoutError(f'no reply from {w.namespace or "/"} {node} node after '
                                    f'{w.config.request_timeout:.0f} s (task {w.task.task_id})')
+
+
+def worker_nodes(config: EvalConfig, namespace: str, **sim_params) -> list:
+    """The nodes of one worker in `namespace`: its simulator; with a questioner, its oracle; with the
+    performer node, also the questioner node and the performer node (a RunTask server). `sim_params`:
+    more parameters of the simulator node (default: it publishes no observations)."""
+    from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
+    nodes = [sim_node(config.resolution, namespace, **{'publish_observations': False, **from_file, **sim_params})]
+    if config.questioner:
+        withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
+                    'seed': config.seed} if config.perturb_type else {}
+        nodes.append(oracle_node(namespace, **withhold))
+    if config.performer:
+        if config.questioner:
+            nodes.append(NodeProcess('dialfred_questioner', {'questioner': config.questioner}, namespace=namespace))
+        nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
+                                                        'questioner': bool(config.questioner),
+                                                        'request_timeout': config.request_timeout},
+                                 namespace=namespace))
+    return nodes
 
 
 def run_namespace() -> str:
@@ -517,20 +540,7 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
-        from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
-        nodes = [sim_node(config.resolution, ns, publish_observations=False, **from_file) for ns in namespaces]
-        if config.questioner:
-            withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
-                        'seed': config.seed} if config.perturb_type else {}
-            nodes += [oracle_node(ns, **withhold) for ns in namespaces]
-        if config.performer:
-            if config.questioner:
-                nodes += [NodeProcess('dialfred_questioner', {'questioner': config.questioner}, namespace=ns)
-                          for ns in namespaces]
-            nodes += [NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
-                                                         'questioner': bool(config.questioner),
-                                                         'request_timeout': config.request_timeout},
-                                  namespace=ns) for ns in namespaces]
+        nodes = [node for ns in namespaces for node in worker_nodes(config, ns)]
         with Graph(nodes) as graph:
             if config.performer:
                 workers = [PerformerWorker(graph, ns, config) for ns in namespaces]

@@ -6,7 +6,11 @@ way `ros2 run <pkg> node` does (ament index prefix + lib/<pkg>/node), starts it,
 services answer, runs a job, and shuts everything down on exit or Ctrl-C. A node that dies is
 reported with its exit code and the last lines it printed.
 
-    python dialfred_launch.py demo [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/demo]
+    python dialfred_launch.py demo [--tasks 3] [--questioner all] [--checkpoint out/performer/et.pt]
+                                   # the learned performer plays a few tasks through the sim, oracle,
+                                   # questioner and performer nodes (dialfred_demo.py); captioned GIFs
+    python dialfred_launch.py explore [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/explore]
+                                 # a scripted explorer through the simulator node alone; saves its frames
     python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
     python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
     python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
@@ -20,7 +24,7 @@ JSON-lines file as it ends (a rerun skips the tasks already there), and prints S
 overall and per task type; the summary also goes to <out without .jsonl>.summary.json. With
 `--questioner`, an oracle node per worker answers the agent's questions.
 
-`demo`, `dialogue` and `eval` run in a ROS domain of their own unless ROS_DOMAIN_ID is set; `nodes`
+`demo`, `explore`, `dialogue` and `eval` run in a ROS domain of their own unless ROS_DOMAIN_ID is set; `nodes`
 runs in the caller's domain so that other terminals can reach it.
 """
 
@@ -37,14 +41,16 @@ from pathlib import Path
 from dialfred_sim.graph import (RESEND_AFTER_S, SERVICE_SETTLE_S, Graph, NodeDied, NodeProcess,  # noqa: F401
                                 image_array, oracle_node, resolve_executable, sim_node, sim_service,
                                 use_private_ros_domain, use_project_environment)
+from dialfred_sim.film import save_captioned_gif  # noqa: F401
 
 REPO = Path(__file__).resolve().parent
 use_project_environment(REPO)
 
+from dialfred_demo import add_demo_parser, run_demo  # noqa: E402
 from dialfred_eval import ResultsFileError, add_eval_parser, run_eval_command  # noqa: E402
 
 
-def run_demo(args) -> int:
+def run_explore(args) -> int:
     """Start the simulator node, play a scripted exploring episode through ROS, save its frames."""
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import SimReset, SimStep
@@ -186,30 +192,6 @@ def run_dialogue(args) -> int:
     return 0
 
 
-def save_captioned_gif(film, path: Path, width: int = 320, seconds_per_frame: float = 1.0) -> None:
-    """A GIF of (RGB frame, caption lines) pairs: each frame scaled to `width` with its lines under it."""
-    import textwrap
-
-    from PIL import Image, ImageDraw, ImageFont
-    font = ImageFont.load_default(size=12)
-    line_h, chars = 15, width // 6
-    wrapped = [[w for line in lines for w in textwrap.wrap(line, chars)] for _, lines in film]
-    panel = line_h * max(len(w) for w in wrapped) + 8
-    images, durations = [], []
-    for (frame, lines_in), lines in zip(film, wrapped):
-        # Answers stay up long enough to read; actions go by quickly.
-        durations.append(int(1000 * seconds_per_frame * (2.0 if len(lines_in) > 2 else 0.6)))
-        h = round(frame.shape[0] * width / frame.shape[1])
-        img = Image.new('RGB', (width, h + panel), (255, 255, 255))
-        img.paste(Image.fromarray(frame).resize((width, h), Image.BILINEAR), (0, 0))
-        draw = ImageDraw.Draw(img)
-        for k, line in enumerate(lines):
-            draw.text((4, h + 4 + k * line_h), line, fill=(20, 20, 20), font=font)
-        images.append(img.convert('P', palette=Image.ADAPTIVE, colors=128))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    images[0].save(path, save_all=True, append_images=images[1:], duration=durations, loop=0, optimize=True)
-
-
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
@@ -217,12 +199,13 @@ def _interrupt(signum, frame):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
-    demo = sub.add_parser('demo', help='scripted episode through the simulator node; saves frames')
-    demo.add_argument('--scene', default='FloorPlan1')
-    demo.add_argument('--seed', type=int, default=0)
-    demo.add_argument('--steps', type=int, default=40)
-    demo.add_argument('--resolution', type=int, default=128)
-    demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
+    add_demo_parser(sub)
+    explore = sub.add_parser('explore', help='scripted exploring episode through the simulator node; saves frames')
+    explore.add_argument('--scene', default='FloorPlan1')
+    explore.add_argument('--seed', type=int, default=0)
+    explore.add_argument('--steps', type=int, default=40)
+    explore.add_argument('--resolution', type=int, default=128)
+    explore.add_argument('--out', default=str(REPO / 'out' / 'explore'))
     nodes = sub.add_parser('nodes', help='start the node graph and keep it running')
     nodes.add_argument('--resolution', type=int, default=128)
     dialogue = sub.add_parser('dialogue',
@@ -243,7 +226,7 @@ def main(argv=None) -> int:
         # in the caller's domain, for other terminals to reach.
         use_private_ros_domain()
     try:
-        jobs = {'demo': run_demo, 'nodes': run_nodes, 'dialogue': run_dialogue, 'eval': run_eval_command}
+        jobs = {'demo': run_demo, 'explore': run_explore, 'nodes': run_nodes, 'dialogue': run_dialogue, 'eval': run_eval_command}
         return jobs[args.command](args)
     except KeyboardInterrupt:
         print('interrupted; nodes stopped', file=sys.stderr)

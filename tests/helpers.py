@@ -7,6 +7,7 @@ The tests put objects where they need them (`spawn_on`, `World.place`, `World.ho
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Optional
 
 import numpy as np
@@ -180,3 +181,23 @@ def unproject(env, px: int, py: int) -> np.ndarray:
     d = float(depth[py, px])
     cam = np.array([x_ndc * d / proj[0, 0], y_ndc * d / proj[1, 1], -d, 1.0])
     return (np.linalg.inv(view) @ cam)[:3]
+
+
+def tiny_checkpoint(path: Path, favour: str = '', resolution: int = 64) -> Path:
+    """A random-init performer with the model's own save function; `favour`: an action whose logit
+    is pushed up (e.g. RotateLeft: an episode that runs until the step limit)."""
+    import torch
+
+    from dialfred_performer.model import Performer, PerformerConfig, save_checkpoint
+    from dialfred_performer.preprocess import Vocabulary
+    from dialfred_sim.agents import ACTIONS
+    from dialfred_sim.tasks import load_split
+    vocab = Vocabulary.build([t.instruction for t in load_split('valid_unseen')[:40]]
+                             + ['the apple is to your left in the fridge', 'you should turn around'])
+    torch.manual_seed(0)
+    model = Performer(PerformerConfig(resolution=resolution, d_model=32, heads=2, layers=1, ff=64), len(vocab))
+    if favour:
+        with torch.no_grad():
+            model.action_head.linear.bias[ACTIONS.index(favour)] += 50.0
+    save_checkpoint(path, model, vocab, command='tests/helpers.py tiny_checkpoint')
+    return path

@@ -22,26 +22,9 @@ sys.path.insert(0, str(REPO))
 
 from dialfred_eval import EvalConfig, run_eval  # noqa: E402
 from dialfred_launch import Graph, NodeProcess, sim_node  # noqa: E402
+from helpers import tiny_checkpoint  # noqa: E402
 
 RES = 64
-
-
-def tiny_checkpoint(path: Path, favour: str = '') -> Path:
-    """A random-init performer with the model's own save function; `favour`: an action whose logit
-    is pushed up (e.g. RotateLeft: an episode that runs until the step limit)."""
-    from dialfred_performer.model import Performer, PerformerConfig, save_checkpoint
-    from dialfred_performer.preprocess import Vocabulary
-    from dialfred_sim.agents import ACTIONS
-    from dialfred_sim.tasks import load_split
-    vocab = Vocabulary.build([t.instruction for t in load_split('valid_unseen')[:40]]
-                             + ['the apple is to your left in the fridge', 'you should turn around'])
-    torch.manual_seed(0)
-    model = Performer(PerformerConfig(resolution=RES, d_model=32, heads=2, layers=1, ff=64), len(vocab))
-    if favour:
-        with torch.no_grad():
-            model.action_head.linear.bias[ACTIONS.index(favour)] += 50.0
-    save_checkpoint(path, model, vocab, command='tests/test_agent_nodes.py')
-    return path
 
 
 @pytest.fixture(scope='module')

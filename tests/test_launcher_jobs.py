@@ -1,5 +1,5 @@
-"""The launcher's scripted jobs end to end (integration): `demo` (what the README's first command
-runs) and `dialogue`, each as a separate process that starts the real node executables.
+"""The launcher's scripted jobs end to end (integration): `explore` (a scripted explorer through
+the simulator node) and `dialogue`, each as a separate process that starts the real node executables.
 
 conftest.py gives this pytest session its own ROS_DOMAIN_ID, which the launcher's child processes
 inherit, so their nodes answer no other session.
@@ -25,8 +25,8 @@ def launch(*args: str, timeout: float = 180) -> str:
     return proc.stdout
 
 
-def test_the_demo_plays_an_episode_and_saves_its_frames(tmp_path):
-    out = launch('demo', '--steps', '6', '--resolution', '48', '--out', str(tmp_path))
+def test_the_explorer_plays_an_episode_and_saves_its_frames(tmp_path):
+    out = launch('explore', '--steps', '6', '--resolution', '48', '--out', str(tmp_path))
     frames = sorted(tmp_path.glob('frame_*.png'))
     assert 2 <= len(frames) <= 7
     assert (tmp_path / 'episode.gif').stat().st_size > 0 and (tmp_path / 'contact_sheet.png').exists()

@@ -22,7 +22,7 @@ from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
 from .ground_truth import GroundTruthCache
-from .tasks.splits import read_tasks_file, resolve_task
+from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
 from .ros_util import SERVICE_QOS, error_reply, run_node

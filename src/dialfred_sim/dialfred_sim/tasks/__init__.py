@@ -1,4 +1,4 @@
 """DialFRED tasks: the 25 task types, their goal conditions, the expert, instructions and splits."""
 
 from .schema import TASK_TYPES, Condition, Episode, ExpertAction, Primitive, PublicTask, Task  # noqa: F401
-from .splits import SPLIT_SIZES, get_task, load_split, split_scenes  # noqa: F401,E402
+from .split_files import SPLIT_SIZES, get_task, load_split, split_scenes  # noqa: F401,E402

@@ -1,0 +1,197 @@
+#!/usr/bin/env python3
+"""`./dialfred demo`: the learned performer plays a few valid_unseen tasks through the whole node graph.
+
+Four nodes run as separate processes (simulator, oracle, questioner, performer); this process is a
+client of them only: it sends each task as a RunTask goal to `performer/run_task` (as the eval's
+`--performer et` does), prints each question and answer as the performer's `dialogue/qa` topic
+carries it, each action with its pixel as the goal's feedback reports it, and the outcome (success,
+steps, goal conditions, end reason). The frames come from the simulator's `sim/observation` topic
+(the observation after every reset and step). Each task is saved as a GIF of captioned frames (the
+instruction, the latest QA, the action) under --out, beside one contact sheet of all of them.
+
+    python dialfred_launch.py demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
+                                   [--checkpoint out/performer/et.pt] [--resolution 64] [--seed 0]
+                                   [--max-steps 100] [--out out/demo]
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dialfred_eval import EvalConfig, PerformerWorker, play_episodes, worker_nodes
+from dialfred_sim.graph import Graph
+
+REPO = Path(__file__).resolve().parent
+QA_SECONDS, ACTION_SECONDS = 2.0, 0.4     # how long a GIF frame stays up: an answer is read, an action seen
+
+
+@dataclass
+class EpisodeRecord:
+    """What the client heard of one episode: frames by step, the QAs in order, each step's feedback."""
+
+    task: object
+    frames: dict = field(default_factory=dict)       # step count -> RGB array (0: after the reset)
+    dialogue: list = field(default_factory=list)     # dialfred_msgs/QAPair, in the order published
+    feedback: list = field(default_factory=list)     # RunTask.Feedback, one per action
+
+    def complete(self, result) -> bool:
+        return (len(self.feedback) >= result.steps and len(self.dialogue) >= result.questions
+                and result.steps in self.frames)
+
+    def frame(self, step: int):
+        """The frame after `step` actions (the newest one before it, if that observation was missed)."""
+        seen = [s for s in self.frames if s <= step] or list(self.frames)
+        return self.frames[max(seen)]
+
+    def film(self, outcome: str) -> tuple[list, list]:
+        """(frame, caption lines) pairs and their durations in ms: the start; each answer over the
+        frame it was asked at; each action over the frame after it, with the latest QA."""
+        title = f'{self.task.task_id}: "{self.task.instruction}"'
+        film, durations = [(self.frame(0), [title, 'start'])], [int(1000 * QA_SECONDS)]
+        heard, latest = 0, 'no question asked yet'
+        for fb in sorted(self.feedback, key=lambda f: f.step):
+            while heard < min(fb.questions, len(self.dialogue)):
+                qa = self.dialogue[heard]
+                film.append((self.frame(fb.step - 1), [title, f'Q: {qa_question(qa)}', f'A: {qa_answer(qa)}']))
+                durations.append(int(1000 * QA_SECONDS))
+                latest, heard = f'last QA: {qa_question(qa)} {qa_answer(qa)}', heard + 1
+            film.append((self.frame(fb.step), [title, latest, f'action {fb.step}: {action_text(fb)}']))
+            durations.append(int(1000 * ACTION_SECONDS))
+        film[-1][1].append(outcome)
+        durations[-1] = int(1000 * QA_SECONDS)
+        return film, durations
+
+
+def qa_question(qa) -> str:
+    return qa.question or f'[{qa.question_type}] {qa.object_noun}'
+
+
+def qa_answer(qa) -> str:
+    return qa.answer if qa.valid else '(no answer: the oracle could not answer that)'
+
+
+def action_text(feedback) -> str:
+    a = feedback.action
+    pixel = f' at ({a.x}, {a.y})' if a.x >= 0 else ''
+    return f'{a.action}{pixel}{"" if feedback.action_success else " (failed)"}'
+
+
+def outcome_text(result) -> str:
+    gc = f'{result.goal_conditions_met}/{result.goal_conditions_total}'
+    why = f' ({result.error})' if result.error else ''
+    return (f'{"SUCCESS" if result.success else "failure"}: {result.steps} steps, goal conditions {gc}, '
+            f'{result.questions} questions, end reason {result.end_reason}{why}')
+
+
+def demo_config(args) -> EvalConfig:
+    return EvalConfig(split='valid_unseen', performer='et', questioner='' if args.questioner == 'none' else args.questioner,
+                      checkpoint=Path(args.checkpoint) if args.checkpoint else None, resolution=args.resolution,
+                      seed=args.seed, workers=1, episode_timeout=600.0)
+
+
+def run_demo(args) -> int:
+    """Start sim, oracle, questioner and performer nodes; play --tasks tasks as RunTask goals; print
+    the dialogue, the actions and the outcomes; save a captioned GIF per task and a contact sheet."""
+    from dialfred_msgs.msg import Observation, QAPair
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from dialfred_sim.film import save_captioned_gif, save_contact_sheet
+    from dialfred_sim.graph import image_array
+    from dialfred_sim.tasks import load_split
+
+    config = demo_config(args)
+    if not config.checkpoint_path.is_file():
+        print(f'error: no performer checkpoint at {config.checkpoint_path}; train one with '
+              './dialfred prepare-performer && ./dialfred train-performer --out out/performer (see the README), '
+              'or pass --checkpoint PATH', file=sys.stderr)
+        return 2
+    try:
+        config.check()        # a corrupt checkpoint or an unknown questioner fails before any node starts
+    except ValueError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    tasks = load_split(config.split)[args.first:args.first + args.tasks]
+    if not tasks:
+        print(f'error: no tasks from index {args.first} of {config.split}', file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    print(f'checkpoint {config.checkpoint_path}, questioner {config.questioner or "none"}, {args.resolution} px, '
+          f'seed {args.seed}')
+    t0 = time.monotonic()
+    nodes = worker_nodes(config, '', publish_observations=True, max_steps=args.max_steps)
+    with Graph(nodes) as graph:
+        record = None
+
+        def heard(qa) -> None:
+            if record is not None:
+                record.dialogue.append(qa)
+                print(f'  Q: {qa_question(qa)}\n  A: {qa_answer(qa)}', flush=True)
+
+        def seen(obs) -> None:
+            if record is not None:
+                record.frames[int(obs.step_count)] = image_array(obs.rgb)
+
+        def stepped(task, feedback) -> None:
+            if record is not None and task is record.task:
+                record.feedback.append(feedback)
+                print(f'  step {feedback.step:>3}  {action_text(feedback)}', flush=True)
+
+        node = graph.client_node
+        qa_sub = node.create_subscription(QAPair, 'dialogue/qa', heard, 100)
+        frames_qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
+        obs_sub = node.create_subscription(Observation, 'sim/observation', seen, frames_qos)
+        worker = PerformerWorker(graph, '', config, on_feedback=stepped)
+        deadline = time.monotonic() + 30.0
+        while qa_sub.get_publisher_count() == 0 or obs_sub.get_publisher_count() == 0:
+            graph.spin_until_any([], 0.1)
+            if time.monotonic() > deadline:
+                raise TimeoutError('the performer\'s dialogue/qa or the simulator\'s sim/observation topic did '
+                                   'not appear in 30 s')
+        graph.spin_until_any([], 0.3)     # the publishers see this subscriber a moment later
+        print(f'graph ready in {time.monotonic() - t0:.1f} s (sim, oracle, questioner, performer nodes)')
+        sheet = []
+        for index, task in enumerate(tasks, start=args.first):
+            print(f'\n{task.task_id} ({task.task_type}) in {task.scene}: "{task.instruction}"', flush=True)
+            record = EpisodeRecord(task)
+            results = []
+            play_episodes(graph, [worker], [(index, task)], results.append)
+            result = results[0]
+            deadline = time.monotonic() + 2.0    # the last frame and feedback may come after the result
+            while not record.complete(result) and time.monotonic() < deadline:
+                graph.spin_until_any([], 0.1)
+            outcome = outcome_text(result)
+            print(f'  -> {outcome}')
+            if record.frames:
+                film, durations = record.film(outcome)
+                gif = out / f'{task.task_id.replace("/", "_")}.gif'
+                save_captioned_gif(film, gif, durations_ms=durations)
+                print(f'  saved {gif} ({len(film)} frames)')
+                sheet.append((f'{task.task_id} {outcome}', [record.frames[s] for s in sorted(record.frames)]))
+            else:
+                print('  (no frames were received from sim/observation)', file=sys.stderr)
+            record = None
+    if sheet:
+        save_contact_sheet(sheet, out / 'contact_sheet.png')
+        print(f'\ncontact sheet: {out / "contact_sheet.png"}')
+    return 0
+
+
+def add_demo_parser(sub) -> None:
+    demo = sub.add_parser('demo', help='the learned performer plays a few valid_unseen tasks through the '
+                                       'sim, oracle, questioner and performer nodes; captioned GIFs')
+    demo.add_argument('--tasks', type=int, default=3, help='how many tasks (default 3)')
+    demo.add_argument('--first', type=int, default=0, help='index of the first valid_unseen task')
+    demo.add_argument('--questioner', default='all',
+                      help='all (default), random, confusion, none, or package.module:ClassName')
+    demo.add_argument('--checkpoint', default=None, metavar='PATH',
+                      help='the performer checkpoint (default out/performer/et.pt, as the eval)')
+    demo.add_argument('--resolution', type=int, default=64)
+    demo.add_argument('--max-steps', type=int, default=100,
+                      help='the simulator ends an episode after this many actions (default 100; the '
+                           'benchmark\'s limit is 1000)')
+    demo.add_argument('--seed', type=int, default=0)
+    demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
