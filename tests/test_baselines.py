@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from test_agent_nodes import tiny_checkpoint
+from helpers import tiny_checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -64,14 +64,14 @@ def test_every_baseline_is_played_reported_and_documented_and_a_rerun_resumes(ru
         assert row['target_at_start']['out_of_view']['n'] + row['target_at_start']['in_view']['n'] == 3
         assert row['eval_wall_s'] > 0 and row['runs'] == 1
     assert rows['instruction_only']['NQ'] == 0 and rows['all_qas']['NQ'] > 0
-    assert len(report['checkpoint']['sha256']) == 64 and report['checkpoint']['command'] == 'tests/test_agent_nodes.py'
+    assert len(report['checkpoint']['sha256']) == 64 and report['checkpoint']['command'] == 'tests/helpers.py tiny_checkpoint'
 
     doc = (folder / 'results.md').read_text()
     for section in ('## Checkpoint', '## Settings', '## Baselines (paper, Table II)', '### valid_unseen',
                     '## Same-class distractor and target out of view at the start', '## What holds'):
         assert section in doc, section
     assert './dialfred baselines --checkpoint' in doc and report['checkpoint']['sha256'][:16] in doc
-    assert 'command stored in the checkpoint: `tests/test_agent_nodes.py`' in doc
+    assert 'command stored in the checkpoint: `tests/helpers.py tiny_checkpoint`' in doc
     assert '| 2 | All QAs | all | 3 |' in doc and '| 32.0 |' in doc          # ours beside the paper's
     assert 'All QAs minus instruction only on valid_unseen:' in doc and '(paper +13.7)' in doc
     assert 'Instruction only on valid_unseen: SR' in doc and '>= 18.3 (paper)' in doc
