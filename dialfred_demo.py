@@ -10,7 +10,7 @@ steps, goal conditions, end reason). The frames come from the simulator's `sim/o
 instruction, the latest QA, the action) under --out, beside one contact sheet of all of them.
 
     python dialfred_launch.py demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
-                                   [--checkpoint out/performer/et.pt] [--resolution 64] [--seed 0]
+                                   [--checkpoint PATH (default: the shipped one)] [--resolution 64] [--seed 0]
                                    [--max-steps 100] [--out out/demo]
 """
 
@@ -188,7 +188,7 @@ def add_demo_parser(sub) -> None:
     demo.add_argument('--questioner', default='all',
                       help='all (default), random, confusion, none, or package.module:ClassName')
     demo.add_argument('--checkpoint', default=None, metavar='PATH',
-                      help='the performer checkpoint (default out/performer/et.pt, as the eval)')
+                      help='the performer checkpoint (default: the one shipped in the package, as the eval)')
     demo.add_argument('--resolution', type=int, default=64)
     demo.add_argument('--max-steps', type=int, default=100,
                       help='the simulator ends an episode after this many actions (default 100; the '

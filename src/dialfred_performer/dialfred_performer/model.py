@@ -136,13 +136,14 @@ def git_commit() -> str:
 
 
 def save_checkpoint(path: Path, model: Performer, vocab: Vocabulary, command: Optional[str] = None,
-                    extra: Optional[dict] = None) -> None:
-    """Write everything needed to rebuild `model`: config, vocabulary, weights, the git commit and the
-    command that made it (default: this process's command line)."""
+                    extra: Optional[dict] = None, commit: Optional[str] = None) -> None:
+    """Write everything needed to rebuild `model`: config, vocabulary, weights, the git commit (default:
+    the repository's now; training passes the one it started at) and the command that made it
+    (default: this process's command line)."""
     if len(vocab) != model.vocab_size:
         raise ValueError(f'the vocabulary has {len(vocab)} words, the model {model.vocab_size}')
     state = {'format': CHECKPOINT_FORMAT, 'config': dataclasses.asdict(model.config), 'vocab': vocab.to_json(),
-             'state_dict': model.state_dict(), 'git_commit': git_commit(),
+             'state_dict': model.state_dict(), 'git_commit': commit or git_commit(),
              'command': command if command is not None else ' '.join(sys.argv), 'extra': extra or {}}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -45,7 +45,7 @@ from .cli import MALLOC_SETTINGS, arg, command_line, ensure_malloc_settings, par
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
-from .model import Performer, PerformerConfig, load_checkpoint, performer_loss, save_checkpoint
+from .model import Performer, PerformerConfig, git_commit, load_checkpoint, performer_loss, save_checkpoint
 from .prepare import VOCABULARY_FILE
 from .preprocess import Vocabulary
 
@@ -253,13 +253,14 @@ class Progress:
     window: dict = field(default_factory=lambda: dict.fromkeys(STAT_KEYS, 0))
 
 
-def save_training(path: Path, model, vocab, cfg, optimizer, scheduler, progress: Progress, full: bool = True) -> None:
+def save_training(path: Path, model, vocab, cfg, optimizer, scheduler, progress: Progress, full: bool = True,
+                  commit: Optional[str] = None) -> None:
     extra = {'train_config': json.dumps(dataclasses.asdict(cfg)), 'progress': dataclasses.asdict(progress)}
     if full:
         extra.update(optimizer=optimizer.state_dict(), scheduler=scheduler.state_dict(),
                      torch_rng=torch.get_rng_state(),
                      cuda_rng=torch.cuda.get_rng_state_all() if torch.cuda.is_available() else [])
-    save_checkpoint(path, model, vocab, command=command_line(MODULE, cfg), extra=extra)
+    save_checkpoint(path, model, vocab, command=command_line(MODULE, cfg), extra=extra, commit=commit)
 
 
 def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler) -> tuple[Vocabulary, Progress]:
@@ -312,6 +313,7 @@ def ignore_interrupts(_worker_id: int) -> None:
 def train(cfg: TrainConfig) -> dict:
     """Train (or continue) the run of `cfg`; the final summary (also the last line printed by main)."""
     out = Path(cfg.out)
+    commit = git_commit()        # the code this run starts with, recorded in every checkpoint it writes
     check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
     if cfg.validation:
         check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
@@ -343,7 +345,7 @@ def train(cfg: TrainConfig) -> dict:
     t_window, last = time.monotonic(), {}
 
     def checkpoint(name: str = 'last.pt', full: bool = True) -> None:
-        save_training(out / name, model, vocab, cfg, optimizer, scheduler, progress, full)
+        save_training(out / name, model, vocab, cfg, optimizer, scheduler, progress, full, commit)
 
     def validate_and_draw() -> None:
         if data.val is not None and data.val_items:
