@@ -1,0 +1,213 @@
+"""Supervised pre-training of the learned questioner on a split's (SYNTHETIC) annotated dialogues.
+
+    ./dialfred env python3 scripts/annotate_dialogues.py --splits train --workers 2     # once: the dialogues
+    ./dialfred prepare-performer --split train                                         # once: the frames
+    python -m dialfred_questioner.pretrain --out out/questioner [--resume]
+
+Each annotation (two per task; `dialfred_questioner.data`) is an example: the instruction, the task's
+first frame (encoded by the frozen visual encoder of the performer checkpoint `--performer`, whose
+vocabulary the questioner also reads with), step 0, no dialogue -> the annotator's question type and
+object, or none. Teacher forcing (the log-likelihood of the two tokens), AdamW, gradient clipping;
+the tasks whose id hashes below `--val-fraction` are held out and scored after every epoch. Writes
+to `--out`: `last.pt` after every epoch (with the optimiser and RNG state, so `--resume` continues to
+the weights of an uninterrupted run), `best.pt` (lowest validation loss), `metrics.jsonl`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import random
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import torch
+
+from dialfred_performer.cli import arg, command_line, parse
+from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
+from dialfred_performer.preprocess import Vocabulary
+from dialfred_sim.tasks.demonstrations import default_dir
+
+from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
+from .model import Questioner, QuestionerConfig
+
+MODULE = 'dialfred_questioner.pretrain'
+FORMAT = 'dialfred-questioner/1'
+RESUMABLE_CHANGES = ('resume', 'progress', 'threads', 'epochs')
+
+
+@dataclass(frozen=True)
+class PretrainConfig:
+    """Pre-train the DialFRED questioner on synthetic annotated dialogues (teacher forcing)."""
+
+    split: str = arg('train', 'the annotated dialogues of this split (dialfred_oracle.annotator.load_dialogues)')
+    demonstrations: str = arg(str(default_dir('train', 64)), "the split's demonstrations folder (first frames)")
+    performer: str = arg(str(SHIPPED_CHECKPOINT), 'performer checkpoint: its visual encoder (frozen) and vocabulary')
+    out: str = arg('out/questioner', 'folder for last.pt, best.pt and metrics.jsonl')
+    model: QuestionerConfig = field(default_factory=QuestionerConfig)
+    epochs: int = arg(5, 'passes over the annotations')
+    batch_size: int = arg(64, 'examples per update')
+    lr: float = arg(1e-3, 'learning rate (AdamW)')
+    weight_decay: float = arg(0.01, 'AdamW weight decay')
+    grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
+    val_fraction: float = arg(0.05, 'hold out the tasks whose id hashes below this')
+    limit: int = arg(0, 'only the first N annotated tasks (0: all)')
+    seed: int = arg(0, 'seeds python, numpy, torch and the shuffles')
+    threads: int = arg(0, 'torch CPU threads (0: every core this process may use)')
+    resume: bool = arg(False, 'continue from out/last.pt (same config required)')
+    progress: bool = arg(True, 'progress bar on stderr')
+
+    def __post_init__(self):
+        for name in ('epochs', 'batch_size'):
+            if getattr(self, name) < 1:
+                raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
+        for name in ('limit', 'threads', 'seed', 'weight_decay', 'grad_clip'):
+            if getattr(self, name) < 0:
+                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise ValueError(f'lr must be a positive number, got {self.lr}')
+        if not 0 <= self.val_fraction < 1:
+            raise ValueError(f'val_fraction must be in [0, 1), got {self.val_fraction}')
+
+
+def held_out(task_id: str, fraction: float) -> bool:
+    return int(hashlib.sha256(task_id.encode()).hexdigest()[:12], 16) / 16 ** 12 < fraction
+
+
+def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, performer_info: dict, cfg,
+         commit: str, extra: Optional[dict] = None) -> None:
+    """Everything the questioner needs to run: its config, nouns, the vocabulary, its weights and the
+    frozen visual encoder's, which performer they came from, the command and commit."""
+    state = {'format': FORMAT, 'config': dataclasses.asdict(model.config), 'nouns': list(model.nouns),
+             'vocab': vocab.to_json(), 'state_dict': model.state_dict(), 'visual': visual_state,
+             'visual_resolution': performer_info['config'].resolution, 'performer': performer_info['path'],
+             'git_commit': commit, 'command': command_line(MODULE, cfg), 'extra': extra or {}}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + '.tmp')
+    torch.save(state, tmp)
+    tmp.replace(path)
+
+
+def batches(n: int, size: int, rng: random.Random) -> list[list[int]]:
+    order = list(range(n))
+    rng.shuffle(order)
+    return [order[k:k + size] for k in range(0, n, size)]
+
+
+@torch.no_grad()
+def score(model: Questioner, examples: list[Example], vocab, features, batch_size: int) -> dict:
+    """Mean loss, type accuracy and question accuracy (type and, where needed, object) on `examples`."""
+    was = model.training
+    model.eval()
+    loss = types_right = right = 0.0
+    for k in range(0, len(examples), batch_size):
+        b = collate(examples[k:k + batch_size], vocab, features)
+        enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
+        loss += float(-model.log_prob(enc, b['types'], b['nouns']).sum())
+        got_types, got_nouns, _ = model.sample(enc, greedy=True)
+        types_right += float((got_types == b['types']).sum())
+        right += float(((got_types == b['types']) & (got_nouns == b['nouns'])).sum())
+    model.train(was)
+    n = max(len(examples), 1)
+    return {'loss': loss / n, 'type_accuracy': types_right / n, 'question_accuracy': right / n, 'n': len(examples)}
+
+
+def pretrain(cfg: PretrainConfig) -> dict:
+    from tqdm import tqdm
+
+    from dialfred_oracle.annotator import load_dialogues
+    from dialfred_sim.tasks.demonstrations import load_demonstrations
+    out = Path(cfg.out)
+    commit = git_commit()
+    torch.set_num_threads(cfg.threads or len(os.sched_getaffinity(0)))
+    random.seed(cfg.seed)
+    np.random.seed(cfg.seed)
+    torch.manual_seed(cfg.seed)
+    performer, vocab, info = load_checkpoint(Path(cfg.performer))
+    info = dict(info, path=str(cfg.performer))
+    visual = performer.visual
+    if cfg.model.image != performer.config.d_model:
+        raise ValueError(f'--image must be the performer\'s d_model ({performer.config.d_model}), got {cfg.model.image}')
+    rows = load_dialogues(cfg.split)[:cfg.limit or None]
+    demo = load_demonstrations(Path(cfg.demonstrations))
+    nouns = catalog_nouns()
+    examples, skipped = pretraining_examples(rows, demo, nouns)
+    if not examples:
+        raise ValueError(f'no examples: {skipped} annotations skipped (are {cfg.demonstrations} and the '
+                         f'{cfg.split} dialogues of the same split?)')
+    used = sorted({e.frame for e in examples})
+    slot = {f: k for k, f in enumerate(used)}
+    features = frame_features(visual, demo.frames[used], performer.config.resolution)
+    examples = [dataclasses.replace(e, frame=slot[e.frame]) for e in examples]
+    val = [e for e in examples if held_out(e.task_id, cfg.val_fraction)]
+    train = [e for e in examples if not held_out(e.task_id, cfg.val_fraction)]
+    model = Questioner(cfg.model, len(vocab), nouns)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    epoch, best = 0, math.inf
+    log_path = out / 'metrics.jsonl'
+    if cfg.resume:
+        state = torch.load(out / 'last.pt', map_location='cpu', weights_only=False)
+        saved = json.loads(state['extra']['config'])
+        mine = dataclasses.asdict(cfg)
+        differ = sorted(k for k in mine if k not in RESUMABLE_CHANGES and mine[k] != saved.get(k))
+        if differ:
+            raise ValueError(f'--resume: the config differs from the run in {out} in {differ}')
+        model.load_state_dict(state['state_dict'])
+        opt.load_state_dict(state['extra']['optimizer'])
+        torch.set_rng_state(state['extra']['torch_rng'])
+        epoch, best = state['extra']['epoch'], state['extra']['best']
+        lines = [l for l in log_path.read_text().splitlines() if json.loads(l)['epoch'] <= epoch] if log_path.exists() else []
+        log_path.write_text(''.join(l + '\n' for l in lines))
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        log_path.write_text('')
+    visual_state = {k: v.clone() for k, v in visual.state_dict().items()}
+    t0 = time.monotonic()
+    report = {}
+    while epoch < cfg.epochs:
+        rng = random.Random(f'{cfg.seed}/{epoch}')
+        model.train()
+        total = 0.0
+        plan = batches(len(train), cfg.batch_size, rng)
+        for idx in tqdm(plan, desc=f'epoch {epoch + 1}/{cfg.epochs}', unit='batch', file=sys.stderr,
+                        disable=not cfg.progress, dynamic_ncols=True):
+            b = collate([train[i] for i in idx], vocab, features)
+            enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
+            loss = -model.log_prob(enc, b['types'], b['nouns']).mean()
+            opt.zero_grad()
+            loss.backward()
+            if cfg.grad_clip:
+                torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+            opt.step()
+            total += float(loss.detach()) * len(idx)
+        epoch += 1
+        report = {'epoch': epoch, 'train_loss': total / max(len(train), 1),
+                  'val': score(model, val, vocab, features, 256) if val else None,
+                  'seconds': round(time.monotonic() - t0, 1)}
+        with open(log_path, 'a') as f:
+            f.write(json.dumps(report) + '\n')
+        val_loss = report['val']['loss'] if val else report['train_loss']
+        if val_loss < best:
+            best = val_loss
+            save(out / 'best.pt', model, vocab, visual_state, info, cfg, commit)
+        save(out / 'last.pt', model, vocab, visual_state, info, cfg, commit,
+             extra={'config': json.dumps(dataclasses.asdict(cfg)), 'optimizer': opt.state_dict(),
+                    'torch_rng': torch.get_rng_state(), 'epoch': epoch, 'best': best})
+    return {'examples': {'train': len(train), 'val': len(val), 'skipped': skipped}, **report, 'out': str(out)}
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    cfg = parse(PretrainConfig, argv, prog=f'python -m {MODULE}')
+    print(json.dumps(pretrain(cfg)))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
