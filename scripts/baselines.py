@@ -71,7 +71,7 @@ def _names(value: str) -> tuple[str, ...]:
 class BaselinesConfig:
     """Run the paper's baselines 1-4 with the learned performer and write the results document."""
 
-    checkpoint: str = arg('', "the performer's checkpoint; '' = the evaluation's default (out/performer/et.pt)")
+    checkpoint: str = arg('', "the performer's checkpoint; '' = the evaluation's default (the shipped checkpoint)")
     splits: str = arg(','.join(SPLITS), 'comma-separated splits')
     baselines: str = arg(','.join(BASELINES), 'comma-separated baselines, of ' + ', '.join(BASELINES))
     limit: int = arg(0, 'only the first N tasks of each split (0: all)')

@@ -186,3 +186,15 @@ def test_without_every_combination_an_epoch_shows_each_training_task_once(folder
     assert len({tuple(items) for items in epochs}) > 1                  # combinations drawn anew each epoch
     assert epoch_items(data, cfg, 0) == epochs[0]
     assert train(dataclasses.replace(cfg, epochs=1))['updates'] == 1     # 3 tasks, batches of 4
+
+
+def test_a_percent_sign_in_a_help_text_does_not_break_help():
+    from dataclasses import dataclass
+
+    from dialfred_performer.cli import arg, parser_for
+
+    @dataclass(frozen=True)
+    class Config:
+        share: float = arg(0.5, 'the 95% interval; 50% of the time')
+
+    assert '95% interval' in ' '.join(parser_for(Config).format_help().split())

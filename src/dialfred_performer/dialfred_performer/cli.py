@@ -63,6 +63,7 @@ def parser_for(cls, description: str = '', prog: Optional[str] = None) -> argpar
             raise TypeError(f'{cls.__name__}: {".".join(path)} and {".".join(seen[name])} would both be {name}')
         seen[name] = path
         help_text = f.metadata.get('help') or (f'the field {".".join(path)} of the config' if len(path) > 1 else '')
+        help_text = help_text.replace('%', '%%')        # argparse formats help with %
         if tp is bool:
             ap.add_argument(name, dest='.'.join(path), action=argparse.BooleanOptionalAction,
                             default=_default(f), help=help_text)
