@@ -1,0 +1,77 @@
+"""Actor-critic pieces of the questioner's RL fine-tuning (DialFRED paper, "Questioner fine-tuning
+using RL"; no ROS). The rollouts and the training loop (`finetune.py`) build on these.
+
+The paper's MDP: a decision of the questioner is a step (ask a question, or none); the performer
+then acts until the questioner's next chance. Rewards (`Rewards`): +1.0 for success, -0.01 per
+performer step, -0.05 per question, -0.1 per invalid question (Fixed-1 in the paper: -0.002 and
+-0.01). The original's actor-critic wrapped the critic's value in a new leaf tensor, so the critic
+never got a gradient, and summed rewards and log-probabilities as running totals. Here:
+
+- `discounted_returns`: R_t = r_t + gamma R_{t+1} within an episode, restarting at its end;
+- `actor_critic_loss`: advantages A_t = R_t - V(s_t) with the value detached for the policy term
+  (-A_t log pi(a_t|s_t)), the critic regressed on R_t (its gradient reaches the critic), an entropy
+  bonus; advantages may be normalised over the batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import torch
+import torch.nn.functional as F
+
+
+@dataclass(frozen=True)
+class Rewards:
+    success: float = 1.0
+    step: float = -0.01              # per performer step
+    question: float = -0.05          # per question asked
+    invalid: float = -0.1            # per question the oracle could not answer
+
+    @classmethod
+    def fixed_1(cls) -> 'Rewards':
+        """The paper's penalties for asking at every step (Table IV, Fixed 1)."""
+        return cls(question=-0.002, invalid=-0.01)
+
+    def of_decision(self, asked: bool, valid: bool, performer_steps: int, success: bool) -> float:
+        """The reward of one questioner decision: its question's cost, the performer steps until the
+        next decision, and the success bonus if the episode ended in success there."""
+        r = self.step * performer_steps
+        if asked:
+            r += self.question + (0.0 if valid else self.invalid)
+        return r + (self.success if success else 0.0)
+
+
+def discounted_returns(rewards: Sequence[float], episode_ends: Sequence[bool], gamma: float) -> torch.Tensor:
+    """R_t = r_t + gamma * R_{t+1}, with R restarting after each step where `episode_ends` is True
+    (the last step of a batch must end an episode: there is no bootstrap value here)."""
+    if len(rewards) != len(episode_ends):
+        raise ValueError(f'{len(rewards)} rewards but {len(episode_ends)} episode-end flags')
+    if rewards and not episode_ends[-1]:
+        raise ValueError('the last decision of a batch must end its episode (complete episodes only)')
+    out = [0.0] * len(rewards)
+    running = 0.0
+    for t in range(len(rewards) - 1, -1, -1):
+        if episode_ends[t]:
+            running = 0.0
+        running = rewards[t] + gamma * running
+        out[t] = running
+    return torch.tensor(out, dtype=torch.float32)
+
+
+def actor_critic_loss(log_probs: torch.Tensor, values: torch.Tensor, entropies: torch.Tensor,
+                      returns: torch.Tensor, value_weight: float = 0.5, entropy_weight: float = 0.01,
+                      normalise: bool = True) -> tuple[torch.Tensor, dict]:
+    """(loss, parts) over a batch of decisions: log pi(a_t|s_t), V(s_t), the policy's entropy at s_t,
+    and the returns R_t. The policy term uses A_t = R_t - V(s_t) with V detached; the critic term
+    is the squared error of V(s_t) against R_t, so its gradient flows into the critic."""
+    advantages = returns - values.detach()
+    if normalise and advantages.numel() > 1:
+        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    policy = -(advantages * log_probs).mean()
+    critic = F.mse_loss(values, returns)
+    entropy = entropies.mean()
+    loss = policy + value_weight * critic - entropy_weight * entropy
+    return loss, {'policy': float(policy.detach()), 'critic': float(critic.detach()),
+                  'entropy': float(entropy.detach()), 'advantage_mean': float((returns - values.detach()).mean())}
