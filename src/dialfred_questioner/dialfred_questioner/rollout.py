@@ -1,0 +1,121 @@
+"""Episodes of a questioner with a frozen performer in one process (no ROS): the RL fine-tuning's
+rollouts (the paper's MDP, "Questioner fine-tuning using RL").
+
+`play(env, performer, policy, task_id, seed, timing, rewards)` resets `env` (a DialfredEnv) to the
+task, and before each performer action where `timing` gives the questioner a chance, asks `policy`
+for a question or none; the in-process oracle (`dialfred_oracle.local.answer_now`, the node's rules)
+answers and the performer hears it, as the graph does through `/questioner/ask` and `/oracle/answer`.
+Each chance is a `Decision` with its reward (`rl.Rewards`: the question's cost, the performer steps
+until the next chance, the success bonus at the end; steps before the first chance, which only the
+confusion timing can have, are charged to nobody), and `record`: whatever the policy returned to
+keep for its update (its inputs, so log-probabilities can be recomputed).
+
+Timings (`Timing`): `begin` (a chance at step 0 only: RL begin), `anytime` with a `gap` (a chance at
+steps 0, gap, 2 gap, ...: RL anytime, the paper's Fixed 1 / 5 / 10), and `confusion` (a chance
+before each action whose top-2 action-probability gap is below `epsilon`: the MC setting).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional
+
+from dialfred_sim.agents import QA, Question
+
+from .baselines import top2_gap
+from .rl import Rewards
+
+TIMINGS = ('begin', 'anytime', 'confusion')
+# policy(rgb, task, dialogue (list of QA so far), step) -> (Question or None, record)
+Policy = Callable[[Any, Any, list, int], tuple[Optional[Question], Any]]
+
+
+@dataclass(frozen=True)
+class Timing:
+    mode: str = 'anytime'
+    gap: int = 5
+    epsilon: float = 0.5
+
+    def __post_init__(self):
+        if self.mode not in TIMINGS:
+            raise ValueError(f'timing must be one of {TIMINGS}, got {self.mode!r}')
+        if self.gap < 1:
+            raise ValueError(f'gap must be at least 1, got {self.gap}')
+        if not 0.0 <= self.epsilon <= 1.0:
+            raise ValueError(f'epsilon must be in [0, 1], got {self.epsilon}')
+
+    def chance(self, step: int, performer, observation) -> bool:
+        if self.mode == 'begin':
+            return step == 0
+        if self.mode == 'anytime':
+            return step % self.gap == 0
+        return top2_gap(performer.action_probabilities(observation)) < self.epsilon
+
+
+@dataclass
+class Decision:
+    step: int
+    question: Optional[Question]
+    valid: bool = True
+    record: Any = None
+    reward: float = 0.0
+
+
+@dataclass
+class Episode:
+    task_id: str
+    seed: int
+    success: bool = False
+    steps: int = 0
+    end: str = ''
+    decisions: list[Decision] = field(default_factory=list)
+    dialogue: list[QA] = field(default_factory=list)
+
+    @property
+    def questions(self) -> int:
+        return sum(d.question is not None for d in self.decisions)
+
+    @property
+    def invalid_questions(self) -> int:
+        return sum(d.question is not None and not d.valid for d in self.decisions)
+
+    @property
+    def rewards(self) -> list[float]:
+        return [d.reward for d in self.decisions]
+
+
+def play(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing, rewards: Rewards = Rewards(),
+         perturbation=None) -> Episode:
+    """One episode of `task_id`; see the module's doc."""
+    from dialfred_oracle.local import answer_now
+    obs, _ = env.reset(seed=seed, options={'task_id': task_id})
+    task = env.task.public()
+    performer.reset(task, seed)
+    episode = Episode(task_id, seed)
+    steps_since = 0
+    terminated = truncated = False
+    while not (terminated or truncated):
+        if timing.chance(episode.steps, performer, obs['rgb']):
+            if episode.decisions:
+                last = episode.decisions[-1]
+                last.reward += rewards.step * steps_since
+            steps_since = 0
+            question, record = policy(obs['rgb'], task, list(episode.dialogue), episode.steps)
+            decision = Decision(episode.steps, question, record=record)
+            if question is not None:
+                ans = answer_now(env, question.question_type, question.object_noun, perturbation)
+                qa = QA(question, ans.valid, ans.text, ans.reason)
+                decision.valid = ans.valid
+                episode.dialogue.append(qa)
+                performer.hear(qa)
+                decision.reward += rewards.question + (0.0 if ans.valid else rewards.invalid)
+            episode.decisions.append(decision)
+        action, x, y = performer.act(obs['rgb'])
+        obs, success, terminated, truncated, _ = env.step({'action': action, 'pixel': (x, y)})
+        episode.steps += 1
+        steps_since += 1
+        episode.success = bool(success)
+    if episode.decisions:
+        episode.decisions[-1].reward += rewards.step * steps_since + (rewards.success if episode.success else 0.0)
+    episode.end = 'success' if episode.success else ('max_steps' if truncated else 'ended')
+    return episode
