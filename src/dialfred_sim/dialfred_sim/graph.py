@@ -138,13 +138,20 @@ class NodeProcess:
 
 
 class Graph:
-    """The running node graph plus a client node in this process to talk to it."""
+    """The running node graph plus a client node in this process to talk to it.
+
+    Ctrl-C: while the graph runs, SIGINT only sets a flag, and `check()` (called by every waiting
+    loop here, at least every 0.5 s) raises KeyboardInterrupt from Python. A KeyboardInterrupt raised
+    by the default handler inside a callback that the C++ EventsExecutor happens to be running can be
+    swallowed there (a Ctrl-C lost once in a loaded test run); a flag cannot be."""
 
     def __init__(self, nodes: list[NodeProcess]):
         self.nodes = nodes
         self.client_node = None
         self.executor = None
         self.owns_context = False    # False inside another Graph of this process: share its rclpy context
+        self._interrupted = threading.Event()
+        self._previous_sigint = None
 
     def __enter__(self) -> 'Graph':
         try:
@@ -166,12 +173,17 @@ class Graph:
             # handler, which would shut the context down under a running spin (ExternalShutdownException).
             rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
             self.owns_context = True
+            if threading.current_thread() is threading.main_thread():
+                self._previous_sigint = signal.signal(signal.SIGINT, lambda *_: self._interrupted.set())
         self.client_node = rclpy.create_node('dialfred_launcher')
         self.executor = make_executor()
         self.executor.add_node(self.client_node)
 
     def __exit__(self, *exc) -> None:
         import rclpy
+        if self._previous_sigint is not None:
+            signal.signal(signal.SIGINT, self._previous_sigint)
+            self._previous_sigint = None
         if self.executor is not None:
             self.executor.shutdown()
         if self.client_node is not None:
@@ -184,6 +196,10 @@ class Graph:
                 print(f'{n.label} node exited with code {code}', file=sys.stderr)
 
     def check(self) -> None:
+        """KeyboardInterrupt after a Ctrl-C; NodeDied if a node died."""
+        if self._interrupted.is_set():
+            self._interrupted.clear()
+            raise KeyboardInterrupt
         for n in self.nodes:
             n.check()
 
