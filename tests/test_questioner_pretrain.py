@@ -62,3 +62,32 @@ def test_a_tiny_run_learns_and_a_resumed_run_ends_with_the_same_weights(setup, t
     assert all(torch.equal(a[k], b[k]) for k in a)
     with pytest.raises(ValueError, match='batch_size'):
         pretrain(config(setup, tmp_path / 'split', resume=True, batch_size=4))
+
+
+def test_a_pretrained_checkpoint_asks_in_a_rollout_and_as_a_questioner(setup, tmp_path):
+    from dialfred_performer.agent import PerformerAgent
+    from dialfred_questioner.policy import LearnedQuestioner, batch_records
+    from dialfred_questioner.rollout import Timing, play
+    from dialfred_sim.env import DialfredEnv
+    pretrain(config(setup, tmp_path / 'q', epochs=1))
+    policy = LearnedQuestioner.from_checkpoint(tmp_path / 'q' / 'best.pt', greedy=False, seed=3)
+    env = DialfredEnv(resolution=64, max_steps=6)
+    performer = PerformerAgent.from_checkpoint(setup[1])
+    ep = play(env, performer, policy, 'valid_unseen/000001', 0, Timing('anytime', gap=2))
+    assert len(ep.decisions) == 3 and all(d.record is not None for d in ep.decisions)
+    records = [d.record for d in ep.decisions]
+    b = batch_records(records)
+    assert b['steps'].tolist() == [0, 2, 4]
+    asked = [d for d in ep.decisions if d.question is not None]
+    assert len(ep.dialogue) == len(asked) and ep.asked_at == [d.step for d in asked]
+    # the same inputs give the same greedy question as a Questioner
+    greedy = LearnedQuestioner.from_checkpoint(tmp_path / 'q' / 'best.pt')
+    obs, _ = env.reset(options={'task_id': 'valid_unseen/000001'})
+    greedy.reset(env.task.public(), 0)
+    assert greedy.ask(obs, 0) == greedy.decide(obs['rgb'], env.task.public().instruction, [], 0)[0]
+    env.close()
+    with pytest.raises(FileNotFoundError):
+        LearnedQuestioner.from_checkpoint(tmp_path / 'missing.pt')
+    (tmp_path / 'bad.pt').write_bytes(b'not a checkpoint')
+    with pytest.raises(ValueError, match='not a questioner checkpoint'):
+        LearnedQuestioner.from_checkpoint(tmp_path / 'bad.pt')

@@ -20,13 +20,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
+from dialfred_performer.preprocess import AskedQA
 from dialfred_sim.agents import QA, Question
 
 from .baselines import top2_gap
 from .rl import Rewards
 
 TIMINGS = ('begin', 'anytime', 'confusion')
-# policy(rgb, task, dialogue (list of QA so far), step) -> (Question or None, record)
+# policy(rgb, task, dialogue (AskedQA of dialfred_performer.preprocess so far), step) -> (Question or None, record)
 Policy = Callable[[Any, Any, list, int], tuple[Optional[Question], Any]]
 
 
@@ -70,6 +71,7 @@ class Episode:
     end: str = ''
     decisions: list[Decision] = field(default_factory=list)
     dialogue: list[QA] = field(default_factory=list)
+    asked_at: list[int] = field(default_factory=list)     # the step of each QA of `dialogue`
 
     @property
     def questions(self) -> int:
@@ -100,13 +102,15 @@ def play(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing
                 last = episode.decisions[-1]
                 last.reward += rewards.step * steps_since
             steps_since = 0
-            question, record = policy(obs['rgb'], task, list(episode.dialogue), episode.steps)
+            asked = [AskedQA(qa, t) for qa, t in zip(episode.dialogue, episode.asked_at)]
+            question, record = policy(obs['rgb'], task, asked, episode.steps)
             decision = Decision(episode.steps, question, record=record)
             if question is not None:
                 ans = answer_now(env, question.question_type, question.object_noun, perturbation)
                 qa = QA(question, ans.valid, ans.text, ans.reason)
                 decision.valid = ans.valid
                 episode.dialogue.append(qa)
+                episode.asked_at.append(episode.steps)
                 performer.hear(qa)
                 decision.reward += rewards.question + (0.0 if ans.valid else rewards.invalid)
             episode.decisions.append(decision)

@@ -1,0 +1,124 @@
+"""The learned questioner as something that asks (no ROS): a rollout policy for RL fine-tuning, and a
+`baselines.Questioner` (reset / ask / hear) for the evaluation and the questioner node.
+
+`LearnedQuestioner.from_checkpoint(path)` loads a checkpoint of `pretrain.save` (the model, its
+vocabulary and nouns, and the frozen visual encoder copied from the performer). A decision reads the
+current RGB frame (through that encoder), the instruction, the dialogue so far (each QA with the step
+it was asked) and the step, and gives a `Question` or None. `greedy` (evaluation) takes the most
+likely question; otherwise it samples from the policy with its own seeded generator (rollouts). As a
+rollout policy it also returns the decision's `Record`: the model's inputs and its choice, from which
+the fine-tuning recomputes log-probabilities, entropies and values in batches.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import torch
+
+from dialfred_performer.nn import VisualEncoder
+from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
+from dialfred_sim.agents import QA, Question
+
+from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
+
+
+@dataclass(frozen=True)
+class Record:
+    lang_ids: tuple[int, ...]
+    lang_types: tuple[int, ...]
+    image: torch.Tensor           # [image] frame embedding (frozen encoder)
+    step: int
+    qtype: int                    # index into TYPE_TOKENS
+    noun: int                     # index into the nouns, -1 when the type names none
+
+
+def batch_records(records: Sequence[Record]) -> dict:
+    """Records as a padded batch: lang_ids / lang_types / lang_valid [B, L], image [B, d], steps,
+    types, nouns [B]."""
+    B, L = len(records), max(max(len(r.lang_ids) for r in records), 1)
+    ids = torch.zeros(B, L, dtype=torch.long)
+    types = torch.zeros(B, L, dtype=torch.long)
+    valid = torch.zeros(B, L, dtype=torch.bool)
+    for b, r in enumerate(records):
+        n = len(r.lang_ids)
+        ids[b, :n] = torch.tensor(r.lang_ids, dtype=torch.long)
+        types[b, :n] = torch.tensor(r.lang_types, dtype=torch.long)
+        valid[b, :n] = True
+    return {'lang_ids': ids, 'lang_types': types, 'lang_valid': valid,
+            'image': torch.stack([r.image for r in records]), 'steps': torch.tensor([r.step for r in records]),
+            'types': torch.tensor([r.qtype for r in records]), 'nouns': torch.tensor([r.noun for r in records])}
+
+
+class LearnedQuestioner:
+    name = 'learned'
+
+    def __init__(self, model: Questioner, vocab: Vocabulary, visual: VisualEncoder, resolution: int,
+                 greedy: bool = True, seed: int = 0):
+        if len(vocab) != model.vocab_size:
+            raise ValueError(f'the vocabulary has {len(vocab)} words, the model {model.vocab_size}')
+        self.model, self.vocab, self.visual, self.resolution = model, vocab, visual.eval(), resolution
+        self.greedy = greedy
+        self.generator = torch.Generator().manual_seed(seed)
+        self.task = None
+        self.dialogue: list[AskedQA] = []
+        self._step = 0
+
+    @classmethod
+    def from_checkpoint(cls, path: Path, greedy: bool = True, seed: int = 0) -> 'LearnedQuestioner':
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f'no questioner checkpoint at {path}')
+        try:
+            state = torch.load(path, map_location='cpu', weights_only=True)
+            config = QuestionerConfig(**state['config'])
+            vocab = Vocabulary.from_json(state['vocab'])
+            model = Questioner(config, len(vocab), state['nouns'])
+            model.load_state_dict(state['state_dict'])
+            visual = VisualEncoder(config.image, int(state['visual_resolution']))
+            visual.load_state_dict(state['visual'])
+        except Exception as exc:  # noqa: BLE001 - a damaged file raises many kinds
+            raise ValueError(f'{path} is not a questioner checkpoint ({type(exc).__name__}: {exc})') from exc
+        return cls(model.eval(), vocab, visual, int(state['visual_resolution']), greedy, seed)
+
+    @torch.no_grad()
+    def record_of(self, rgb, instruction: str, dialogue: Sequence[AskedQA], step: int) -> Record:
+        """The model's inputs for a decision (qtype / noun still -1)."""
+        lang = encode_language(self.vocab, instruction, dialogue)
+        image = self.visual(frame_tensor(rgb, self.resolution)[None])[0][0]
+        return Record(lang.ids, lang.types, image, step, -1, -1)
+
+    @torch.no_grad()
+    def decide(self, rgb, instruction: str, dialogue: Sequence[AskedQA], step: int) -> tuple[Optional[Question], Record]:
+        r = self.record_of(rgb, instruction, dialogue, step)
+        b = batch_records([r])
+        was = self.model.training
+        self.model.eval()
+        enc = self.model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
+        qtypes, nouns, _ = self.model.sample(enc, generator=self.generator, greedy=self.greedy)
+        self.model.train(was)
+        qtype, noun = int(qtypes[0]), int(nouns[0])
+        r = Record(r.lang_ids, r.lang_types, r.image, step, qtype, noun)
+        name = TYPE_TOKENS[qtype]
+        if name == 'none':
+            return None, r
+        return Question(name, self.model.nouns[noun] if name in NEEDS_OBJECT else ''), r
+
+    # ---- a rollout policy
+    def __call__(self, rgb, task, dialogue: Sequence[AskedQA], step: int) -> tuple[Optional[Question], Record]:
+        return self.decide(rgb, task.instruction, dialogue, step)
+
+    # ---- a baselines.Questioner
+    def reset(self, task: Any, seed: int) -> None:
+        self.task, self.dialogue, self._step = task, [], 0
+        self.generator.manual_seed(seed)
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        from dialfred_performer.agent import observation_rgb
+        self._step = step
+        return self.decide(observation_rgb(observation), self.task.instruction, self.dialogue, step)[0]
+
+    def hear(self, qa: QA) -> None:
+        self.dialogue.append(AskedQA(qa, self._step))
