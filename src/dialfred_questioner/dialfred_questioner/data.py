@@ -75,18 +75,24 @@ def frame_features(visual, frames: np.ndarray, resolution: int, batch: int = 512
     return torch.cat(parts) if parts else torch.zeros(0, visual.project[0].out_features)
 
 
+def pad_language(ids: Sequence[Sequence[int]], types: Sequence[Sequence[int]]) -> tuple:
+    """Token ids and types of a batch, padded: (ids, types [B, L] long, valid [B, L] bool)."""
+    B, L = len(ids), max([len(x) for x in ids] + [1])
+    out_ids = torch.zeros(B, L, dtype=torch.long)
+    out_types = torch.zeros(B, L, dtype=torch.long)
+    valid = torch.zeros(B, L, dtype=torch.bool)
+    for b, (x, t) in enumerate(zip(ids, types)):
+        out_ids[b, :len(x)] = torch.tensor(x, dtype=torch.long)
+        out_types[b, :len(x)] = torch.tensor(t, dtype=torch.long)
+        valid[b, :len(x)] = True
+    return out_ids, out_types, valid
+
+
 def collate(examples: Sequence[Example], vocab: Vocabulary, features: torch.Tensor, max_tokens: int = 256) -> dict:
     """A padded batch: lang_ids / lang_types / lang_valid [B, L], image [B, d] (features[example.frame]
     for a features table over the frames), steps, types, nouns [B]."""
     langs = [encode_language(vocab, e.instruction, e.dialogue, max_tokens) for e in examples]
-    B, L = len(examples), max(max(len(x) for x in langs), 1)
-    ids = torch.zeros(B, L, dtype=torch.long)
-    types = torch.zeros(B, L, dtype=torch.long)
-    valid = torch.zeros(B, L, dtype=torch.bool)
-    for b, x in enumerate(langs):
-        ids[b, :len(x)] = torch.tensor(x.ids, dtype=torch.long)
-        types[b, :len(x)] = torch.tensor(x.types, dtype=torch.long)
-        valid[b, :len(x)] = True
+    ids, types, valid = pad_language([x.ids for x in langs], [x.types for x in langs])
     return {'lang_ids': ids, 'lang_types': types, 'lang_valid': valid,
             'image': features[torch.tensor([e.frame for e in examples])],
             'steps': torch.tensor([e.step for e in examples]),

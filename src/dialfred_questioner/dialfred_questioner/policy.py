@@ -22,6 +22,7 @@ from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 from dialfred_sim.agents import QA, Question
 
+from .data import pad_language
 from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
 
 
@@ -38,15 +39,7 @@ class Record:
 def batch_records(records: Sequence[Record]) -> dict:
     """Records as a padded batch: lang_ids / lang_types / lang_valid [B, L], image [B, d], steps,
     types, nouns [B]."""
-    B, L = len(records), max(max(len(r.lang_ids) for r in records), 1)
-    ids = torch.zeros(B, L, dtype=torch.long)
-    types = torch.zeros(B, L, dtype=torch.long)
-    valid = torch.zeros(B, L, dtype=torch.bool)
-    for b, r in enumerate(records):
-        n = len(r.lang_ids)
-        ids[b, :n] = torch.tensor(r.lang_ids, dtype=torch.long)
-        types[b, :n] = torch.tensor(r.lang_types, dtype=torch.long)
-        valid[b, :n] = True
+    ids, types, valid = pad_language([r.lang_ids for r in records], [r.lang_types for r in records])
     return {'lang_ids': ids, 'lang_types': types, 'lang_valid': valid,
             'image': torch.stack([r.image for r in records]), 'steps': torch.tensor([r.step for r in records]),
             'types': torch.tensor([r.qtype for r in records]), 'nouns': torch.tensor([r.noun for r in records])}

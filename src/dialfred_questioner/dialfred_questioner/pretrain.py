@@ -16,7 +16,6 @@ the weights of an uninterrupted run), `best.pt` (lowest validation loss), `metri
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import math
 import os
@@ -33,6 +32,7 @@ import torch
 from dialfred_performer.cli import arg, command_line, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
+from dialfred_performer.train import held_out
 from dialfred_sim.tasks.demonstrations import default_dir
 
 from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
@@ -75,10 +75,6 @@ class PretrainConfig:
             raise ValueError(f'lr must be a positive number, got {self.lr}')
         if not 0 <= self.val_fraction < 1:
             raise ValueError(f'val_fraction must be in [0, 1), got {self.val_fraction}')
-
-
-def held_out(task_id: str, fraction: float) -> bool:
-    return int(hashlib.sha256(task_id.encode()).hexdigest()[:12], 16) / 16 ** 12 < fraction
 
 
 def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, performer_info: dict, cfg,
