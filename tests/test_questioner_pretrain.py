@@ -19,7 +19,7 @@ from dialfred_oracle.annotator import load_dialogues
 from dialfred_questioner.data import catalog_nouns, pretraining_examples
 from dialfred_questioner.model import QuestionerConfig
 from dialfred_questioner.pretrain import PretrainConfig, pretrain
-from dialfred_sim.tasks.demonstrations import build_demonstrations, load_demonstrations
+from dialfred_questioner.frames import FirstFrames, build_first_frames
 from helpers import tiny_checkpoint
 
 TASKS = 16
@@ -28,25 +28,26 @@ TASKS = 16
 @pytest.fixture(scope='module')
 def setup(tmp_path_factory):
     root = tmp_path_factory.mktemp('qpre')
-    build_demonstrations('valid_unseen', 64, root / 'demo', workers=1, limit=TASKS, progress=False)
-    return root / 'demo', tiny_checkpoint(root / 'performer.pt')
+    build_first_frames('valid_unseen', 64, root / 'first.npz', workers=1, limit=TASKS, progress=False)
+    return root / 'first.npz', tiny_checkpoint(root / 'performer.pt')
 
 
 def config(setup, out, **changes) -> PretrainConfig:
     demo, performer = setup
-    base = dict(split='valid_unseen', demonstrations=str(demo), performer=str(performer), out=str(out),
+    base = dict(split='valid_unseen', frames=str(demo), performer=str(performer), out=str(out),
                 model=QuestionerConfig(embedding=16, hidden=32, image=32, dropout=0.0), epochs=3, batch_size=8,
                 lr=3e-3, val_fraction=0.2, limit=TASKS, threads=1, progress=False)
     return PretrainConfig(**{**base, **changes})
 
 
 def test_each_annotation_of_a_rendered_task_is_an_example(setup):
-    demo = load_demonstrations(setup[0])
+    first = FirstFrames(setup[0])
+    assert first.frames.shape == (TASKS, 64, 64, 3) and first.resolution == 64
     rows = load_dialogues('valid_unseen')[:TASKS + 4]
-    examples, skipped = pretraining_examples(rows, demo, catalog_nouns())
+    examples, skipped = pretraining_examples(rows, first.index, catalog_nouns())
     assert len(examples) + skipped == sum(len(r.annotations) for r in rows)
     assert skipped >= 4 * 2                          # the 4 tasks without frames
-    assert {e.task_id for e in examples} <= {t['task_id'] for t in demo.tasks}
+    assert {e.task_id for e in examples} <= set(first.task_ids)
 
 
 def test_a_tiny_run_learns_and_a_resumed_run_ends_with_the_same_weights(setup, tmp_path):

@@ -5,8 +5,9 @@ An example is what the questioner sees when it decides (the instruction, the dia
 the frame) and the question the annotator asked there (or none). The annotators of
 `dialfred_oracle.annotator` ask at the task's start, so pre-training examples have step 0 and an empty
 dialogue; RL fine-tuning (`finetune.py`) then asks at any step with the dialogue so far. The frame is
-the task's first frame in the performer's demonstrations folder of the split (the same start state),
-encoded by the performer's frozen visual encoder (`frame_features`).
+the task's first frame (`frames.build_first_frames`: the task's start state rendered, the state the
+demonstrations and the evaluation start from), encoded by the performer's frozen visual encoder
+(`frame_features`).
 """
 
 from __future__ import annotations
@@ -47,10 +48,10 @@ def target(question_type: Optional[str], noun: str, noun_index: dict) -> tuple[i
     return TYPE_TOKENS.index(qtype), (noun_index[noun] if qtype in NEEDS_OBJECT else -1)
 
 
-def pretraining_examples(rows: Sequence, demo, nouns: Sequence[str]) -> tuple[list[Example], int]:
-    """(examples, annotations skipped) from TaskDialogues rows and a Demonstrations build of the same
-    split; an annotation is skipped when its task is not in the build or its noun not in `nouns`."""
-    first_frame = {t['task_id']: t['first_frame'] for t in demo.tasks}
+def pretraining_examples(rows: Sequence, first_frame: dict, nouns: Sequence[str]) -> tuple[list[Example], int]:
+    """(examples, annotations skipped) from TaskDialogues rows and {task id: index of its first frame}
+    (`frames.FirstFrames.index`) of the same split; an annotation is skipped when its task has no
+    frame or its noun is not in `nouns`."""
     index = {n: k for k, n in enumerate(nouns)}
     out, skipped = [], 0
     for row in rows:

@@ -8,6 +8,13 @@ it was asked) and the step, and gives a `Question` or None. `greedy` (evaluation
 likely question; otherwise it samples from the policy with its own seeded generator (rollouts). As a
 rollout policy it also returns the decision's `Record`: the model's inputs and its choice, from which
 the fine-tuning recomputes log-probabilities, entropies and values in batches.
+
+As a `Questioner` it asks at most once per step, and only at the chances its `timing` gives
+(`rollout.Timing`: begin, anytime with a gap, or on the performer's confusion), exactly as a rollout
+does, so an evaluation plays the episode its fine-tuning played. The timing is the checkpoint's
+(`finetune.py` stores the one it was trained with; a pre-trained checkpoint asks at the start only)
+unless one is given. With the confusion timing it needs the performer's top-2 action-probability gap:
+in process from `attach(performer)`, in the questioner node from the request (`ask(..., confusion_gap)`).
 """
 
 from __future__ import annotations
@@ -22,8 +29,13 @@ from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 from dialfred_sim.agents import QA, Question
 
+from .baselines import top2_gap
 from .data import pad_language
 from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
+from .rollout import Timing
+
+# The timing of a checkpoint that stores none (a pre-trained one: its annotators asked at the start).
+DEFAULT_TIMING = Timing('begin')
 
 
 @dataclass(frozen=True)
@@ -49,18 +61,27 @@ class LearnedQuestioner:
     name = 'learned'
 
     def __init__(self, model: Questioner, vocab: Vocabulary, visual: VisualEncoder, resolution: int,
-                 greedy: bool = True, seed: int = 0):
+                 greedy: bool = True, seed: int = 0, timing: Timing = DEFAULT_TIMING):
         if len(vocab) != model.vocab_size:
             raise ValueError(f'the vocabulary has {len(vocab)} words, the model {model.vocab_size}')
         self.model, self.vocab, self.visual, self.resolution = model, vocab, visual.eval(), resolution
         self.greedy = greedy
+        self.timing = timing
         self.generator = torch.Generator().manual_seed(seed)
+        self.performer = None
         self.task = None
         self.dialogue: list[AskedQA] = []
         self._step = 0
+        self._asked_at = -1
+
+    @property
+    def needs_gap(self) -> bool:
+        """Whether a decision needs the performer's top-2 action-probability gap (confusion timing)."""
+        return self.timing.mode == 'confusion'
 
     @classmethod
-    def from_checkpoint(cls, path: Path, greedy: bool = True, seed: int = 0) -> 'LearnedQuestioner':
+    def from_checkpoint(cls, path: Path, greedy: bool = True, seed: int = 0,
+                        timing: Optional[Timing] = None) -> 'LearnedQuestioner':
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f'no questioner checkpoint at {path}')
@@ -72,9 +93,10 @@ class LearnedQuestioner:
             model.load_state_dict(state['state_dict'])
             visual = VisualEncoder(config.image, int(state['visual_resolution']))
             visual.load_state_dict(state['visual'])
+            saved = Timing(**state['timing']) if state.get('timing') else DEFAULT_TIMING
         except Exception as exc:  # noqa: BLE001 - a damaged file raises many kinds
             raise ValueError(f'{path} is not a questioner checkpoint ({type(exc).__name__}: {exc})') from exc
-        return cls(model.eval(), vocab, visual, int(state['visual_resolution']), greedy, seed)
+        return cls(model.eval(), vocab, visual, int(state['visual_resolution']), greedy, seed, timing or saved)
 
     @torch.no_grad()
     def record_of(self, rgb, instruction: str, dialogue: Sequence[AskedQA], step: int) -> Record:
@@ -104,13 +126,34 @@ class LearnedQuestioner:
         return self.decide(rgb, task.instruction, dialogue, step)
 
     # ---- a baselines.Questioner
+    def attach(self, performer: Any) -> None:
+        """The performer whose confusion the confusion timing watches (in process)."""
+        if self.needs_gap and not callable(getattr(performer, 'action_probabilities', None)):
+            raise ValueError(f'a questioner with the confusion timing needs a performer with '
+                             f'action_probabilities(); {getattr(performer, "name", performer)!r} has none')
+        self.performer = performer
+
     def reset(self, task: Any, seed: int) -> None:
-        self.task, self.dialogue, self._step = task, [], 0
+        self.task, self.dialogue, self._step, self._asked_at = task, [], 0, -1
         self.generator.manual_seed(seed)
 
-    def ask(self, observation: Any, step: int) -> Optional[Question]:
+    def ask(self, observation: Any, step: int, confusion_gap: Optional[float] = None) -> Optional[Question]:
+        """A question or None before action `step` + 1: at most one per step, at the timing's chances.
+        The confusion timing uses `confusion_gap` if given, else asks the attached performer."""
         from dialfred_performer.agent import observation_rgb
-        self._step = step
+        if step == self._asked_at:
+            return None
+        if self.needs_gap:
+            if confusion_gap is None:
+                if self.performer is None:
+                    raise RuntimeError('the confusion timing needs attach(performer) or the confusion_gap')
+                confusion_gap = top2_gap(self.performer.action_probabilities(observation))
+            chance = confusion_gap < self.timing.epsilon
+        else:
+            chance = self.timing.chance(step, None, None)
+        if not chance:
+            return None
+        self._asked_at, self._step = step, step
         return self.decide(observation_rgb(observation), self.task.instruction, self.dialogue, step)[0]
 
     def hear(self, qa: QA) -> None:

@@ -1,7 +1,7 @@
 """Supervised pre-training of the learned questioner on a split's (SYNTHETIC) annotated dialogues.
 
     ./dialfred env python3 scripts/annotate_dialogues.py --splits train --workers 2     # once: the dialogues
-    ./dialfred prepare-performer --split train                                         # once: the frames
+    ./dialfred env python3 -m dialfred_questioner.frames train --workers 2            # once: first frames
     python -m dialfred_questioner.pretrain --out out/questioner [--resume]
 
 Each annotation (two per task; `dialfred_questioner.data`) is an example: the instruction, the task's
@@ -33,7 +33,6 @@ from dialfred_performer.cli import arg, command_line, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_performer.train import held_out
-from dialfred_sim.tasks.demonstrations import default_dir
 
 from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
 from .model import Questioner, QuestionerConfig
@@ -48,7 +47,8 @@ class PretrainConfig:
     """Pre-train the DialFRED questioner on synthetic annotated dialogues (teacher forcing)."""
 
     split: str = arg('train', 'the annotated dialogues of this split (dialfred_oracle.annotator.load_dialogues)')
-    demonstrations: str = arg(str(default_dir('train', 64)), "the split's demonstrations folder (first frames)")
+    frames: str = arg('', "the split's first frames (dialfred_questioner.frames; '': its default file, at "
+                          "the performer's resolution)")
     performer: str = arg(str(SHIPPED_CHECKPOINT), 'performer checkpoint: its visual encoder (frozen) and vocabulary')
     out: str = arg('out/questioner', 'folder for last.pt, best.pt and metrics.jsonl')
     model: QuestionerConfig = field(default_factory=QuestionerConfig)
@@ -78,13 +78,14 @@ class PretrainConfig:
 
 
 def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, performer_info: dict, cfg,
-         commit: str, extra: Optional[dict] = None) -> None:
+         commit: str, extra: Optional[dict] = None, timing: Optional[dict] = None, module: str = MODULE) -> None:
     """Everything the questioner needs to run: its config, nouns, the vocabulary, its weights and the
-    frozen visual encoder's, which performer they came from, the command and commit."""
+    frozen visual encoder's, which performer they came from, when it asks (`timing`, a rollout.Timing
+    as a dict; none: at the start only), the command (of `module`) and commit."""
     state = {'format': FORMAT, 'config': dataclasses.asdict(model.config), 'nouns': list(model.nouns),
              'vocab': vocab.to_json(), 'state_dict': model.state_dict(), 'visual': visual_state,
              'visual_resolution': performer_info['config'].resolution, 'performer': performer_info['path'],
-             'git_commit': commit, 'command': command_line(MODULE, cfg), 'extra': extra or {}}
+             'timing': timing, 'git_commit': commit, 'command': command_line(module, cfg), 'extra': extra or {}}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + '.tmp')
     torch.save(state, tmp)
@@ -119,7 +120,7 @@ def pretrain(cfg: PretrainConfig) -> dict:
     from tqdm import tqdm
 
     from dialfred_oracle.annotator import load_dialogues
-    from dialfred_sim.tasks.demonstrations import load_demonstrations
+    from .frames import FirstFrames, default_path
     out = Path(cfg.out)
     commit = git_commit()
     torch.set_num_threads(cfg.threads or len(os.sched_getaffinity(0)))
@@ -132,15 +133,16 @@ def pretrain(cfg: PretrainConfig) -> dict:
     if cfg.model.image != performer.config.d_model:
         raise ValueError(f'--image must be the performer\'s d_model ({performer.config.d_model}), got {cfg.model.image}')
     rows = load_dialogues(cfg.split)[:cfg.limit or None]
-    demo = load_demonstrations(Path(cfg.demonstrations))
+    frames_path = Path(cfg.frames) if cfg.frames else default_path(cfg.split, performer.config.resolution)
+    first = FirstFrames(frames_path)
     nouns = catalog_nouns()
-    examples, skipped = pretraining_examples(rows, demo, nouns)
+    examples, skipped = pretraining_examples(rows, first.index, nouns)
     if not examples:
-        raise ValueError(f'no examples: {skipped} annotations skipped (are {cfg.demonstrations} and the '
+        raise ValueError(f'no examples: {skipped} annotations skipped (are {frames_path} and the '
                          f'{cfg.split} dialogues of the same split?)')
     used = sorted({e.frame for e in examples})
     slot = {f: k for k, f in enumerate(used)}
-    features = frame_features(visual, demo.frames[used], performer.config.resolution)
+    features = frame_features(visual, first.frames[used], performer.config.resolution)
     examples = [dataclasses.replace(e, frame=slot[e.frame]) for e in examples]
     val = [e for e in examples if held_out(e.task_id, cfg.val_fraction)]
     train = [e for e in examples if not held_out(e.task_id, cfg.val_fraction)]
