@@ -85,3 +85,55 @@ def draw_curves(metrics_path: Path, out_path: Path) -> Path:
     image.save(tmp)
     tmp.replace(out_path)
     return out_path
+
+
+def draw_series(rows: list[dict], panels, out_path: Path, x_key: str = 'update', x_label: str = '') -> Path:
+    """A row of line panels from `rows` (dicts with `x_key`): each panel is (title, ((key, label,
+    colour), ...), y range or None for 0 (or the lowest value) to the highest); a legend per panel."""
+    font = ImageFont.load_default()
+    image = Image.new('RGB', (W * len(panels), H + 20 + 14 * max(len(p[1]) for p in panels)), 'white')
+    draw = ImageDraw.Draw(image)
+    for k, (title, lines, y_range) in enumerate(panels):
+        x0 = k * W
+        left, top, right, bottom = x0 + MARGIN[0], MARGIN[1], x0 + W - MARGIN[2], H - MARGIN[3]
+        draw.text((x0 + W // 2 - len(title) * 3, 8), title, fill='black', font=font)
+        draw.rectangle((left, top, right, bottom), outline=(160, 160, 160))
+        series = [[(r[x_key], r[key]) for r in rows if r.get(key) is not None] for key, _, _ in lines]
+        points = [p for s in series for p in s]
+        for j, (_, label, colour) in enumerate(lines):
+            y = H + 8 + 14 * j
+            draw.line((x0 + 12, y, x0 + 36, y), fill=colour, width=3)
+            draw.text((x0 + 42, y - 6), label, fill='black', font=font)
+        if not points:
+            continue
+        x_lo, x_hi = 0, max(max(p[0] for p in points), 1)
+        ys = [p[1] for p in points]
+        y_lo, y_hi = y_range or (min(0.0, min(ys)), max(ys) * 1.05 if max(ys) > 0 else 1.0)
+        if y_hi <= y_lo:
+            y_hi = y_lo + 1.0
+
+        def at(x: float, y: float) -> tuple[float, float]:
+            return (left + (x - x_lo) / (x_hi - x_lo) * (right - left),
+                    bottom - (min(max(y, y_lo), y_hi) - y_lo) / (y_hi - y_lo) * (bottom - top))
+
+        for y in _ticks(y_lo, y_hi):
+            _, py = at(x_lo, y)
+            draw.line((left, py, right, py), fill=(230, 230, 230))
+            draw.text((x0 + 4, py - 6), f'{y:.3g}', fill='black', font=font)
+        for x in _ticks(x_lo, x_hi):
+            px, _ = at(x, y_lo)
+            draw.text((px - 8, bottom + 4), f'{x:g}', fill='black', font=font)
+        for s, (_, _, colour) in zip(series, lines):
+            pts = [at(x, y) for x, y in sorted(s)]
+            if len(pts) > 1:
+                draw.line(pts, fill=colour, width=2)
+            else:
+                for px, py in pts:
+                    draw.ellipse((px - 3, py - 3, px + 3, py + 3), fill=colour)
+    if x_label:
+        draw.text((W * len(panels) - 160, H + 2), x_label, fill='black', font=font)
+    out_path = Path(out_path)
+    tmp = out_path.with_name(out_path.name + '.tmp.png')
+    image.save(tmp)
+    tmp.replace(out_path)
+    return out_path

@@ -1,0 +1,311 @@
+"""Actor-critic fine-tuning of the learned questioner against the frozen performer (DialFRED paper,
+"Questioner fine-tuning using RL"; no ROS).
+
+    python -m dialfred_questioner.finetune --out out/questioner/rl_anytime --timing anytime --gap 5
+    python -m dialfred_questioner.finetune --out out/questioner/rl_begin --timing begin
+    python -m dialfred_questioner.finetune --out out/questioner/rl_anytime_1 --gap 1 --rewards fixed_1
+    python -m dialfred_questioner.finetune --out out/questioner/rl_mc --timing confusion
+    python -m dialfred_questioner.finetune --out ... --perturb-type location       # Table III
+
+Starts from a pre-trained questioner (`--init`, `pretrain.py`) and plays episodes of `--split`
+(valid_seen, as the paper) in process: `rollout.play` with the shipped performer frozen, the oracle's
+rules (`dialfred_oracle.local`, with the perturbation if any) and the env at the evaluation's
+resolution, on `--workers` processes. Each update plays `--episodes-per-update` episodes with the
+current policy (sampled with a generator seeded per episode, so the episodes do not depend on the
+number of workers), then takes one actor-critic step on all their decisions (`rl.actor_critic_loss`:
+discounted returns, advantages against the critic, the critic regressed on the returns, an entropy
+bonus, gradient clipping). Tasks are visited in a seeded shuffled order, pass after pass.
+
+Writes to `--out`, as it goes: `metrics.jsonl` (a line per update: return, SR, NQ, invalid share,
+the mix of question types, the losses, seconds), `curves.png`, `last.pt` after every update (with the
+optimiser state: `--resume` continues to the weights of an uninterrupted run) and `final.pt` at the
+end. Checkpoints are `pretrain.save`'s format plus the timing they were trained with, so
+`LearnedQuestioner.from_checkpoint` asks as it learned to.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import multiprocessing
+import os
+import random
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import torch
+
+from dialfred_performer.cli import arg, parse
+from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit
+
+from dialfred_sim.agents import QUESTION_TYPES as QUESTION_TYPES_ASKED
+
+from .model import Questioner
+from .rl import Rewards, actor_critic_loss, discounted_returns
+from .rollout import TIMINGS, Timing
+
+MODULE = 'dialfred_questioner.finetune'
+PACKAGE_DIR = Path(__file__).resolve().parent
+PRETRAINED = PACKAGE_DIR / 'checkpoints' / 'pretrained.pt'
+REWARDS = {'paper': Rewards(), 'fixed_1': Rewards.fixed_1()}
+RESUMABLE_CHANGES = ('resume', 'progress', 'workers', 'updates')
+
+
+@dataclass(frozen=True)
+class FinetuneConfig:
+    """Fine-tune the DialFRED questioner with actor-critic RL against the frozen performer."""
+
+    init: str = arg(str(PRETRAINED), 'the pre-trained questioner checkpoint to start from')
+    performer: str = arg(str(SHIPPED_CHECKPOINT), 'the performer checkpoint (frozen)')
+    split: str = arg('valid_seen', 'the split whose tasks are played')
+    out: str = arg('out/questioner/rl_anytime', 'folder for metrics.jsonl, curves.png, last.pt, final.pt')
+    timing: str = arg('anytime', f'when the questioner may ask: {", ".join(TIMINGS)}')
+    gap: int = arg(5, 'anytime: performer steps between chances to ask')
+    epsilon: float = arg(0.5, 'confusion: ask when the top-2 action probabilities differ by less')
+    rewards: str = arg('paper', f'reward set: {", ".join(REWARDS)} (the paper\'s Fixed-1 penalties)')
+    perturb_type: str = arg('', 'the oracle withholds answers of this question type ...')
+    perturb_probability: float = arg(0.5, '... with this probability')
+    updates: int = arg(40, 'actor-critic updates')
+    episodes_per_update: int = arg(64, 'episodes played per update')
+    lr: float = arg(3e-4, 'learning rate (Adam)')
+    gamma: float = arg(0.99, 'discount between the questioner\'s decisions')
+    entropy: float = arg(0.01, 'entropy bonus weight')
+    value_weight: float = arg(0.5, 'critic loss weight')
+    grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
+    resolution: int = arg(128, 'the env\'s frames (the evaluation\'s resolution)')
+    max_steps: int = arg(1000, 'performer steps before an episode is cut off (the evaluation\'s limit)')
+    limit: int = arg(0, 'only the first N tasks of the split (0: all)')
+    workers: int = arg(2, 'rollout processes')
+    seed: int = arg(0, 'seeds the task order, the episodes and the sampling')
+    resume: bool = arg(False, 'continue from out/last.pt (same config required)')
+    progress: bool = arg(True, 'a progress line per update on stderr')
+
+    def __post_init__(self):
+        Timing(self.timing, self.gap, self.epsilon)               # ValueError for a bad timing
+        if self.rewards not in REWARDS:
+            raise ValueError(f'rewards must be one of {", ".join(REWARDS)}, got {self.rewards!r}')
+        if self.perturb_type and self.perturb_type not in QUESTION_TYPES_ASKED:
+            raise ValueError(f'perturb_type must be one of {", ".join(QUESTION_TYPES_ASKED)}, got {self.perturb_type!r}')
+        if not 0.0 <= self.perturb_probability <= 1.0:
+            raise ValueError(f'perturb_probability must be in [0, 1], got {self.perturb_probability}')
+        for name in ('updates', 'episodes_per_update', 'workers', 'resolution', 'max_steps'):
+            if getattr(self, name) < 1:
+                raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
+        for name in ('limit', 'seed', 'entropy', 'value_weight', 'grad_clip'):
+            if getattr(self, name) < 0:
+                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise ValueError(f'lr must be a positive number, got {self.lr}')
+        if not 0.0 < self.gamma <= 1.0:
+            raise ValueError(f'gamma must be in (0, 1], got {self.gamma}')
+
+    @property
+    def timing_of(self) -> Timing:
+        return Timing(self.timing, self.gap, self.epsilon)
+
+
+def episode_plan(n_tasks: int, update: int, per_update: int, seed: int) -> list[tuple[int, int]]:
+    """(task index, episode seed) of each episode of update `update` (0-based): the tasks in a
+    shuffled order per pass (seeded by `seed` and the pass), consecutive episodes of that order."""
+    out = []
+    for k in range(update * per_update, (update + 1) * per_update):
+        epoch, pos = divmod(k, n_tasks)
+        order = list(range(n_tasks))
+        random.Random(f'{seed}/pass{epoch}').shuffle(order)
+        out.append((order[pos], int(np.random.SeedSequence([seed, k]).generate_state(1)[0])))
+    return out
+
+
+# ---------------------------------------------------------------------- rollout workers
+
+_W: dict = {}
+
+
+def _init_worker(cfg_json: str) -> None:
+    from dialfred_oracle.answers import Perturbation
+    from dialfred_performer.agent import PerformerAgent
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+
+    from .policy import LearnedQuestioner
+    torch.set_num_threads(1)
+    cfg = FinetuneConfig(**json.loads(cfg_json))
+    _W['cfg'] = cfg
+    _W['env'] = DialfredEnv(resolution=cfg.resolution, max_steps=cfg.max_steps)
+    _W['performer'] = PerformerAgent.from_checkpoint(Path(cfg.performer))
+    _W['policy'] = LearnedQuestioner.from_checkpoint(Path(cfg.init), greedy=False, timing=cfg.timing_of)
+    _W['tasks'] = [t.task_id for t in load_split(cfg.split)][:cfg.limit or None]
+    _W['perturbation'] = (Perturbation(cfg.perturb_type, cfg.perturb_probability, cfg.seed)
+                          if cfg.perturb_type else None)
+
+
+def _play_chunk(args: tuple[dict, list[tuple[int, int, int]]]) -> list[tuple[int, dict]]:
+    """Play (episode number, task index, seed) with the policy's weights `state`."""
+    from .rollout import play
+    state, jobs = args
+    cfg, policy = _W['cfg'], _W['policy']
+    policy.model.load_state_dict(state)
+    policy.model.eval()
+    out = []
+    for number, task_index, seed in jobs:
+        policy.generator.manual_seed(seed)
+        ep = play(_W['env'], _W['performer'], policy, _W['tasks'][task_index], seed, cfg.timing_of,
+                  REWARDS[cfg.rewards], _W['perturbation'])
+        out.append((number, {
+            'task_id': ep.task_id, 'success': ep.success, 'steps': ep.steps, 'questions': ep.questions,
+            'invalid': ep.invalid_questions, 'rewards': ep.rewards, 'records': [d.record for d in ep.decisions],
+            'asked': [d.question.question_type if d.question else None for d in ep.decisions],
+            'dialogue': [(qa.question.question_type, qa.question.object_noun, qa.valid, qa.answer)
+                         for qa in ep.dialogue]}))
+    return out
+
+
+# ---------------------------------------------------------------------- the update
+
+def update_step(model: Questioner, opt, episodes: list[dict], cfg: FinetuneConfig) -> dict:
+    """One actor-critic step on every decision of `episodes` (complete episodes, in order)."""
+    from .policy import batch_records
+    records, rewards, ends = [], [], []
+    for ep in episodes:
+        records.extend(ep['records'])
+        rewards.extend(ep['rewards'])
+        ends.extend([False] * (len(ep['records']) - 1) + [True] if ep['records'] else [])
+    if not records:
+        return {'policy': 0.0, 'critic': 0.0, 'entropy': 0.0, 'advantage_mean': 0.0, 'decisions': 0}
+    returns = discounted_returns(rewards, ends, cfg.gamma)
+    b = batch_records(records)
+    model.eval()           # no dropout: the log-probabilities of the policy that played
+    enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
+    log_probs = model.log_prob(enc, b['types'], b['nouns'])
+    entropies = model.entropy(enc, b['types'])
+    values = model.value(enc)
+    loss, parts = actor_critic_loss(log_probs, values, entropies, returns, cfg.value_weight, cfg.entropy)
+    opt.zero_grad()
+    loss.backward()
+    if cfg.grad_clip:
+        parts['grad_norm'] = float(torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip))
+    opt.step()
+    return {**parts, 'decisions': len(records)}
+
+
+def summary(episodes: list[dict]) -> dict:
+    n = max(len(episodes), 1)
+    asked = [t for ep in episodes for t in ep['asked'] if t]
+    questions = sum(ep['questions'] for ep in episodes)
+    return {'episodes': len(episodes), 'return': sum(sum(ep['rewards']) for ep in episodes) / n,
+            'sr': sum(ep['success'] for ep in episodes) / n, 'nq': questions / n,
+            'invalid_share': sum(ep['invalid'] for ep in episodes) / max(questions, 1),
+            'steps': sum(ep['steps'] for ep in episodes) / n,
+            'mix': {t: asked.count(t) / max(len(asked), 1) for t in QUESTION_TYPES_ASKED}}
+
+
+RL_PANELS = (
+    ('return per episode', (('return', 'return', (31, 119, 180)),), None),
+    ('SR and NQ', (('sr', 'SR', (44, 160, 44)), ('nq', 'questions / episode', (214, 39, 40))), None),
+    ('question types (share)', (('mix.location', 'location', (31, 119, 180)), ('mix.appearance', 'appearance', (255, 127, 14)),
+                                ('mix.direction', 'direction', (148, 103, 189))), (0.0, 1.0)),
+    ('critic loss', (('critic', 'critic', (127, 127, 127)),), None),
+)
+
+
+def draw_rl_curves(metrics_path: Path, out_path: Path) -> Path:
+    """The fine-tuning curves (return, SR, NQ, question-type mix, critic loss per update) as a PNG."""
+    from dialfred_performer.curves import draw_series, read_metrics
+    rows = [{**r, **{f'mix.{k}': v for k, v in r.get('mix', {}).items()}} for r in read_metrics(metrics_path)]
+    return draw_series(rows, RL_PANELS, out_path, x_key='update', x_label='x: actor-critic updates')
+
+
+def finetune(cfg: FinetuneConfig) -> dict:
+    from dialfred_performer.model import load_checkpoint
+    from dialfred_sim.tasks import load_split
+
+    from .policy import LearnedQuestioner
+    from .pretrain import save
+    out = Path(cfg.out)
+    commit = git_commit()
+    torch.set_num_threads(1)
+    torch.manual_seed(cfg.seed)
+    init = LearnedQuestioner.from_checkpoint(Path(cfg.init))
+    model = init.model
+    model.eval()
+    base = torch.load(Path(cfg.init), map_location='cpu', weights_only=True)
+    _, _, performer_info = load_checkpoint(Path(cfg.performer))
+    performer_info = dict(performer_info, path=str(cfg.performer))
+    if base.get('performer') and Path(base['performer']).name != Path(cfg.performer).name:
+        print(f'note: {cfg.init} was pre-trained with the visual encoder of {base["performer"]}, '
+              f'fine-tuned here against {cfg.performer}', file=sys.stderr)
+    n_tasks = len(load_split(cfg.split)[:cfg.limit or None])
+    if n_tasks == 0:
+        raise ValueError(f'the split {cfg.split!r} has no tasks')
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    update = 0
+    log_path = out / 'metrics.jsonl'
+    if cfg.resume:
+        state = torch.load(out / 'last.pt', map_location='cpu', weights_only=False)
+        saved = json.loads(state['extra']['config'])
+        mine = dataclasses.asdict(cfg)
+        differ = sorted(k for k in mine if k not in RESUMABLE_CHANGES and mine[k] != saved.get(k))
+        if differ:
+            raise ValueError(f'--resume: the config differs from the run in {out} in {differ}')
+        model.load_state_dict(state['state_dict'])
+        opt.load_state_dict(state['extra']['optimizer'])
+        update = state['extra']['update']
+        lines = [l for l in log_path.read_text().splitlines() if json.loads(l)['update'] <= update] \
+            if log_path.exists() else []
+        log_path.write_text(''.join(l + '\n' for l in lines))
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        log_path.write_text('')
+    timing = dataclasses.asdict(cfg.timing_of)
+    visual_state = {k: v.clone() for k, v in init.visual.state_dict().items()}
+
+    def write(path: Path, extra: Optional[dict] = None) -> None:
+        save(path, model, init.vocab, visual_state, performer_info, cfg, commit, extra=extra, timing=timing,
+             module=MODULE)
+
+    t0 = time.monotonic()
+    report: dict = {}
+    ctx = multiprocessing.get_context('spawn')
+    cfg_json = json.dumps(dataclasses.asdict(cfg))
+    with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(cfg_json,)) as pool:
+        while update < cfg.updates:
+            plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed)
+            jobs = [(update * cfg.episodes_per_update + k, t, s) for k, (t, s) in enumerate(plan)]
+            state = {k: v.detach().clone() for k, v in model.state_dict().items()}
+            chunks = [jobs[w::cfg.workers] for w in range(cfg.workers)]
+            played = sorted((x for part in pool.map(_play_chunk, [(state, c) for c in chunks if c]) for x in part),
+                            key=lambda x: x[0])
+            episodes = [ep for _, ep in played]
+            t_play = time.monotonic()
+            parts = update_step(model, opt, episodes, cfg)
+            update += 1
+            report = {'update': update, **summary(episodes), **parts,
+                      'seconds': round(time.monotonic() - t0, 1),
+                      'update_seconds': round(time.monotonic() - t_play, 3)}
+            with open(log_path, 'a') as f:
+                f.write(json.dumps(report) + '\n')
+            write(out / 'last.pt', extra={'config': json.dumps(dataclasses.asdict(cfg)), 'optimizer': opt.state_dict(),
+                                          'update': update, 'examples': [ep['dialogue'] for ep in episodes[:4]]})
+            draw_rl_curves(log_path, out / 'curves.png')
+            if cfg.progress:
+                mix = ' '.join(f'{t[:3]} {v:.2f}' for t, v in report['mix'].items())
+                print(f'update {update}/{cfg.updates}: return {report["return"]:+.3f}  SR {report["sr"]:.3f}  '
+                      f'NQ {report["nq"]:.2f}  invalid {report["invalid_share"]:.2f}  [{mix}]  '
+                      f'critic {report["critic"]:.4f}  {report["seconds"]:.0f} s', file=sys.stderr, flush=True)
+    write(out / 'final.pt', extra={'updates': update, 'seconds': report.get('seconds')})
+    return {**report, 'out': str(out), 'final': str(out / 'final.pt')}
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    cfg = parse(FinetuneConfig, argv, prog=f'python -m {MODULE}')
+    print(json.dumps(finetune(cfg)))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

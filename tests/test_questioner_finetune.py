@@ -1,0 +1,99 @@
+"""Actor-critic fine-tuning of the learned questioner (dialfred_questioner.finetune, no ROS), tiny
+budget: a tiny performer, a questioner pre-trained for one epoch on 16 tasks' (SYNTHETIC) dialogues,
+8-step episodes.
+
+Claims: a run writes a metrics line per update (return, SR, NQ, question mix, losses), curves.png,
+last.pt and final.pt with the timing it was trained with, and changes the weights; the episodes do
+not depend on the number of workers (the same weights after one or two workers); a run stopped and
+resumed ends with the weights of an uninterrupted run; the episode plan covers every task once per
+pass; bad settings are refused before anything runs.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+from dialfred_questioner.finetune import FinetuneConfig, episode_plan, finetune
+from dialfred_questioner.frames import build_first_frames
+from dialfred_questioner.model import QuestionerConfig
+from dialfred_questioner.policy import LearnedQuestioner
+from dialfred_questioner.pretrain import PretrainConfig, pretrain
+from helpers import tiny_checkpoint
+
+TASKS = 12
+
+
+@pytest.fixture(scope='module')
+def setup(tmp_path_factory):
+    root = tmp_path_factory.mktemp('qrl')
+    build_first_frames('valid_unseen', 64, root / 'first.npz', workers=1, limit=16, progress=False)
+    performer = tiny_checkpoint(root / 'performer.pt')
+    pretrain(PretrainConfig(split='valid_unseen', frames=str(root / 'first.npz'), performer=str(performer),
+                            out=str(root / 'pre'), model=QuestionerConfig(embedding=16, hidden=32, image=32),
+                            epochs=1, batch_size=8, limit=16, threads=1, progress=False))
+    return root / 'pre' / 'best.pt', performer
+
+
+def config(setup, out, **changes) -> FinetuneConfig:
+    init, performer = setup
+    base = dict(init=str(init), performer=str(performer), split='valid_unseen', out=str(out), timing='anytime',
+                gap=3, updates=2, episodes_per_update=4, lr=1e-2, resolution=64, max_steps=8, limit=TASKS,
+                workers=1, progress=False)
+    return FinetuneConfig(**{**base, **changes})
+
+
+def weights(path):
+    return torch.load(path, weights_only=False)['state_dict']
+
+
+def same(a, b) -> bool:
+    return all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_a_tiny_run_writes_its_curves_and_checkpoints_and_learns_something(setup, tmp_path):
+    report = finetune(config(setup, tmp_path / 'one'))
+    lines = [json.loads(l) for l in (tmp_path / 'one' / 'metrics.jsonl').read_text().splitlines()]
+    assert [l['update'] for l in lines] == [1, 2]
+    for l in lines:
+        assert l['episodes'] == 4 and 0.0 <= l['sr'] <= 1.0 and l['nq'] >= 0 and l['decisions'] >= 4 * 1
+        assert set(l['mix']) == {'location', 'appearance', 'direction'} and l['critic'] >= 0
+    assert (tmp_path / 'one' / 'curves.png').stat().st_size > 1000
+    final = torch.load(tmp_path / 'one' / 'final.pt', weights_only=False)
+    assert final['timing'] == {'mode': 'anytime', 'gap': 3, 'epsilon': 0.5}
+    assert 'dialfred_questioner.finetune' in final['command']
+    assert not same(final['state_dict'], weights(setup[0]))
+    q = LearnedQuestioner.from_checkpoint(tmp_path / 'one' / 'final.pt')
+    assert q.timing.mode == 'anytime' and q.timing.gap == 3
+    assert report['final'].endswith('final.pt')
+
+
+def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setup, tmp_path):
+    finetune(config(setup, tmp_path / 'one', updates=3))
+    finetune(config(setup, tmp_path / 'two', updates=3, workers=2))
+    assert same(weights(tmp_path / 'one' / 'final.pt'), weights(tmp_path / 'two' / 'final.pt'))
+    finetune(config(setup, tmp_path / 'cut', updates=1))
+    finetune(config(setup, tmp_path / 'cut', updates=3, resume=True))
+    assert same(weights(tmp_path / 'one' / 'final.pt'), weights(tmp_path / 'cut' / 'final.pt'))
+    lines = (tmp_path / 'cut' / 'metrics.jsonl').read_text().splitlines()
+    assert [json.loads(l)['update'] for l in lines] == [1, 2, 3]
+    with pytest.raises(ValueError, match='lr'):
+        finetune(config(setup, tmp_path / 'cut', updates=4, resume=True, lr=0.5))
+
+
+def test_the_episode_plan_visits_every_task_once_per_pass():
+    plan = [p for u in range(5) for p in episode_plan(10, u, 4, seed=1)]
+    assert sorted(t for t, _ in plan[:10]) == list(range(10)) and sorted(t for t, _ in plan[10:20]) == list(range(10))
+    assert plan[:10] != plan[10:20]
+    assert len({s for _, s in plan}) == len(plan)
+    assert episode_plan(10, 2, 4, seed=1) == episode_plan(10, 2, 4, seed=1)
+
+
+@pytest.mark.parametrize('changes, match', [({'timing': 'never'}, 'timing'), ({'gap': 0}, 'gap'),
+                                            ({'rewards': 'lots'}, 'rewards'), ({'perturb_type': 'colour'}, 'perturb'),
+                                            ({'gamma': 0.0}, 'gamma'), ({'updates': 0}, 'updates')])
+def test_bad_settings_are_refused(changes, match):
+    with pytest.raises(ValueError, match=match):
+        FinetuneConfig(**changes)
