@@ -186,7 +186,8 @@ def add_demo_parser(sub) -> None:
     demo.add_argument('--tasks', type=int, default=3, help='how many tasks (default 3)')
     demo.add_argument('--first', type=int, default=0, help='index of the first valid_unseen task')
     demo.add_argument('--questioner', default='all',
-                      help='all (default), random, confusion, none, or package.module:ClassName')
+                      help='all (default), random, confusion, none, a learned questioner (rl-anytime, rl-mc, ... '
+                           'or learned:PATH: see eval --help), or package.module:ClassName')
     demo.add_argument('--checkpoint', default=None, metavar='PATH',
                       help='the performer checkpoint (default: the one shipped in the package, as the eval)')
     demo.add_argument('--resolution', type=int, default=64)

@@ -40,7 +40,7 @@ class EvalConfig:
 
     split: str = 'valid_unseen'
     agent: str = 'expert'
-    questioner: str = ''                # '' = the agent asks nothing; else a dialfred_questioner baseline
+    questioner: str = ''                # '' = the agent asks nothing; else a dialfred_questioner.questioners name
     perturb_type: str = ''              # the paper's ablation: the oracle withholds answers of this type ...
     perturb_probability: float = 0.5    # ... with this probability
     limit: Optional[int] = None
@@ -77,11 +77,34 @@ class EvalConfig:
             raise ValueError(f'no performer checkpoint at {self.checkpoint_path} (--checkpoint PATH)') from None
 
     @property
+    def learned_questioner_path(self) -> Optional[Path]:
+        """The checkpoint file of a questioner given as learned:PATH, else None."""
+        if ':' not in self.questioner:
+            return None
+        from dialfred_questioner.policy import LEARNED_PREFIX
+        return Path(self.questioner[len(LEARNED_PREFIX):]).expanduser() \
+            if self.questioner.startswith(LEARNED_PREFIX) else None
+
+    @functools.cached_property
+    def questioner_label(self) -> str:
+        """The questioner's name as results carry it: learned:PATH as learned-<file stem>-<its sha256[:8]>
+        (no slashes in a file name, and results of two checkpoints never mix), any other as given."""
+        path = self.learned_questioner_path
+        if path is None:
+            return self.questioner
+        import hashlib
+        try:
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()[:8]
+        except OSError:
+            raise ValueError(f'no questioner checkpoint at {path}') from None
+        return f'learned-{path.stem}-{digest}'
+
+    @property
     def agent_name(self) -> str:
         """The name results carry: the agent's (the `et` performer's with its checkpoint's sha256, so that
-        results of two checkpoints never mix), with its questioner's after a '+'."""
+        results of two checkpoints never mix), with its questioner's (`questioner_label`) after a '+'."""
         agent = f'et-{self.checkpoint_sha256[:8]}' if self.agent == 'et' else self.agent
-        return f'{agent}+{self.questioner}' if self.questioner else agent
+        return f'{agent}+{self.questioner_label}' if self.questioner else agent
 
     @property
     def oracle(self) -> str:
@@ -116,7 +139,8 @@ class EvalConfig:
 
     def make_agent(self):
         """A new agent as configured (ValueError for an unknown agent or questioner)."""
-        from dialfred_questioner.baselines import make_questioner, with_questioner
+        from dialfred_questioner.baselines import with_questioner
+        from dialfred_questioner.questioners import make_questioner
         return with_questioner(self.make_performer(), make_questioner(self.questioner) if self.questioner else None)
 
     def check(self) -> None:
@@ -439,7 +463,9 @@ def worker_nodes(config: EvalConfig, namespace: str, **sim_params) -> list:
         nodes.append(oracle_node(namespace, **withhold))
     if config.performer:
         if config.questioner:
-            nodes.append(NodeProcess('dialfred_questioner', {'questioner': config.questioner}, namespace=namespace))
+            learned = config.learned_questioner_path     # the node may run elsewhere: an absolute path
+            name = f'learned:{learned.resolve()}' if learned is not None else config.questioner
+            nodes.append(NodeProcess('dialfred_questioner', {'questioner': name}, namespace=namespace))
         nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
                                                         'questioner': bool(config.questioner),
                                                         'request_timeout': config.request_timeout},
@@ -642,6 +668,11 @@ def add_eval_parser(sub) -> None:
                          '(one per instruction object, or one direction question); '
                          'all = location + appearance of every instruction object, then direction; '
                          'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
+                         'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
+                         'pretrained, rl-begin, rl-anytime (every 5 steps), rl-anytime-1, rl-anytime-10, '
+                         'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction '
+                         '(the checkpoints shipped in dialfred_questioner/checkpoints), or learned:PATH (any '
+                         'questioner checkpoint; results are named learned-<file stem>-<sha256[:8]>); '
                          'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')
     ev.add_argument('--perturb-type', default=None, choices=['location', 'appearance', 'direction'],
                     help="the paper's ablation: the oracle withholds answers of this type (\"I don't know.\")")

@@ -15,8 +15,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from dialfred_questioner.baselines import (AllQuestioner, QuestioningAgent, RandomQuestioner, make_questioner,
-                                           task_nouns, with_questioner)
+from dialfred_questioner.baselines import AllQuestioner, QuestioningAgent, RandomQuestioner, task_nouns, with_questioner
+from dialfred_questioner.questioners import make_questioner
 from dialfred_sim.agents import QA, QUESTION_TYPES, DialogueAgent, ExpertAgent, Question
 from dialfred_sim.tasks import ExpertAction, load_split
 

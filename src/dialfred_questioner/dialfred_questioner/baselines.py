@@ -17,8 +17,8 @@ the oracle's reply comes back through `hear(qa)`. The paper's baselines that nee
   `action_probabilities(observation)`.
 
 `with_questioner(agent, questioner)` makes any performer agent a `dialfred_sim.agents.DialogueAgent`.
-The learned questioner (LSTM seq2seq, actor-critic fine-tuning) comes with the performer it is
-trained against.
+The learned questioner (LSTM seq2seq, actor-critic fine-tuning) is `policy.LearnedQuestioner`; every
+questioner by name, these and the learned ones, comes from `questioners.make_questioner`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, load_class, public_view, task_view
+from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, public_view, task_view
 
 
 class Questioner(Protocol):
@@ -175,17 +175,8 @@ class ModelConfusionQuestioner:
         pass
 
 
+# The questioners of this module by name (questioners.make_questioner makes them).
 QUESTIONERS = {'random': RandomQuestioner, 'all': AllQuestioner, 'confusion': ModelConfusionQuestioner}
-
-
-def make_questioner(name: str) -> Questioner:
-    """A new questioner (one per worker: questioners keep per-episode state): 'random', 'all', or your
-    own class as 'package.module:ClassName', constructed without arguments."""
-    if name in QUESTIONERS:
-        return QUESTIONERS[name]()
-    if ':' not in name:
-        raise ValueError(f'unknown questioner {name!r}; known: {", ".join(QUESTIONERS)}, or package.module:ClassName')
-    return load_class(name, 'questioner', ('reset', 'ask', 'hear'))()
 
 
 class QuestioningAgent:

@@ -3,18 +3,25 @@
 Before each of the performer's actions, the performer sends the public task, the episode's seed,
 the step (actions taken so far), the current frame, the dialogue so far and its top-2
 action-probability gap (dialfred_msgs/srv/QuestionerAsk); the reply is a question for the oracle, or
-none. The logic lives in `baselines.py` (random, all, confusion) or in a class of yours
-(`package.module:ClassName`, with reset(task, seed), ask(observation, step), hear(qa)); this node
-only converts messages and keeps one questioner's episode:
+none. The logic lives in `baselines.py` (random, all, confusion), in `policy.LearnedQuestioner` (a
+learned questioner's checkpoint: a shipped name such as rl-anytime, or learned:PATH) or in a class of
+yours (`package.module:ClassName`, with reset(task, seed), ask(observation, step), hear(qa)), made by
+`questioners.make_questioner`; this node only converts messages and keeps one questioner's episode:
 
 - the episode is (task id, seed); a request of another episode, or step 0 with an empty dialogue,
   starts it afresh (`reset(public task, seed)`), exactly as the in-process `QuestioningAgent` does;
 - the QAs of the request's dialogue the questioner has not heard yet are handed to `hear` first;
-- the confusion questioner decides from the request's `confusion_gap` (an error reply when it is < 0);
-- a request repeated unchanged (a resend after a lost reply) gets the same reply.
+- the confusion questioner, and a learned one with the confusion timing, decide from the request's
+  `confusion_gap` (an error reply when it is < 0); a learned one reads the request's frame (rgb8);
+- a request repeated unchanged (a resend after a lost reply) gets the same reply;
+- every question it decides on is published on `questioner/question` (dialfred_msgs/QAPair with the
+  question only: answer empty, valid false; the answered QA is the performer's `dialogue/qa`).
 
-Parameter `questioner` (read-only): random, all, confusion or package.module:ClassName. A bad
-request gets ok=false and the reason; the node keeps serving.
+Parameters (read-only): `questioner` (random, all, confusion, a shipped learned name of
+`policy.SHIPPED_LEARNED`, learned:PATH, learned with `checkpoint`, or package.module:ClassName);
+for a learned questioner `timing` / `gap` / `epsilon` replace its checkpoint's where set ('' / 0 / < 0
+keep it; `epsilon` also sets the confusion baseline's), and `torch_threads`. A bad request gets
+ok=false and the reason; the node keeps serving.
 """
 
 from __future__ import annotations
@@ -24,28 +31,73 @@ import sys
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from dialfred_msgs.msg import Observation
+from dialfred_msgs.msg import Observation, QAPair
 from dialfred_msgs.srv import QuestionerAsk
-from dialfred_sim.messages import public_task_from_msg, qa_from_msg
+from dialfred_sim.agents import QA
+from dialfred_sim.messages import public_task_from_msg, qa_from_msg, qa_msg
 from dialfred_sim.ros_util import SERVICE_QOS, error_reply, run_node
 
-from .baselines import make_questioner
+from .baselines import QUESTIONERS, ModelConfusionQuestioner
+from .questioners import make_questioner
 
 
 class QuestionerNode(Node):
     def __init__(self):
         super().__init__('dialfred_questioner')
+        ro = dict(read_only=True)
         self.declare_parameter('questioner', 'random', ParameterDescriptor(
-            description='random, all, confusion (needs the confusion_gap of each request) or '
-                        'package.module:ClassName', read_only=True))
-        name = self.get_parameter('questioner').value
-        self.questioner = make_questioner(name)       # ValueError: said in one line by main()
+            description='random, all, confusion (needs the confusion_gap of each request), a shipped learned '
+                        'questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
+                        'rl-anytime-withhold-<type>), learned (with `checkpoint`), learned:PATH, or '
+                        'package.module:ClassName', **ro))
+        self.declare_parameter('checkpoint', '', ParameterDescriptor(
+            description='for questioner=learned: the questioner checkpoint file', **ro))
+        self.declare_parameter('timing', '', ParameterDescriptor(
+            description="a learned questioner's timing: begin, anytime or confusion ('' = its checkpoint's)", **ro))
+        self.declare_parameter('gap', 0, ParameterDescriptor(
+            description="the anytime timing's gap in steps (0 = the checkpoint's)", **ro))
+        self.declare_parameter('epsilon', -1.0, ParameterDescriptor(
+            description="the confusion threshold on the top-2 gap (< 0 = the checkpoint's, or 0.5 for confusion)",
+            **ro))
+        self.declare_parameter('torch_threads', 1, ParameterDescriptor(
+            description='torch intra-op threads of a learned questioner', **ro))
+        p = self.get_parameter
+        name, checkpoint = p('questioner').value, p('checkpoint').value
+        if name == 'learned':
+            if not checkpoint:
+                raise ValueError('questioner learned needs the `checkpoint` parameter')
+            name = f'learned:{checkpoint}'
+        elif checkpoint:
+            raise ValueError(f'the `checkpoint` parameter is for questioner learned, not {name!r}')
         self.name = name
+        self.questioner = make_questioner(name)       # ValueError: said in one line by main()
+        self.retime(p('timing').value, int(p('gap').value), float(p('epsilon').value))
         self.episode = None        # (task_id, seed) being played
         self.heard = 0             # QAs of the episode's dialogue handed to the questioner
         self.last = None           # (request key, reply fields) of the last request
+        self.question_pub = self.create_publisher(QAPair, 'questioner/question', 100)
         self.create_service(QuestionerAsk, 'questioner/ask', self.on_ask, qos_profile=SERVICE_QOS)
-        self.get_logger().info(f'serving questioner/ask with the {name!r} questioner')
+        timing = getattr(self.questioner, 'timing', '')
+        self.get_logger().info(f'serving questioner/ask with the {name!r} questioner {timing}'.rstrip())
+
+    def retime(self, mode: str, gap: int, epsilon: float) -> None:
+        """Apply the timing parameters (ValueError where they do not fit the questioner)."""
+        if isinstance(self.questioner, ModelConfusionQuestioner) and not (mode or gap):
+            if epsilon >= 0:
+                self.questioner = ModelConfusionQuestioner(epsilon)
+            return
+        if type(self.questioner) in QUESTIONERS.values():
+            if mode or gap or epsilon >= 0:
+                raise ValueError(f'the timing, gap and epsilon parameters are not for the {self.name!r} questioner')
+            return
+        import torch
+
+        from .policy import LearnedQuestioner, retimed
+        if isinstance(self.questioner, LearnedQuestioner):
+            torch.set_num_threads(max(1, int(self.get_parameter('torch_threads').value)))
+            self.questioner.timing = retimed(self.questioner.timing, mode, gap, epsilon)
+        elif mode or gap or epsilon >= 0:
+            raise ValueError('the timing, gap and epsilon parameters are for a learned questioner')
 
     @error_reply()
     def on_ask(self, request: QuestionerAsk.Request, response: QuestionerAsk.Response) -> QuestionerAsk.Response:
@@ -65,18 +117,23 @@ class QuestionerNode(Node):
             self.questioner.hear(qa_from_msg(qa))
         self.heard = len(request.dialogue)
         ask_given_gap = getattr(self.questioner, 'ask_given_gap', None)
+        needs_gap = ask_given_gap is not None or getattr(self.questioner, 'needs_gap', False)
+        if needs_gap and request.confusion_gap < 0:
+            response.ok, response.error = False, (f'the {self.name!r} questioner needs the performer\'s '
+                                                  'confusion_gap (>= 0) in the request')
+            return response
         if ask_given_gap is not None:
-            if request.confusion_gap < 0:
-                response.ok, response.error = False, (f'the {self.name!r} questioner needs the performer\'s '
-                                                      'confusion_gap (>= 0) in the request')
-                return response
             question = ask_given_gap(float(request.confusion_gap), int(request.step))
+        elif needs_gap:
+            question = self.questioner.ask(Observation(rgb=request.rgb), int(request.step),
+                                           confusion_gap=float(request.confusion_gap))
         else:
             question = self.questioner.ask(Observation(rgb=request.rgb), int(request.step))
         response.ok = True
         if question is not None:
             response.ask, response.question_type, response.object_noun = True, question.question_type, \
                 question.object_noun
+            self.question_pub.publish(qa_msg(QA(question, False, '')))
         self.last = (key, (response.ok, response.ask, response.question_type, response.object_noun))
         return response
 
@@ -84,7 +141,7 @@ class QuestionerNode(Node):
 def main(args=None):
     try:
         run_node(QuestionerNode, args)
-    except ValueError as exc:      # an unknown questioner: one line, not a traceback
+    except ValueError as exc:      # an unknown questioner, a missing checkpoint: one line, not a traceback
         print(f'dialfred_questioner node: {exc}', file=sys.stderr)
         return 1
 

@@ -15,6 +15,10 @@ does, so an evaluation plays the episode its fine-tuning played. The timing is t
 (`finetune.py` stores the one it was trained with; a pre-trained checkpoint asks at the start only)
 unless one is given. With the confusion timing it needs the performer's top-2 action-probability gap:
 in process from `attach(performer)`, in the questioner node from the request (`ask(..., confusion_gap)`).
+
+The shipped checkpoints live in `CHECKPOINTS` (installed with the package), one per name of
+`SHIPPED_LEARNED` ('rl-anytime' -> checkpoints/rl_anytime.pt); `learned_questioner(name)` loads one of
+those, or any checkpoint as 'learned:PATH', greedy with its own timing (`retimed` changes it).
 """
 
 from __future__ import annotations
@@ -36,6 +40,13 @@ from .rollout import Timing
 
 # The timing of a checkpoint that stores none (a pre-trained one: its annotators asked at the start).
 DEFAULT_TIMING = Timing('begin')
+
+# The shipped questioner checkpoints: name -> CHECKPOINTS / (name with '_' for '-') + '.pt'.
+CHECKPOINTS = Path(__file__).resolve().parent / 'checkpoints'
+SHIPPED_LEARNED = ('pretrained', 'rl-begin', 'rl-anytime', 'rl-anytime-1', 'rl-anytime-10', 'rl-mc',
+                   'rl-anytime-withhold-location', 'rl-anytime-withhold-appearance',
+                   'rl-anytime-withhold-direction')
+LEARNED_PREFIX = 'learned:'       # 'learned:PATH': the questioner of any checkpoint file
 
 
 @dataclass(frozen=True)
@@ -158,3 +169,40 @@ class LearnedQuestioner:
 
     def hear(self, qa: QA) -> None:
         self.dialogue.append(AskedQA(qa, self._step))
+
+
+def learned_checkpoint(name: str) -> Optional[Path]:
+    """The checkpoint file a learned questioner's name stands for (a name of `SHIPPED_LEARNED`, or
+    'learned:PATH'), or None for a name that is no learned questioner's."""
+    if name in SHIPPED_LEARNED:
+        return CHECKPOINTS / (name.replace('-', '_') + '.pt')
+    if name.startswith(LEARNED_PREFIX):
+        path = name[len(LEARNED_PREFIX):]
+        if not path:
+            raise ValueError("questioner 'learned:' needs a checkpoint file: learned:PATH")
+        return Path(path).expanduser()
+    return None
+
+
+def learned_questioner(name: str, timing: Optional[Timing] = None) -> LearnedQuestioner:
+    """The greedy `LearnedQuestioner` of a shipped name or of 'learned:PATH', with the checkpoint's own
+    timing unless `timing` is given; ValueError naming the file (and what makes it) when it is not there
+    or is no questioner checkpoint."""
+    path = learned_checkpoint(name)
+    if path is None:
+        raise ValueError(f'{name!r} names no learned questioner: one of {", ".join(SHIPPED_LEARNED)} or learned:PATH')
+    if not path.is_file():
+        if name in SHIPPED_LEARNED:
+            module = 'pretrain' if name == 'pretrained' else 'finetune'
+            raise ValueError(f'the {name!r} questioner\'s checkpoint {path} is not there: it is made by '
+                             f'`python -m dialfred_questioner.{module}` (and shipped under that name)')
+        raise ValueError(f'no questioner checkpoint at {path}')
+    return LearnedQuestioner.from_checkpoint(path, greedy=True, timing=timing)
+
+
+def retimed(timing: Timing, mode: str = '', gap: int = 0, epsilon: float = -1.0) -> Timing:
+    """`timing` with the fields given changed: `mode` ('' keeps it), `gap` (0 keeps it), `epsilon`
+    (< 0 keeps it). ValueError for a bad value."""
+    if gap < 0:
+        raise ValueError(f'gap must be at least 1 (0: the checkpoint\'s), got {gap}')
+    return Timing(mode or timing.mode, gap or timing.gap, timing.epsilon if epsilon < 0 else float(epsilon))
