@@ -88,16 +88,19 @@ class EvalConfig:
     @functools.cached_property
     def questioner_label(self) -> str:
         """The questioner's name as results carry it: learned:PATH as learned-<file stem>-<its sha256[:8]>
-        (no slashes in a file name, and results of two checkpoints never mix), any other as given."""
+        (no slashes in a file name), a shipped learned one as <name>-<its sha256[:8]> (results of two
+        checkpoints never mix, as the performer's), any other as given."""
+        from dialfred_questioner.policy import SHIPPED_LEARNED, learned_checkpoint
         path = self.learned_questioner_path
-        if path is None:
+        if path is None and self.questioner not in SHIPPED_LEARNED:
             return self.questioner
         import hashlib
+        path = path if path is not None else learned_checkpoint(self.questioner)
         try:
             digest = hashlib.sha256(path.read_bytes()).hexdigest()[:8]
         except OSError:
             raise ValueError(f'no questioner checkpoint at {path}') from None
-        return f'learned-{path.stem}-{digest}'
+        return f'learned-{path.stem}-{digest}' if self.learned_questioner_path is not None else f'{self.questioner}-{digest}'
 
     @property
     def agent_name(self) -> str:

@@ -129,13 +129,16 @@ def test_retimed_changes_only_the_fields_given():
             retimed(t, **bad)
 
 
-def test_results_of_a_checkpoint_file_are_named_by_its_stem_and_content(checkpoint):
+def test_results_of_a_checkpoint_file_are_named_by_its_stem_and_content(checkpoint, tmp_path, monkeypatch):
     import hashlib
     config = EvalConfig(split=SPLIT, questioner=f'learned:{checkpoint}')
     digest = hashlib.sha256(checkpoint.read_bytes()).hexdigest()[:8]
     assert config.agent_name == f'expert+learned-q-{digest}'
     assert config.results_path.name == f'valid_seen_expert+learned-q-{digest}.jsonl'
-    assert EvalConfig(split=SPLIT, questioner='rl-anytime').results_path.name == 'valid_seen_expert+rl-anytime.jsonl'
+    monkeypatch.setattr(policy, 'CHECKPOINTS', tmp_path)
+    shutil.copy(checkpoint, tmp_path / 'rl_anytime.pt')
+    assert EvalConfig(split=SPLIT, questioner='rl-anytime').results_path.name == \
+        f'valid_seen_expert+rl-anytime-{digest}.jsonl'
     # The node path hands the questioner node an absolute path (the node runs with its own working folder).
     relative = EvalConfig(split=SPLIT, agent='et', performer='et', questioner=f'learned:{checkpoint.name}')
     questioner = next(n for n in worker_nodes(relative, '/w0') if n.package == 'dialfred_questioner')
