@@ -183,6 +183,9 @@ def make_questioner(name: str) -> Questioner:
     own class as 'package.module:ClassName', constructed without arguments."""
     if name in QUESTIONERS:
         return QUESTIONERS[name]()
+    if name.startswith('learned:'):    # TEMPORARY (reproduce branch): a questioner checkpoint, greedy
+        from .policy import LearnedQuestioner
+        return LearnedQuestioner.from_checkpoint(name[len('learned:'):], greedy=True)
     if ':' not in name:
         raise ValueError(f'unknown questioner {name!r}; known: {", ".join(QUESTIONERS)}, or package.module:ClassName')
     return load_class(name, 'questioner', ('reset', 'ask', 'hear'))()
