@@ -238,6 +238,7 @@ class SimWorker:
         self.last_action, self.last_error = '', ''
         self.goal_conditions = (0, 0)
         self.questions, self.invalid_questions = 0, 0
+        self.dialogue = []
         self.asked_in_a_row = 0
         self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False),
                    'reset')
@@ -298,8 +299,11 @@ class SimWorker:
 
     def _after_answer(self, reply):
         from dialfred_sim.agents import QA
+        from dialfred_sim.metrics import dialogue_entry
         self.questions += 1
         self.invalid_questions += not reply.valid
+        self.dialogue.append(dialogue_entry(self.question.question_type, self.question.object_noun,
+                                            bool(reply.valid), reply.answer))
         self.agent.hear(QA(self.question, bool(reply.valid), reply.answer, reply.reason))
         return self._act(self.observation)
 
@@ -332,7 +336,8 @@ class SimWorker:
             failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
             error='' if success else (error or self.last_error), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed,
-            wall_s=round(time.monotonic() - self.started, 4), privileged=bool(getattr(self.agent, 'privileged', False)))
+            wall_s=round(time.monotonic() - self.started, 4), privileged=bool(getattr(self.agent, 'privileged', False)),
+            dialogue=list(self.dialogue))
 
 
 class PerformerWorker:
@@ -353,8 +358,13 @@ class PerformerWorker:
             graph.check()
             if time.monotonic() > deadline:
                 raise TimeoutError(f'action server {self.name} not available after 60 s')
+        # every QA the performer node asks goes out on dialogue/qa, in order: the results' dialogues
+        from dialfred_msgs.msg import QAPair
+        self.heard = collections.deque()
+        self.subscription = graph.client_node.create_subscription(
+            QAPair, f'{namespace.rstrip("/")}/dialogue/qa', lambda msg: self.heard.append(msg), 1000)
         graph.spin_until_any([], SETTLE_S)       # the reply paths may match a moment later (see Graph.client)
-        self.namespace, self.config = namespace, config
+        self.graph, self.namespace, self.config = graph, namespace, config
         self.on_feedback = on_feedback    # called with (task, RunTask.Feedback) as each step's feedback comes
         self.future = self.goal_handle = self.cancel_future = None
         self.task = None
@@ -410,6 +420,16 @@ class PerformerWorker:
     def resend_if_lost(self) -> bool:
         return False         # a goal is never sent twice: the node refuses a second one while the first runs
 
+    def _dialogue(self, asked: int) -> list:
+        """The `asked` QAs of the episode that ended, in order, from dialogue/qa (waiting a moment for
+        the last ones, which may come after the result)."""
+        from dialfred_sim.metrics import dialogue_entry
+        deadline = time.monotonic() + 2.0
+        while len(self.heard) < asked and time.monotonic() < deadline:
+            self.graph.spin_until_any([], 0.05)
+        taken = [self.heard.popleft() for _ in range(min(asked, len(self.heard)))]
+        return [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in taken]
+
     def _result(self, result, error: str = ''):
         from dialfred_sim.metrics import EpisodeResult
         task, r = self.task, result
@@ -424,7 +444,7 @@ class PerformerWorker:
             failed_actions=int(r.failed_actions) if r else 0, end_reason=reason,
             error='' if success else (error or (r.error if r else '')), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed, wall_s=round(time.monotonic() - self.started, 4),
-            privileged=False)
+            privileged=False, dialogue=self._dialogue(int(r.questions)) if r else self.heard.clear() or [])
 
 
 SETTLE_S = 0.2

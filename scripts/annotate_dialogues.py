@@ -95,10 +95,10 @@ def _situation_chunk(bounds: tuple[int, int]) -> list[dict]:
     return [_situation_and_snapshot(t)[0].to_json() for t in load_split(_SPLIT)[bounds[0]:bounds[1]]]
 
 
-def run_split(split: str, job, workers: int) -> list[dict]:
-    """`job` over every task of `split` in chunks, in task order, on `workers` processes."""
+def run_split(split: str, job, workers: int, limit: int = 0) -> list[dict]:
+    """`job` over every task of `split` (its first `limit` if > 0) in chunks, in task order, on `workers` processes."""
     from dialfred_sim.tasks import load_split
-    n = len(load_split(split))
+    n = len(load_split(split)[:limit or None])
     chunks = [(k, min(k + CHUNK, n)) for k in range(0, n, CHUNK)]
     out, t0, shown = [], time.monotonic(), 0.0
     ctx = multiprocessing.get_context('spawn')
@@ -327,6 +327,9 @@ def main(argv=None) -> int:
     ap.add_argument('--fit', action='store_true', help='fit the choice model on the valid splits and print it')
     ap.add_argument('--doc-only', action='store_true', help='only rewrite docs/dialogue_data.md')
     ap.add_argument('--doc', default=str(DOC), help='markdown file to write')
+    ap.add_argument('--limit', type=int, default=0,
+                    help='only the first N tasks of each split (0: all); set DIALFRED_DIALOGUE_DIR and --doc '
+                         'so that a slice does not replace the full files')
     args = ap.parse_args(argv)
     if args.fit:
         situations = [s for split in ('valid_seen', 'valid_unseen') for s in valid_situations(split, args.workers)]
@@ -339,17 +342,19 @@ def main(argv=None) -> int:
         return 0
     timings = {}
     if not args.doc_only:
+        if args.limit and set(args.splits) - {'train'}:
+            ap.error('--limit is for train only: the valid splits\' dialogues are shipped in the package')
         present, _ = available_splits(args.splits)
         for split in present:
             t0 = time.monotonic()
-            rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers)]
+            rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
             path = dialogue_path(split)
             write_dialogues(path, rows)
             timings[split] = round(time.monotonic() - t0, 1)
             stats = dialogue_statistics([r.annotations for r in rows])
             print(json.dumps({'split': split, 'path': str(path.resolve()), 'seconds': timings[split],
                               'workers': args.workers, **stats}))
-            if len(rows) != SPLIT_SIZES[split]:
+            if len(rows) != (min(args.limit, SPLIT_SIZES[split]) if args.limit else SPLIT_SIZES[split]):
                 print(f'warning: {split} has {len(rows)} tasks, expected {SPLIT_SIZES[split]}', file=sys.stderr)
     stats = write_doc(Path(args.doc))
     print(json.dumps({'doc': args.doc, 'statistics': stats}))

@@ -42,8 +42,9 @@ def test_the_node_path_and_the_in_process_path_play_identical_episodes(checkpoin
                  traces=through_nodes)
     assert a.to_json()['through'] == 'in-process agent' and b.to_json()['through'] == 'performer node'
     key = lambda r: (r.task_id, r.success, r.steps, r.goal_conditions_met, r.goal_conditions_total, r.questions,
-                     r.invalid_questions, r.failed_actions, r.end_reason, r.error, r.agent)
-    assert [key(r) for r in a.results] == [key(r) for r in b.results]
+                     r.invalid_questions, r.failed_actions, r.end_reason, r.error, r.agent, r.dialogue)
+    assert [key(r) for r in a.results] == [key(r) for r in b.results]      # the dialogues too (dialogue/qa)
+    assert all(len(r.dialogue) == r.questions for r in b.results)
     assert in_process == through_nodes and len(in_process) == 3
     assert all(len(in_process[r.task_id]) == r.steps for r in a.results)
     assert sum(r.questions for r in a.results) > 0          # the confusion questioner did ask over ROS

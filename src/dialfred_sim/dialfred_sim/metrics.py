@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from dataclasses import MISSING, asdict, dataclass, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
@@ -57,6 +57,8 @@ class EpisodeResult:
     seed: int = 0
     wall_s: float = 0.0
     privileged: bool = False         # played by a reference agent that saw the task's solution (the expert)
+    dialogue: list = field(default_factory=list)   # the questions asked, in order: {type, noun, valid, answer}
+                                                   # (absent from results written before it was recorded)
 
     def __post_init__(self):
         if self.end_reason not in END_REASONS:
@@ -77,6 +79,14 @@ class EpisodeResult:
             return 0.0
         longest = max(self.expert_length, self.steps)
         return 1.0 if longest <= 0 else self.expert_length / longest
+
+    @property
+    def question_types(self) -> dict:
+        """{question type: how many of this episode's questions were of it} (from `dialogue`)."""
+        counts: dict = {}
+        for qa in self.dialogue:
+            counts[qa['type']] = counts.get(qa['type'], 0) + 1
+        return counts
 
     def to_json(self) -> str:
         """One line of JSON (no newline)."""
@@ -105,10 +115,15 @@ class EpisodeResult:
         return cls(**data)
 
 
+def dialogue_entry(question_type: str, object_noun: str, valid: bool, answer: str) -> dict:
+    """One question of EpisodeResult.dialogue (an answer the oracle could not give is recorded as '')."""
+    return {'type': question_type, 'noun': object_noun, 'valid': bool(valid), 'answer': answer if valid else ''}
+
+
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
-                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool}
+                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list}
 
 
 def _has_type(value, want: type) -> bool:

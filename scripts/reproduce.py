@@ -1,0 +1,822 @@
+#!/usr/bin/env python3
+"""Reproduce the paper's Tables II, III and IV end to end: `./dialfred reproduce`.
+
+    ./dialfred reproduce                      # everything after set-up -> out/reproduce/ (resumable)
+    ./dialfred reproduce --quick              # the same pipeline on tiny slices, in minutes -> out/reproduce_quick/
+    ./dialfred reproduce --shipped --doc docs/results.md
+                                              # no training: evaluate the shipped checkpoints, write the doc
+    ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
+    ./dialfred reproduce --in-process         # evaluations in this process instead of through the ROS graph
+
+Stages, in order (each calls the project's own API or command; none repeats their logic):
+
+| stage | what | output (under the run folder, `--out`) |
+|---|---|---|
+| demos | the performer's demonstrations of train (`dialfred_performer.prepare`) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
+| performer | performer training (`dialfred_performer.train`, the shipped command: 2 epochs, 24,000 updates) | `performer/best.pt` |
+| dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train`) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
+| frames | train's first frames (`dialfred_questioner.frames`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
+| pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
+| rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
+| eval | every setting of the tables (`dialfred_eval.run_eval`; through the ROS graph, performer nodes, unless `--in-process`); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`) |
+
+Each stage writes `stamps/<stage>.json` with the hash of its inputs (its config, the hashes of the stages
+it depends on, and the source files that make it). A stage whose stamp matches is skipped
+(`[reproduce] <stage>: skipped (stamp matches)`); a changed input reruns it and therefore every stage
+after it. A stage cut off midway resumes (training from its last.pt, evaluations from their results
+files) when rerun with the same inputs; with other inputs its outputs are cleared first. A progress
+line per stage (name, skipped/ran, seconds) goes to stderr and one JSON summary to stdout.
+
+`--shipped` runs no training: the performer is the shipped `dialfred_performer/checkpoints/et.pt`
+and the questioners the shipped `dialfred_questioner/checkpoints/<setting>.pt` (a setting whose file
+is absent is left out of the tables, marked "no results"); its run folder is out/reproduce_shipped.
+The document goes to the run folder, and to docs/results.md only with `--doc docs/results.md`.
+`--quick` runs the whole pipeline on slices (32 train tasks, a tiny performer and questioner, RL of
+2 updates x 8 episodes of at most 30 steps, evaluations of 8 tasks in this process); its numbers mean
+nothing, it checks the pipeline. Caches of the quick run stay in its run folder (DIALFRED_DIALOGUE_DIR
+and explicit paths), so it never replaces the full train data in ~/.cache.
+
+Everything is seeded (`--seed`): two runs with the same seed give the same tables (the run times,
+listed apart from the tables, differ).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Optional
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / 'scripts'))
+
+from baselines import BASELINES as TABLE2_BASELINES  # noqa: E402  (the one place of Table II's rows 1-4)
+from dialfred_performer.cli import arg, parse  # noqa: E402
+
+STAGES = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'doc')
+SPLITS = ('valid_seen', 'valid_unseen')
+QUESTION_TYPES = ('location', 'appearance', 'direction')
+PERTURB_PROBABILITY = 0.5
+SHIPPED_QUESTIONERS = ROOT / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
+RESOLUTION = 64
+
+# The RL fine-tunings (FinetuneConfig fields beyond the shared ones).
+RL_RUNS = {
+    'rl_begin': dict(timing='begin'),
+    'rl_anytime': dict(timing='anytime', gap=5),
+    'rl_anytime_1': dict(timing='anytime', gap=1, rewards='fixed_1'),
+    'rl_anytime_10': dict(timing='anytime', gap=10),
+    'rl_mc': dict(timing='confusion'),
+    **{f'rl_anytime_withhold_{t}': dict(timing='anytime', gap=5, perturb_type=t) for t in QUESTION_TYPES},
+}
+
+# The paper's numbers. Table II rows 1-4 come from scripts/baselines.py; rows 5-6 here.
+PAPER_T2 = {
+    **{k: {'number': b.number, 'name': b.name, 'SR': b.paper_sr, 'PWSR': b.paper_pwsr, 'NQ': b.paper_nq}
+       for k, b in TABLE2_BASELINES.items()},
+    'rl_begin': {'number': 5, 'name': 'RL begin', 'SR': {'valid_seen': 47.3, 'valid_unseen': 32.7},
+                 'PWSR': {'valid_seen': 33.5, 'valid_unseen': 20.1}, 'NQ': 0.37},
+    'rl_anytime': {'number': 6, 'name': 'RL anytime', 'SR': {'valid_seen': 47.8, 'valid_unseen': 33.6},
+                   'PWSR': {'valid_seen': 34.2, 'valid_unseen': 20.4}, 'NQ': 0.71},
+}
+# Table III (valid_unseen): SR, PWSR, NQ, location / appearance / direction shares.
+PAPER_T3 = {
+    'rl_anytime': ('RL anytime', 33.6, 20.4, 0.71, (0.65, 0.14, 0.21)),
+    'rl_anytime_withhold_location': ('RL Loc perturb', 32.2, 19.8, 0.66, (0.47, 0.15, 0.38)),
+    'rl_anytime_withhold_appearance': ('RL App perturb', 32.4, 19.9, 0.40, (0.92, 0.04, 0.04)),
+    'rl_anytime_withhold_direction': ('RL Dir perturb', 33.0, 20.4, 0.61, (0.51, 0.45, 0.04)),
+    'random_qa': ('Random', 28.4, 17.3, 0.81, (0.36, 0.31, 0.33)),
+    'random_qa_withhold_location': ('Random Loc perturb', 26.0, 16.0, 0.81, (0.36, 0.31, 0.33)),
+    'random_qa_withhold_appearance': ('Random App perturb', 26.1, 16.1, 0.81, (0.36, 0.31, 0.33)),
+    'random_qa_withhold_direction': ('Random Dir perturb', 26.2, 15.8, 0.81, (0.36, 0.31, 0.33)),
+}
+# Table IV: unseen SR, unseen PWSR, NQ.
+PAPER_T4 = {
+    'rl_anytime_1': ('RL anytime (Fixed 1)', 34.7, 21.2, 21.39),
+    'rl_anytime': ('RL anytime (Fixed 5)', 33.6, 20.4, 0.71),
+    'rl_anytime_10': ('RL anytime (Fixed 10)', 32.4, 19.9, 0.36),
+    'rl_mc': ('RL anytime (MC)', 33.0, 20.4, 0.31),
+}
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One evaluation: a questioner (a baseline's name, or an RL run's checkpoint) on a split, maybe perturbed."""
+
+    key: str          # results file: eval/<split>_<key>.jsonl
+    split: str
+    questioner: str   # '' = none; a dialfred_questioner baseline; or 'rl:<run>' (an RL run's checkpoint)
+    perturb_type: str = ''
+
+
+def settings() -> list[Setting]:
+    out = []
+    for split in SPLITS:
+        for key, b in TABLE2_BASELINES.items():
+            out.append(Setting(key, split, b.questioner))
+        out += [Setting('rl_begin', split, 'rl:rl_begin'), Setting('rl_anytime', split, 'rl:rl_anytime')]
+    for t in QUESTION_TYPES:
+        out.append(Setting(f'rl_anytime_withhold_{t}', 'valid_unseen', f'rl:rl_anytime_withhold_{t}', t))
+        out.append(Setting(f'random_qa_withhold_{t}', 'valid_unseen', 'random', t))
+    for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc'):
+        out.append(Setting(run, 'valid_unseen', f'rl:{run}'))
+    return out
+
+
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """Run the whole DialFRED pipeline after set-up and write the results document (Tables II, III, IV)."""
+
+    out: str = arg('', "the run folder (default out/reproduce; --quick: out/reproduce_quick; --shipped: "
+                       "out/reproduce_shipped)")
+    quick: bool = arg(False, 'tiny slices of every stage (minutes): checks the pipeline, the numbers mean nothing')
+    shipped: bool = arg(False, 'no training stages: evaluate the shipped performer and questioner checkpoints')
+    doc: str = arg('', "also write the document here (e.g. docs/results.md); '' = only <out>/results.md")
+    force: str = arg('', 'rerun this stage and every stage after it, stamps or not')
+    until: str = arg('', "stop after this stage ('' = run to the end)")
+    in_process: bool = arg(False, 'evaluations in this process (eval --agent et) instead of through the ROS graph')
+    workers: int = arg(2, 'processes / simulator nodes of every stage')
+    seed: int = arg(0, 'the seed of every stage')
+    resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
+    progress: bool = arg(False, "the stages' own progress bars on stderr")
+
+    def __post_init__(self):
+        for name in ('force', 'until'):
+            if getattr(self, name) and getattr(self, name) not in STAGES:
+                raise ValueError(f'--{name} takes one of {", ".join(STAGES)}, got {getattr(self, name)!r}')
+        if self.quick and self.shipped:
+            raise ValueError('--quick and --shipped do not go together')
+        if self.workers < 1:
+            raise ValueError('--workers must be at least 1')
+
+    @property
+    def run_dir(self) -> Path:
+        name = self.out or ('out/reproduce_quick' if self.quick else
+                            'out/reproduce_shipped' if self.shipped else 'out/reproduce')
+        return Path(name) if Path(name).is_absolute() else ROOT / name
+
+
+# --------------------------------------------------------------------------------------------- sizes
+
+class Plan:
+    """What each stage runs (paths and configs), from the run's config: full size or quick slices."""
+
+    def __init__(self, cfg: ReproduceConfig):
+        from dialfred_questioner.frames import default_path
+        from dialfred_sim.tasks.demonstrations import default_dir
+        self.cfg, self.run = cfg, cfg.run_dir
+        q = cfg.quick
+        self.train_limit = 32 if q else 0
+        cache = self.run / 'cache'
+        self.demos = cache / 'demonstrations' / f'train_{RESOLUTION}' if q else default_dir('train', RESOLUTION)
+        self.dialogue_dir = cache / 'dialogues' if q else None     # None: annotator's default (~/.cache)
+        self.frames = cache / f'train_first_{RESOLUTION}.npz' if q else default_path('train', RESOLUTION)
+        self.performer_dir = self.run / 'performer'
+        self.pretrain_dir = self.run / 'questioner' / 'pretrain'
+        self.eval_dir = self.run / 'eval'
+        self.eval_limit = 8 if q else 0
+        self.in_process = cfg.in_process or q
+
+    # each stage's config, as plain JSON (part of its stamp)
+    def demos_config(self) -> dict:
+        return dict(split='train', resolution=RESOLUTION, workers=self.cfg.workers, limit=self.train_limit,
+                    out=str(self.demos), progress=self.cfg.progress)
+
+    def performer_config(self) -> dict:
+        base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
+                    progress=self.cfg.progress, epochs=2, max_updates=24000, validation='', val_fraction=0.05)
+        if self.cfg.quick:
+            base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
+                        checkpoint_every=30, val_fraction=0.2,
+                        model=dict(resolution=RESOLUTION, d_model=32, heads=2, layers=1, ff=64))
+        return base
+
+    def dialogues_config(self) -> dict:
+        return dict(splits=['train'], workers=self.cfg.workers, limit=self.train_limit,
+                    dialogue_dir=str(self.dialogue_dir) if self.dialogue_dir else '')
+
+    def frames_config(self) -> dict:
+        return dict(split='train', resolution=RESOLUTION, out=str(self.frames), workers=self.cfg.workers,
+                    limit=self.train_limit)
+
+    @property
+    def performer_checkpoint(self) -> Path:
+        if self.cfg.shipped:
+            from dialfred_performer.model import SHIPPED_CHECKPOINT
+            return Path(SHIPPED_CHECKPOINT)
+        best = self.performer_dir / 'best.pt'
+        return best if best.exists() or not (self.performer_dir / 'last.pt').exists() else self.performer_dir / 'last.pt'
+
+    def pretrain_config(self) -> dict:
+        base = dict(split='train', frames=str(self.frames), performer=str(self.performer_checkpoint),
+                    out=str(self.pretrain_dir), seed=self.cfg.seed, limit=self.train_limit,
+                    progress=self.cfg.progress)
+        if self.cfg.quick:
+            base.update(epochs=1, batch_size=8, threads=1, val_fraction=0.2,
+                        model=dict(embedding=16, hidden=32, image=32))
+        return base
+
+    def rl_config(self, name: str) -> dict:
+        base = dict(init=str(self.pretrain_dir / 'best.pt'), performer=str(self.performer_checkpoint),
+                    split='valid_seen', out=str(self.run / 'questioner' / name), resolution=RESOLUTION,
+                    workers=self.cfg.workers, seed=self.cfg.seed, progress=self.cfg.progress,
+                    perturb_probability=PERTURB_PROBABILITY, **RL_RUNS[name])
+        if self.cfg.quick:
+            base.update(updates=2, episodes_per_update=8, max_steps=30, limit=16)
+        return base
+
+    def questioner_checkpoint(self, run: str) -> Path:
+        if self.cfg.shipped:
+            return SHIPPED_QUESTIONERS / f'{run}.pt'
+        return self.run / 'questioner' / run / 'final.pt'
+
+    def eval_config(self, s: Setting):
+        from dialfred_eval import EvalConfig
+        questioner = s.questioner
+        if questioner.startswith('rl:'):
+            questioner = f'learned:{self.questioner_checkpoint(questioner[3:])}'
+        return EvalConfig(split=s.split, agent='et', performer='' if self.in_process else 'et',
+                          questioner=questioner, perturb_type=s.perturb_type,
+                          perturb_probability=PERTURB_PROBABILITY, limit=self.eval_limit or None,
+                          workers=self.cfg.workers, out=self.eval_dir / f'{s.split}_{s.key}.jsonl',
+                          seed=self.cfg.seed, resolution=RESOLUTION, checkpoint=self.performer_checkpoint)
+
+    def available(self, s: Setting) -> bool:
+        """Whether the setting's questioner checkpoint exists (only shipped ones can be missing)."""
+        return not s.questioner.startswith('rl:') or self.questioner_checkpoint(s.questioner[3:]).exists()
+
+
+# --------------------------------------------------------------------------------------------- stages
+
+def sha256_of(data) -> str:
+    if isinstance(data, (bytes, bytearray)):
+        return hashlib.sha256(data).hexdigest()
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def code_hash(paths: tuple[str, ...]) -> str:
+    h = hashlib.sha256()
+    for rel in paths:
+        p = ROOT / rel
+        h.update(rel.encode() + b'\0' + (p.read_bytes() if p.exists() else b'(absent)') + b'\0')
+    return h.hexdigest()
+
+
+PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_questioner/dialfred_questioner', \
+    'src/dialfred_sim/dialfred_sim'
+CODE = {
+    'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py'),
+    'performer': (f'{PERF}/train.py', f'{PERF}/model.py', f'{PERF}/data.py', f'{PERF}/preprocess.py'),
+    'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
+    'frames': (f'{QUES}/frames.py',),
+    'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
+    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
+    'eval': ('dialfred_eval.py', f'{QUES}/baselines.py', f'{QUES}/policy.py', f'{PERF}/agent.py',
+             f'{SIM}/metrics.py'),
+    'doc': ('scripts/reproduce.py', 'scripts/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
+}
+UPSTREAM = {
+    'demos': (), 'performer': ('demos',), 'dialogues': (), 'frames': (), 'pretrain': ('performer', 'dialogues', 'frames'),
+    'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'doc': ('eval',),
+}
+TRAINING = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
+
+
+class Runner:
+    def __init__(self, cfg: ReproduceConfig):
+        self.cfg, self.plan = cfg, Plan(cfg)
+        self.stamps_dir = cfg.run_dir / 'stamps'
+        self.hashes: dict[str, str] = {}
+        self.summary: dict[str, dict] = {}
+        self.forced = False
+
+    def log(self, text: str) -> None:
+        print(f'[reproduce] {text}', file=sys.stderr, flush=True)
+
+    def stage_inputs(self, stage: str) -> dict:
+        p = self.plan
+        config = {
+            'demos': p.demos_config, 'performer': p.performer_config, 'dialogues': p.dialogues_config,
+            'frames': p.frames_config, 'pretrain': p.pretrain_config,
+            'rl': lambda: {name: p.rl_config(name) for name in RL_RUNS},
+            'eval': lambda: {'settings': [dataclasses.asdict(s) for s in settings() if p.available(s)],
+                             'in_process': p.in_process, 'limit': p.eval_limit, 'seed': self.cfg.seed,
+                             'performer': str(p.performer_checkpoint),
+                             'questioners': {r: str(p.questioner_checkpoint(r)) for r in RL_RUNS},
+                             'shipped': self.shipped_hashes() if self.cfg.shipped else None},
+            'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit},
+        }[stage]()
+        return {'stage': stage, 'config': config, 'code': code_hash(CODE[stage]),
+                'upstream': {u: self.hashes.get(u, 'shipped') for u in UPSTREAM[stage]}}
+
+    def shipped_hashes(self) -> dict:
+        files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in RL_RUNS]
+        return {str(f): sha256_of(f.read_bytes()) if f.exists() else None for f in files}
+
+    def stamp_path(self, stage: str) -> Path:
+        return self.stamps_dir / f'{stage}.json'
+
+    def read_stamp(self, stage: str) -> Optional[dict]:
+        try:
+            return json.loads(self.stamp_path(stage).read_text())
+        except (OSError, ValueError):
+            return None
+
+    def write_stamp(self, stage: str, record: dict) -> None:
+        self.stamps_dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.stamp_path(stage).with_suffix('.tmp')
+        tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + '\n')
+        tmp.replace(self.stamp_path(stage))
+
+    def run_stage(self, stage: str, action: Callable[[bool], dict], outputs: list[Path]) -> None:
+        """Skip `stage` if its stamp holds the hash of its inputs, else run `action(resume)`: resume is
+        True when the stage was cut off with these same inputs (else its outputs are cleared first)."""
+        if self.cfg.force == stage:
+            self.forced = True
+        inputs = self.stage_inputs(stage)
+        digest = sha256_of(inputs)
+        self.hashes[stage] = digest
+        old = self.read_stamp(stage)
+        if old and old.get('hash') == digest and old.get('status') == 'done' and not self.forced:
+            self.log(f'{stage}: skipped (stamp matches, {digest[:12]})')
+            self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
+            return
+        resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
+        if not resume:
+            for path in outputs:
+                if path.is_dir():
+                    shutil.rmtree(path)
+                elif path.exists():
+                    path.unlink()
+        why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
+        self.log(f'{stage}: running ({why}, {digest[:12]})')
+        self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'running', 'inputs': inputs})
+        t0 = time.monotonic()
+        report = action(resume) or {}
+        seconds = round(time.monotonic() - t0, 1)
+        self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'done', 'inputs': inputs,
+                                 'seconds': seconds, 'report': report})
+        self.log(f'{stage}: ran in {seconds:.1f} s')
+        self.summary[stage] = {'status': 'ran', 'hash': digest, 'seconds': seconds, 'report': report}
+
+    # ---- the stages
+
+    def demos(self, resume: bool) -> dict:
+        from dialfred_performer.prepare import PrepareConfig, prepare
+        return prepare(PrepareConfig(**self.plan.demos_config()))
+
+    def performer(self, resume: bool) -> dict:
+        from dialfred_performer.model import PerformerConfig
+        from dialfred_performer.train import TrainConfig, train
+        c = dict(self.plan.performer_config())
+        if 'model' in c:
+            c['model'] = PerformerConfig(**c['model'])
+        resume = resume and (self.plan.performer_dir / 'last.pt').exists()
+        if self.cfg.quick:
+            c['threads'] = 1
+        report = train(TrainConfig(**c, resume=resume))
+        return {k: report.get(k) for k in ('finished', 'updates', 'session_seconds', 'val')}
+
+    def dialogues(self, resume: bool) -> dict:
+        c = self.plan.dialogues_config()
+        env = dict(os.environ)
+        if c['dialogue_dir']:
+            env['DIALFRED_DIALOGUE_DIR'] = c['dialogue_dir']
+        cmd = [sys.executable, str(ROOT / 'scripts' / 'annotate_dialogues.py'), '--splits', *c['splits'],
+               '--workers', str(c['workers']), '--limit', str(c['limit']),
+               '--doc', str(self.cfg.run_dir / 'dialogue_data.md')]
+        done = subprocess.run(cmd, env=env, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+        if done.returncode:
+            raise RuntimeError(f'{shlex.join(cmd)} exited with {done.returncode}')
+        first = json.loads(done.stdout.splitlines()[0])
+        return {k: first.get(k) for k in ('split', 'path', 'seconds', 'tasks') if k in first}
+
+    def frames(self, resume: bool) -> dict:
+        from dialfred_questioner.frames import build_first_frames
+        c = self.plan.frames_config()
+        path = build_first_frames(c['split'], c['resolution'], Path(c['out']), workers=c['workers'], limit=c['limit'],
+                                  progress=self.cfg.progress)
+        return {'path': str(path)}
+
+    def with_dialogues_env(self, fn):
+        d = self.plan.dialogue_dir
+        if d is None:
+            return fn()
+        from dialfred_oracle.annotator import DIALOGUE_CACHE_ENV
+        old = os.environ.get(DIALOGUE_CACHE_ENV)
+        os.environ[DIALOGUE_CACHE_ENV] = str(d)
+        try:
+            return fn()
+        finally:
+            if old is None:
+                os.environ.pop(DIALOGUE_CACHE_ENV, None)
+            else:
+                os.environ[DIALOGUE_CACHE_ENV] = old
+
+    def pretrain(self, resume: bool) -> dict:
+        from dialfred_questioner.model import QuestionerConfig
+        from dialfred_questioner.pretrain import PretrainConfig, pretrain
+        c = dict(self.plan.pretrain_config())
+        if 'model' in c:
+            c['model'] = QuestionerConfig(**c['model'])
+        resume = resume and (self.plan.pretrain_dir / 'last.pt').exists()
+        report = self.with_dialogues_env(lambda: pretrain(PretrainConfig(**c, resume=resume)))
+        return {k: v for k, v in report.items() if isinstance(v, (int, float, str))}
+
+    def rl(self, resume: bool) -> dict:
+        from dialfred_questioner.finetune import FinetuneConfig, finetune
+        out = {}
+        for name in RL_RUNS:
+            c = self.plan.rl_config(name)
+            folder = Path(c['out'])
+            if (folder / 'final.pt').exists() and resume:
+                self.log(f'rl: {name} done before the cut-off')
+                continue
+            t0 = time.monotonic()
+            report = finetune(FinetuneConfig(**c, resume=resume and (folder / 'last.pt').exists()))
+            out[name] = {'sr': report.get('sr'), 'nq': report.get('nq'), 'seconds': round(time.monotonic() - t0, 1)}
+            self.log(f'rl: {name} in {out[name]["seconds"]:.1f} s (last update: SR {report.get("sr")}, '
+                     f'NQ {report.get("nq")})')
+        return out
+
+    def eval(self, resume: bool) -> dict:
+        from baselines import run_baseline
+        self.plan.eval_dir.mkdir(parents=True, exist_ok=True)
+        out = {}
+        for s in settings():
+            if not self.plan.available(s):
+                self.log(f'eval: {s.split} {s.key}: no questioner checkpoint, left out')
+                continue
+            config = self.plan.eval_config(s)
+            t0 = time.monotonic()
+            run_baseline(config, self.cfg.progress)     # run_eval, and its wall time in <results>.runs.jsonl
+            out[f'{s.split}/{s.key}'] = round(time.monotonic() - t0, 1)
+            self.log(f'eval: {s.split} {s.key} in {out[f"{s.split}/{s.key}"]:.1f} s')
+        return {'seconds': out}
+
+    def doc(self, resume: bool) -> dict:
+        report = build_report(self.plan, self.cfg.resamples)
+        paths = write_outputs(self.plan, report)
+        return {'doc': str(paths[0]), 'plot': str(paths[1]), 'sha256': sha256_of(paths[0].read_bytes())}
+
+    def outputs(self, stage: str) -> list[Path]:
+        p = self.plan
+        return {
+            'demos': [], 'dialogues': [], 'frames': [],          # caches: rewritten in place (same bytes)
+            'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
+            'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir],
+            'doc': [p.run / 'results.md', p.run / 'sr_nq.png'],
+        }[stage]
+
+    def run(self) -> dict:
+        self.cfg.run_dir.mkdir(parents=True, exist_ok=True)
+        t0 = time.monotonic()
+        for stage in STAGES:
+            if self.cfg.shipped and stage in TRAINING:
+                self.log(f'{stage}: skipped (--shipped)')
+                self.summary[stage] = {'status': 'shipped', 'seconds': 0.0}
+            else:
+                self.run_stage(stage, getattr(self, stage), self.outputs(stage))
+            if stage == self.cfg.until:
+                break
+        if self.cfg.doc and 'doc' in self.summary:
+            target = Path(self.cfg.doc) if Path(self.cfg.doc).is_absolute() else ROOT / self.cfg.doc
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(self.plan.run / 'results.md', target)
+            shutil.copyfile(self.plan.run / 'sr_nq.png', target.with_name('sr_nq.png'))   # the doc's link
+        return {'run': str(self.cfg.run_dir), 'quick': self.cfg.quick, 'shipped': self.cfg.shipped,
+                'stages': self.summary, 'seconds': round(time.monotonic() - t0, 1),
+                'doc': str(self.plan.run / 'results.md'), 'copied_to': self.cfg.doc or None}
+
+
+# --------------------------------------------------------------------------------------------- the report
+
+def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
+    """The numbers of one setting from its results file (n = 0 when it has none)."""
+    from dialfred_eval import resumable_results
+    from dialfred_sim.metrics import intervals, summarize
+    from dialfred_sim.tasks import load_split
+    if not plan.available(s) or not (plan.eval_dir / f'{s.split}_{s.key}.jsonl').exists():
+        return {'n': 0}
+    config = plan.eval_config(s)
+    tasks = load_split(s.split)[:config.limit]
+    done = resumable_results(config, [t.task_id for t in tasks])
+    results = [done[t.task_id] for t in tasks if t.task_id in done]
+    if not results:
+        return {'n': 0}
+    overall = summarize(results)['overall']
+    ci = intervals(results, resamples=resamples, seed=config.seed)
+    counts = {t: sum(r.question_types.get(t, 0) for r in results) for t in QUESTION_TYPES}
+    recorded = sum(len(r.dialogue) for r in results)
+    total = sum(r.questions for r in results)
+    shares = ({t: counts[t] / recorded for t in QUESTION_TYPES} if recorded else
+              ({t: 0.0 for t in QUESTION_TYPES} if total == 0 else None))
+    return {'n': len(results), 'tasks': len(tasks),
+            **{k: round(overall[k], 2 if k != 'NQ' else 3) for k in ('SR', 'PWSR', 'GC', 'NQ')},
+            'CI95': {k: [round(lo, 2 if k != 'NQ' else 3), round(hi, 2 if k != 'NQ' else 3)]
+                     for k, (lo, hi) in ci.items()},
+            'shares': {t: round(v, 3) for t, v in shares.items()} if shares is not None else None,
+            'results': results}
+
+
+def build_report(plan: Plan, resamples: int) -> dict:
+    rows = {(s.split, s.key): setting_row(plan, s, resamples) for s in settings()}
+    return {'rows': rows, 'plan': plan}
+
+
+def _v(row: dict, key: str) -> str:
+    if not row.get('n'):
+        return 'no results'
+    d = 2 if key == 'NQ' else 1
+    lo, hi = row['CI95'][key]
+    return f'{row[key]:.{d}f} [{lo:.{d}f}, {hi:.{d}f}]'
+
+
+def _n(row: dict) -> str:
+    if not row.get('n'):
+        return '0'
+    return f'{row["n"]}' if row['n'] == row['tasks'] else f'{row["n"]} of {row["tasks"]}'
+
+
+def _share(row: dict, t: str) -> str:
+    if not row.get('n'):
+        return 'no results'
+    return 'not recorded' if row['shares'] is None else f'{row["shares"][t]:.2f}'
+
+
+def most_asked(rows: dict, top: int = 10) -> list[tuple[str, int]]:
+    from collections import Counter
+    c = Counter()
+    for split in SPLITS:
+        for r in rows[(split, 'rl_anytime')].get('results', []):
+            for qa in r.dialogue:
+                c[f'{qa["type"]} {qa["noun"]}'.strip()] += 1
+    return sorted(c.items(), key=lambda kv: (-kv[1], kv[0]))[:top]
+
+
+def turned_around(rows: dict, count: int = 5) -> list[tuple]:
+    """Tasks failed by the performer alone (instruction only) and succeeded with RL anytime's questions."""
+    from dialfred_sim.tasks import load_split
+    out = []
+    for split in SPLITS:
+        base = {r.task_id: r for r in rows[(split, 'instruction_only')].get('results', [])}
+        tasks = {t.task_id: t for t in load_split(split)}
+        for r in rows[(split, 'rl_anytime')].get('results', []):
+            b = base.get(r.task_id)
+            if b is not None and not b.success and r.success and r.dialogue:
+                out.append((tasks[r.task_id], b, r))
+    return out[:count]
+
+
+def what_holds(rows: dict) -> list[str]:
+    u = lambda key: rows[('valid_unseen', key)]  # noqa: E731
+    lines = []
+
+    def have(*keys):
+        return all(u(k).get('n') for k in keys)
+
+    def verdict(ok: bool) -> str:
+        return '**holds**' if ok else '**does not hold**'
+
+    if have('rl_anytime', 'all_qas'):
+        rl, allq = u('rl_anytime'), u('all_qas')
+        ok = rl['SR'] >= allq['SR'] and rl['NQ'] <= allq['NQ'] / 4
+        lines.append(f'RL anytime matches All QAs with a quarter of the questions (valid_unseen SR {rl["SR"]:.1f} >= '
+                     f'{allq["SR"]:.1f}, NQ {rl["NQ"]:.2f} <= {allq["NQ"]:.2f} / 4 = {allq["NQ"] / 4:.2f}; paper 33.6 vs '
+                     f'32.0 SR, NQ 0.71 vs 3.24): {verdict(ok)}.')
+    for split in SPLITS:
+        rl, rnd = rows[(split, 'rl_anytime')], rows[(split, 'random_qa')]
+        if rl.get('n') and rnd.get('n'):
+            p = PAPER_T2
+            lines.append(f'RL anytime beats Random QA on {split} (SR {rl["SR"]:.1f} vs {rnd["SR"]:.1f}, 95% '
+                         f'[{rl["CI95"]["SR"][0]:.1f}, {rl["CI95"]["SR"][1]:.1f}] vs [{rnd["CI95"]["SR"][0]:.1f}, '
+                         f'{rnd["CI95"]["SR"][1]:.1f}]; paper {p["rl_anytime"]["SR"][split]} vs '
+                         f'{p["random_qa"]["SR"][split]}): {verdict(rl["SR"] > rnd["SR"])}.')
+    drops = {}
+    for kind, base in (('rl_anytime', 'rl_anytime'), ('random_qa', 'random_qa')):
+        if have(base, *(f'{kind}_withhold_{t}' for t in QUESTION_TYPES)):
+            drops[kind] = {t: u(base)['SR'] - u(f'{kind}_withhold_{t}')['SR'] for t in QUESTION_TYPES}
+    for kind, name in (('rl_anytime', 'RL anytime'), ('random_qa', 'Random')):
+        if kind in drops:
+            d = drops[kind]
+            ok = d['location'] > d['appearance'] and d['location'] > d['direction']
+            lines.append(f'Withholding location answers hurts {name} more than appearance or direction (SR drop '
+                         f'{d["location"]:+.1f} vs {d["appearance"]:+.1f} and {d["direction"]:+.1f} points; paper '
+                         f'{"1.4 vs 1.2 and 0.6" if kind == "rl_anytime" else "2.4 vs 2.3 and 2.2"}): {verdict(ok)}.')
+    base = u('rl_anytime')
+    if base.get('n') and base['shares'] is not None:
+        for t in QUESTION_TYPES:
+            w = u(f'rl_anytime_withhold_{t}')
+            if w.get('n') and w['shares'] is not None:
+                ok = w['shares'][t] < base['shares'][t]
+                paper = PAPER_T3[f'rl_anytime_withhold_{t}'][4][QUESTION_TYPES.index(t)]
+                lines.append(f'RL trained with {t} answers withheld asks fewer {t} questions (share {w["shares"][t]:.2f} '
+                             f'vs {base["shares"][t]:.2f} unperturbed; paper {paper:.2f} vs '
+                             f'{PAPER_T3["rl_anytime"][4][QUESTION_TYPES.index(t)]:.2f}): {verdict(ok)}.')
+    if 'rl_anytime' in drops and 'random_qa' in drops:
+        rl = sum(drops['rl_anytime'].values()) / 3
+        rnd = sum(drops['random_qa'].values()) / 3
+        lines.append(f'Under a perturbed oracle RL loses less SR than Random (mean drop over the three types '
+                     f'{rl:+.1f} vs {rnd:+.1f} points; paper +0.9 vs +2.3): {verdict(rl < rnd)}.')
+    return lines
+
+
+def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Path:
+    """SR against NQ, one labelled dot per setting (Pillow; the style of dialfred_performer.curves)."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    from dialfred_performer.curves import _ticks
+    font = ImageFont.load_default()
+    W, H, (L, T, R, B) = 720, 480, (56, 30, 200, 40)
+    image = Image.new('RGB', (W, H), 'white')
+    draw = ImageDraw.Draw(image)
+    title = 'SR (valid_unseen) against questions per episode (NQ)'
+    draw.text((W // 2 - len(title) * 3, 8), title, fill='black', font=font)
+    left, top, right, bottom = L, T, W - R, H - B
+    draw.rectangle((left, top, right, bottom), outline=(160, 160, 160))
+    x_hi = max([p[2] for p in points] + [1.0]) * 1.08
+    y_hi = max([p[1] for p in points] + [10.0]) * 1.1
+
+    def at(x, y):
+        return left + x / x_hi * (right - left), bottom - y / y_hi * (bottom - top)
+
+    for y in _ticks(0.0, y_hi):
+        _, py = at(0, y)
+        draw.line((left, py, right, py), fill=(230, 230, 230))
+        draw.text((4, py - 6), f'{y:.3g}', fill='black', font=font)
+    for x in _ticks(0.0, x_hi):
+        px, _ = at(x, 0)
+        draw.text((px - 8, bottom + 4), f'{x:g}', fill='black', font=font)
+    draw.text((right - 60, bottom + 18), 'NQ', fill='black', font=font)
+    draw.text((4, top - 18), 'SR %', fill='black', font=font)
+    palette = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+               (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
+    frontier, best = [], -1.0
+    for label, sr, nq in sorted(points, key=lambda p: (p[2], -p[1])):
+        if sr > best:
+            frontier.append(at(nq, sr))
+            best = sr
+    if len(frontier) > 1:
+        draw.line(frontier, fill=(200, 200, 200), width=2)
+    for k, (label, sr, nq) in enumerate(points):
+        colour = palette[k % len(palette)]
+        px, py = at(nq, sr)
+        draw.ellipse((px - 4, py - 4, px + 4, py + 4), fill=colour)
+        y = top + 14 * k
+        draw.ellipse((right + 12, y + 2, right + 20, y + 10), fill=colour)
+        draw.text((right + 26, y), f'{label} ({sr:.1f}, {nq:.2f})', fill='black', font=font)
+    out_path = Path(out_path)
+    image.save(out_path)
+    return out_path
+
+
+def _relative(path: Path) -> str:
+    try:
+        return str(Path(path).resolve().relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
+def render(plan: Plan, report: dict, plot_name: str) -> str:
+    from dialfred_sim.agents import Question
+    from dialfred_sim.messages import question_text
+    rows, cfg = report['rows'], plan.cfg
+    mode = '--quick' if cfg.quick else '--shipped' if cfg.shipped else ''
+    command = './dialfred reproduce' + (f' {mode}' if mode else '')
+    through = 'in process' if plan.in_process else 'through the ROS graph (performer nodes)'
+    out = [
+        '# Results: the paper\'s Tables II, III and IV reproduced',
+        '',
+        f'<!-- Generated file: written by `{command}` (scripts/reproduce.py). Do not edit by hand; rerun it. -->',
+        f'Generated by `{command}` (`scripts/reproduce.py`) from the results files in `{_relative(plan.eval_dir)}/`; '
+        'every number here is computed from them.',
+        '',
+    ]
+    if cfg.quick:
+        out += ['**Quick run**: tiny slices of every stage (32 train tasks, a tiny performer and questioner, 2 RL '
+                'updates of 8 episodes); these numbers check the pipeline and mean nothing.', '']
+    perf = plan.performer_checkpoint
+    out += ['## Settings', '',
+            f'- performer: `{_relative(perf)}` (sha256 `{sha256_of(perf.read_bytes())[:16]}`...)' if perf.exists()
+            else f'- performer: `{_relative(perf)}` (absent)',
+            '- questioners: ' + ('the shipped checkpoints in `' + _relative(SHIPPED_QUESTIONERS) + '/`' if cfg.shipped
+                                 else f'fine-tuned by the rl stage in `{_relative(plan.run / "questioner")}/`') +
+            ', played greedily',
+            f'- evaluation: `et` performer at {RESOLUTION} px, played {through}, seed {cfg.seed}, '
+            + (f'the first {plan.eval_limit} tasks of each split' if plan.eval_limit else 'every task of each split')
+            + f'; perturbed oracle: one type\'s answers withheld with probability {PERTURB_PROBABILITY}',
+            f'- intervals: 95% percentile bootstrap over episodes, {cfg.resamples} resamples '
+            '(`dialfred_sim.metrics.intervals`); SR and PWSR in percent, NQ questions per episode', '']
+    # Table II
+    out += ['## Table II: baselines', '',
+            '| # | setting | split | n | SR [95%] | paper SR | PWSR [95%] | paper PWSR | NQ [95%] | paper NQ |',
+            '|---|---|---|---|---|---|---|---|---|---|']
+    for key, p in PAPER_T2.items():
+        for split in SPLITS:
+            r = rows[(split, key)]
+            out.append(f'| {p["number"]} | {p["name"]} | {split} | {_n(r)} | {_v(r, "SR")} | {p["SR"][split]} | '
+                       f'{_v(r, "PWSR")} | {p["PWSR"][split]} | {_v(r, "NQ")} | {p["NQ"]} |')
+    # Table III
+    out += ['', '## Table III: the oracle withholding 50% of one type\'s answers (valid_unseen)', '',
+            'RL rows: questioners fine-tuned with the same perturbed oracle they are evaluated with; Random: the '
+            '`random` baseline. Shares: of the questions asked, those of each type (from the results\' dialogues).',
+            '',
+            '| setting | n | SR [95%] | paper SR | PWSR [95%] | paper PWSR | NQ [95%] | paper NQ '
+            '| location | appearance | direction | paper shares (loc / app / dir) |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|']
+    for key, (name, sr, pwsr, nq, shares) in PAPER_T3.items():
+        r = rows[('valid_unseen', key)]
+        out.append(f'| {name} | {_n(r)} | {_v(r, "SR")} | {sr} | {_v(r, "PWSR")} | {pwsr} | {_v(r, "NQ")} | {nq} | '
+                   + ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' | ' + ' / '.join(f'{v:.2f}' for v in shares)
+                   + ' |')
+    # Table IV
+    out += ['', '## Table IV: question timing (valid_unseen)', '',
+            'Fixed N: the questioner may ask every N performer steps (Fixed 1 with the paper\'s question-promoting '
+            'rewards, `--rewards fixed_1`); MC: when the performer is confused (top-2 action probabilities within '
+            'epsilon).', '',
+            '| setting | n | SR [95%] | paper SR | PWSR [95%] | paper PWSR | NQ [95%] | paper NQ |',
+            '|---|---|---|---|---|---|---|---|']
+    for key, (name, sr, pwsr, nq) in PAPER_T4.items():
+        r = rows[('valid_unseen', key)]
+        out.append(f'| {name} | {_n(r)} | {_v(r, "SR")} | {sr} | {_v(r, "PWSR")} | {pwsr} | {_v(r, "NQ")} | {nq} |')
+    # plot
+    out += ['', '## Cost and benefit: SR against NQ', '',
+            f'![SR against NQ, every setting on valid_unseen]({plot_name})', '',
+            'Every setting on valid_unseen; the grey line joins the settings no other beats with fewer questions.', '']
+    # what holds
+    out += ['## What holds', '', 'Computed from the tables above; the paper\'s numbers in brackets.', '']
+    out += [f'- {line}' for line in what_holds(rows)] or ['- not enough results yet']
+    # questions
+    out += ['', '## The questions RL anytime asks most (both splits)', '']
+    asked = most_asked(rows)
+    if asked:
+        out += ['| question | times |', '|---|---|']
+        for q, k in asked:
+            kind, _, noun = q.partition(' ')
+            out.append(f'| {question_text(Question(kind, noun))} | {k} |')
+    else:
+        out.append('No questions recorded.')
+    out += ['', '## Dialogues that turned a failure into a success', '',
+            'Tasks the performer failed alone (instruction only) and finished with RL anytime\'s questions '
+            '(same task, same seed).', '']
+    examples = turned_around(rows)
+    if not examples:
+        out.append('None among the results.')
+    for task, base, r in examples:
+        out += [f'- `{task.task_id}` ({task.task_type}): "{task.instruction}"; alone: {base.end_reason} after '
+                f'{base.steps} steps; with questions: success in {r.steps} steps']
+        for qa in r.dialogue:
+            answer = qa['answer'] if qa['valid'] else '(no answer)'
+            out.append(f'  - Q: {question_text(Question(qa["type"], qa["noun"]))} A: {answer}')
+    out += ['', '## Run times', '']
+    stamps = plan.run / 'stamps'
+    for stage in STAGES[:-1]:
+        try:
+            s = json.loads((stamps / f'{stage}.json').read_text())
+            out.append(f'- {stage}: {s.get("seconds", 0):.0f} s')
+        except (OSError, ValueError):
+            out.append(f'- {stage}: not run here' + (' (shipped)' if cfg.shipped and stage in TRAINING else ''))
+    return '\n'.join(out) + '\n'
+
+
+def write_outputs(plan: Plan, report: dict) -> tuple[Path, Path]:
+    rows = report['rows']
+    points = []
+    names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
+             **{k: v[0] for k, v in PAPER_T4.items()}}
+    seen = set()
+    for s in settings():
+        r = rows[(s.split, s.key)]
+        if s.split == 'valid_unseen' and r.get('n') and s.key not in seen:
+            seen.add(s.key)
+            points.append((names[s.key], r['SR'], r['NQ']))
+    plot = draw_frontier(points, plan.run / 'sr_nq.png')
+    doc = plan.run / 'results.md'
+    doc.write_text(render(plan, report, plot.name))
+    return doc, plot
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    cfg = parse(ReproduceConfig, argv, prog='./dialfred reproduce')
+    try:
+        summary = Runner(cfg).run()
+    except (FileNotFoundError, ValueError, RuntimeError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,99 @@
+"""`./dialfred reproduce --quick` (scripts/reproduce.py): the whole pipeline on tiny slices, in a
+temporary run folder (about 4 minutes on 2 cores).
+
+Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, doc) and writes its
+stamp; the document has Tables II, III and IV with every row, what holds, and the SR-NQ plot next to
+it; the results record each episode's dialogue (question types); a rerun skips every stage (stamps
+match); rerunning the doc stage alone writes the same bytes; the quick caches stay in the run folder.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'scripts'))
+
+import reproduce  # noqa: E402
+
+STAGES = reproduce.STAGES
+
+
+def run(out: Path, *more: str) -> dict:
+    done = subprocess.run([sys.executable, str(ROOT / 'scripts' / 'reproduce.py'), '--quick', '--out', str(out),
+                           *more], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    summary['stderr'] = done.stderr
+    return summary
+
+
+@pytest.fixture(scope='module')
+def first(tmp_path_factory):
+    out = tmp_path_factory.mktemp('reproduce') / 'run'
+    return out, run(out)
+
+
+def test_every_stage_runs_and_stamps(first):
+    out, summary = first
+    assert list(summary['stages']) == list(STAGES)
+    assert all(summary['stages'][s]['status'] == 'ran' for s in STAGES), summary['stages']
+    for s in STAGES:
+        stamp = json.loads((out / 'stamps' / f'{s}.json').read_text())
+        assert stamp['status'] == 'done' and stamp['hash'] == summary['stages'][s]['hash']
+        assert f'[reproduce] {s}: running' in summary['stderr']
+    # the quick caches stay in the run folder
+    assert (out / 'cache' / 'dialogues' / 'train.jsonl.gz').exists()
+    assert (out / 'cache' / 'demonstrations' / 'train_64' / 'meta.json').exists()
+    for name in reproduce.RL_RUNS:
+        assert (out / 'questioner' / name / 'final.pt').exists()
+
+
+def test_the_doc_has_every_table_row_and_the_plot(first):
+    out, _ = first
+    doc = (out / 'results.md').read_text()
+    for title in ('## Table II', '## Table III', '## Table IV', '## What holds', '## Dialogues that turned'):
+        assert title in doc
+    for p in reproduce.PAPER_T2.values():
+        for split in reproduce.SPLITS:
+            assert f'| {p["number"]} | {p["name"]} | {split} | 8 |' in doc
+    for name, *_ in reproduce.PAPER_T3.values():
+        assert f'| {name} | 8 |' in doc
+    for name, *_ in reproduce.PAPER_T4.values():
+        assert f'| {name} | 8 |' in doc
+    assert 'no results' not in doc and 'not recorded' not in doc
+    assert doc.count('**holds**') + doc.count('**does not hold**') >= 8
+    png = out / 'sr_nq.png'
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 2000
+
+
+def test_results_record_the_questions_asked(first):
+    out, _ = first
+    lines = [json.loads(l) for l in (out / 'eval' / 'valid_unseen_all_qas.jsonl').read_text().splitlines()]
+    assert all(len(l['dialogue']) == l['questions'] for l in lines)
+    assert {qa['type'] for l in lines for qa in l['dialogue']} <= {'location', 'appearance', 'direction'}
+
+
+def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first):
+    out, _ = first
+    before = (out / 'results.md').read_bytes()
+    again = run(out)
+    assert all(again['stages'][s]['status'] == 'skipped' for s in STAGES), again['stages']
+    assert all(f'[reproduce] {s}: skipped (stamp matches' in again['stderr'] for s in STAGES)
+    forced = run(out, '--force', 'doc')
+    assert forced['stages']['doc']['status'] == 'ran'
+    assert all(forced['stages'][s]['status'] == 'skipped' for s in STAGES[:-1])
+    assert (out / 'results.md').read_bytes() == before
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError):
+        reproduce.ReproduceConfig(force='nope')
+    with pytest.raises(ValueError):
+        reproduce.ReproduceConfig(quick=True, shipped=True)
