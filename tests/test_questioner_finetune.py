@@ -68,6 +68,21 @@ def test_a_tiny_run_writes_its_curves_and_checkpoints_and_learns_something(setup
     q = LearnedQuestioner.from_checkpoint(tmp_path / 'one' / 'final.pt')
     assert q.timing.mode == 'anytime' and q.timing.gap == 3
     assert report['final'].endswith('final.pt')
+    assert q.reads_dialogue and final['reads_dialogue'] is True
+
+
+def test_the_instruction_only_ablation_is_stored_and_read_without_the_dialogue(setup, tmp_path):
+    from dialfred_sim.agents import QA, Question
+    from dialfred_performer.preprocess import AskedQA
+    finetune(config(setup, tmp_path / 'blind', updates=1, dialogue=False))
+    q = LearnedQuestioner.from_checkpoint(tmp_path / 'blind' / 'final.pt')
+    assert not q.reads_dialogue and not torch.load(tmp_path / 'blind' / 'final.pt', weights_only=False)['reads_dialogue']
+    import numpy as np
+    rgb = np.zeros((64, 64, 3), np.uint8)
+    said = [AskedQA(QA(Question('location', 'apple'), True, 'the apple is in the fridge'), 0)]
+    assert q.record_of(rgb, 'pick up the apple', said, 3).lang_ids == q.record_of(rgb, 'pick up the apple', [], 3).lang_ids
+    q.reads_dialogue = True
+    assert q.record_of(rgb, 'pick up the apple', said, 3).lang_ids != q.record_of(rgb, 'pick up the apple', [], 3).lang_ids
 
 
 def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setup, tmp_path):

@@ -68,6 +68,8 @@ class FinetuneConfig:
     gap: int = arg(5, 'anytime: performer steps between chances to ask')
     epsilon: float = arg(0.5, 'confusion: ask when the top-2 action probabilities differ by less')
     rewards: str = arg('paper', f'reward set: {", ".join(REWARDS)} (the paper\'s Fixed-1 penalties)')
+    dialogue: bool = arg(True, 'the questioner reads the dialogue so far (--no-dialogue: the instruction only, '
+                               'as the original; an ablation)')
     perturb_type: str = arg('', 'the oracle withholds answers of this question type ...')
     perturb_probability: float = arg(0.5, '... with this probability')
     updates: int = arg(64, 'actor-critic updates')
@@ -139,6 +141,7 @@ def _init_worker(cfg_json: str) -> None:
     _W['env'] = DialfredEnv(resolution=cfg.resolution, max_steps=cfg.max_steps)
     _W['performer'] = PerformerAgent.from_checkpoint(Path(cfg.performer))
     _W['policy'] = LearnedQuestioner.from_checkpoint(Path(cfg.init), greedy=False, timing=cfg.timing_of)
+    _W['policy'].reads_dialogue = cfg.dialogue
     _W['tasks'] = [t.task_id for t in load_split(cfg.split)][:cfg.limit or None]
     _W['perturbation'] = (Perturbation(cfg.perturb_type, cfg.perturb_probability, cfg.seed)
                           if cfg.perturb_type else None)
@@ -266,7 +269,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
 
     def write(path: Path, extra: Optional[dict] = None) -> None:
         save(path, model, init.vocab, visual_state, performer_info, cfg, commit, extra=extra, timing=timing,
-             module=MODULE)
+             module=MODULE, reads_dialogue=cfg.dialogue)
 
     t0 = time.monotonic()
     report: dict = {}

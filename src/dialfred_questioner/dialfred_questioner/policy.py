@@ -84,6 +84,8 @@ class LearnedQuestioner:
         self.dialogue: list[AskedQA] = []
         self._step = 0
         self._asked_at = -1
+        # False: the original DialFRED questioner's input, the instruction only (an ablation)
+        self.reads_dialogue = True
 
     @property
     def needs_gap(self) -> bool:
@@ -107,12 +109,14 @@ class LearnedQuestioner:
             saved = Timing(**state['timing']) if state.get('timing') else DEFAULT_TIMING
         except Exception as exc:  # noqa: BLE001 - a damaged file raises many kinds
             raise ValueError(f'{path} is not a questioner checkpoint ({type(exc).__name__}: {exc})') from exc
-        return cls(model.eval(), vocab, visual, int(state['visual_resolution']), greedy, seed, timing or saved)
+        q = cls(model.eval(), vocab, visual, int(state['visual_resolution']), greedy, seed, timing or saved)
+        q.reads_dialogue = bool(state.get('reads_dialogue', True))
+        return q
 
     @torch.no_grad()
     def record_of(self, rgb, instruction: str, dialogue: Sequence[AskedQA], step: int) -> Record:
         """The model's inputs for a decision (qtype / noun still -1)."""
-        lang = encode_language(self.vocab, instruction, dialogue)
+        lang = encode_language(self.vocab, instruction, dialogue if self.reads_dialogue else ())
         image = self.visual(frame_tensor(rgb, self.resolution)[None])[0][0]
         return Record(lang.ids, lang.types, image, step, -1, -1)
 

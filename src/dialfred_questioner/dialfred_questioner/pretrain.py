@@ -78,14 +78,16 @@ class PretrainConfig:
 
 
 def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, performer_info: dict, cfg,
-         commit: str, extra: Optional[dict] = None, timing: Optional[dict] = None, module: str = MODULE) -> None:
+         commit: str, extra: Optional[dict] = None, timing: Optional[dict] = None, module: str = MODULE,
+         reads_dialogue: bool = True) -> None:
     """Everything the questioner needs to run: its config, nouns, the vocabulary, its weights and the
     frozen visual encoder's, which performer they came from, when it asks (`timing`, a rollout.Timing
-    as a dict; none: at the start only), the command (of `module`) and commit."""
+    as a dict; none: at the start only), whether it reads the dialogue so far (False: the original's
+    instruction-only input, an ablation), the command (of `module`) and commit."""
     state = {'format': FORMAT, 'config': dataclasses.asdict(model.config), 'nouns': list(model.nouns),
              'vocab': vocab.to_json(), 'state_dict': model.state_dict(), 'visual': visual_state,
              'visual_resolution': performer_info['config'].resolution, 'performer': performer_info['path'],
-             'timing': timing, 'git_commit': commit, 'command': command_line(module, cfg), 'extra': extra or {}}
+             'timing': timing, 'reads_dialogue': reads_dialogue, 'git_commit': commit, 'command': command_line(module, cfg), 'extra': extra or {}}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + '.tmp')
     torch.save(state, tmp)
