@@ -40,7 +40,7 @@ def setup(tmp_path_factory):
 def config(setup, out, **changes) -> FinetuneConfig:
     init, performer = setup
     base = dict(init=str(init), performer=str(performer), split='valid_unseen', out=str(out), timing='anytime',
-                gap=3, updates=2, episodes_per_update=4, lr=1e-2, resolution=64, max_steps=8, limit=TASKS,
+                gap=3, updates=2, episodes_per_update=4, samples_per_task=2, lr=1e-2, resolution=64, max_steps=8, limit=TASKS,
                 workers=1, progress=False)
     return FinetuneConfig(**{**base, **changes})
 
@@ -85,6 +85,11 @@ def test_the_instruction_only_ablation_is_stored_and_read_without_the_dialogue(s
     assert q.record_of(rgb, 'pick up the apple', said, 3).lang_ids != q.record_of(rgb, 'pick up the apple', [], 3).lang_ids
 
 
+def test_the_critic_baseline_trains_too(setup, tmp_path):
+    finetune(config(setup, tmp_path / 'critic', baseline='critic', samples_per_task=1, updates=1))
+    assert not same(weights(tmp_path / 'critic' / 'final.pt'), weights(setup[0]))
+
+
 def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setup, tmp_path):
     finetune(config(setup, tmp_path / 'one', updates=3))
     finetune(config(setup, tmp_path / 'two', updates=3, workers=2))
@@ -100,15 +105,21 @@ def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setu
 
 def test_the_episode_plan_visits_every_task_once_per_pass():
     plan = [p for u in range(5) for p in episode_plan(10, u, 4, seed=1)]
-    assert sorted(t for t, _ in plan[:10]) == list(range(10)) and sorted(t for t, _ in plan[10:20]) == list(range(10))
+    assert sorted(t for t, _, _ in plan[:10]) == list(range(10)) and sorted(t for t, _, _ in plan[10:20]) == list(range(10))
     assert plan[:10] != plan[10:20]
-    assert len({s for _, s in plan}) == len(plan)
+    assert len({s for _, s, _ in plan}) == len(plan) and len({z for _, _, z in plan}) == len(plan)
     assert episode_plan(10, 2, 4, seed=1) == episode_plan(10, 2, 4, seed=1)
+    grouped = episode_plan(10, 1, 8, seed=1, samples=4)        # 2 tasks x 4 samples from one start each
+    assert len(grouped) == 8 and len({(t, s) for t, s, _ in grouped}) == 2 and len({z for _, _, z in grouped}) == 8
+    assert [t for t, _, _ in grouped] == [grouped[0][0]] * 4 + [grouped[4][0]] * 4
 
 
 @pytest.mark.parametrize('changes, match', [({'timing': 'never'}, 'timing'), ({'gap': 0}, 'gap'),
                                             ({'rewards': 'lots'}, 'rewards'), ({'perturb_type': 'colour'}, 'perturb'),
-                                            ({'gamma': 0.0}, 'gamma'), ({'updates': 0}, 'updates')])
+                                            ({'gamma': 0.0}, 'gamma'), ({'updates': 0}, 'updates'),
+                                            ({'baseline': 'mean'}, 'baseline'),
+                                            ({'samples_per_task': 1}, 'samples_per_task'),
+                                            ({'episodes_per_update': 10}, 'multiple')])
 def test_bad_settings_are_refused(changes, match):
     with pytest.raises(ValueError, match=match):
         FinetuneConfig(**changes)

@@ -50,3 +50,32 @@ def test_on_a_toy_bandit_the_critic_learns_and_the_policy_moves_to_the_rewarded_
         critic_losses.append(parts['critic'])
     assert sum(critic_losses[-10:]) < sum(critic_losses[:10])
     assert torch.softmax(actor(state[:1]), -1)[0, 1].item() > p_before + 0.2
+
+
+def test_the_group_baseline_is_the_mean_of_the_other_episodes_of_the_group():
+    from dialfred_questioner.rl import group_baseline
+    b = group_baseline([1.0, 0.0, 0.5, 0.2], groups=[0, 0, 0, 1], decisions=[2, 1, 1, 3])
+    assert b.tolist() == pytest.approx([0.25, 0.25, 0.75, 0.5, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError):
+        group_baseline([1.0], [0, 1], [1])
+
+
+def test_with_a_group_baseline_the_policy_moves_to_the_better_action_of_the_same_task():
+    """Two tasks, one easy (return 1 whatever is done), one hard (return 0 whatever); asking adds
+    +0.2 on both. Against the group baseline only the asking matters, and the policy learns to ask."""
+    from dialfred_questioner.rl import actor_critic_loss, group_baseline
+    torch.manual_seed(0)
+    logits = torch.zeros(2, requires_grad=True)      # [no question, question]
+    opt = torch.optim.SGD([logits], lr=2.0)
+    for _ in range(150):
+        p = torch.softmax(logits, 0)
+        actions = torch.multinomial(p.detach().expand(8, 2), 1)[:, 0]
+        tasks = torch.tensor([0, 0, 0, 0, 1, 1, 1, 1])
+        returns = (tasks == 0).float() + 0.2 * actions.float()
+        base = group_baseline(returns.tolist(), tasks.tolist(), [1] * 8)
+        loss, _ = actor_critic_loss(torch.log_softmax(logits, 0)[actions], torch.zeros(8), torch.zeros(8),
+                                    returns, value_weight=0.0, entropy_weight=0.0, normalise=False, baseline=base)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert torch.softmax(logits, 0)[1] > 0.9

@@ -12,9 +12,12 @@ Starts from a pre-trained questioner (`--init`, `pretrain.py`) and plays episode
 rules (`dialfred_oracle.local`, with the perturbation if any) and the env at the evaluation's
 resolution, on `--workers` processes. Each update plays `--episodes-per-update` episodes with the
 current policy (sampled with a generator seeded per episode, so the episodes do not depend on the
-number of workers), then takes one actor-critic step on all their decisions (`rl.actor_critic_loss`:
-discounted returns, advantages against the critic, the critic regressed on the returns, an entropy
-bonus, gradient clipping). Tasks are visited in a seeded shuffled order, pass after pass.
+number of workers): `--samples-per-task` episodes of each task from the same start, the questioner
+sampled anew in each. Then one actor-critic step on all their decisions (`rl.actor_critic_loss`:
+discounted returns; advantages against a baseline, by default the leave-one-out mean return of the
+task's other samples (`rl.group_baseline`; `--baseline critic`: the critic's V(s)); the critic
+regressed on the returns; an entropy bonus; gradient clipping). Tasks are visited in a seeded
+shuffled order, pass after pass.
 
 Writes to `--out`, as it goes: `metrics.jsonl` (a line per update: return, SR, NQ, invalid share,
 the mix of question types, the losses, seconds), `curves.png`, `last.pt` after every update (with the
@@ -46,7 +49,7 @@ from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit
 from dialfred_sim.agents import QUESTION_TYPES as QUESTION_TYPES_ASKED
 
 from .model import Questioner
-from .rl import Rewards, actor_critic_loss, discounted_returns
+from .rl import Rewards, actor_critic_loss, discounted_returns, group_baseline
 from .rollout import TIMINGS, Timing
 
 MODULE = 'dialfred_questioner.finetune'
@@ -74,6 +77,9 @@ class FinetuneConfig:
     perturb_probability: float = arg(0.5, '... with this probability')
     updates: int = arg(64, 'actor-critic updates')
     episodes_per_update: int = arg(64, 'episodes played per update')
+    samples_per_task: int = arg(4, 'episodes of each task (one start, the questioner sampled anew) per update')
+    baseline: str = arg('group', "the policy's baseline: group (the leave-one-out mean return of the task's other "
+                                 "samples) or critic (V(s)); the critic is trained either way")
     lr: float = arg(1e-3, 'learning rate (Adam)')
     gamma: float = arg(0.99, 'discount between the questioner\'s decisions')
     entropy: float = arg(0.01, 'entropy bonus weight')
@@ -95,6 +101,13 @@ class FinetuneConfig:
             raise ValueError(f'perturb_type must be one of {", ".join(QUESTION_TYPES_ASKED)}, got {self.perturb_type!r}')
         if not 0.0 <= self.perturb_probability <= 1.0:
             raise ValueError(f'perturb_probability must be in [0, 1], got {self.perturb_probability}')
+        if self.baseline not in ('group', 'critic'):
+            raise ValueError(f'baseline must be group or critic, got {self.baseline!r}')
+        if self.baseline == 'group' and self.samples_per_task < 2:
+            raise ValueError('the group baseline needs samples_per_task >= 2')
+        if self.samples_per_task < 1 or self.episodes_per_update % self.samples_per_task:
+            raise ValueError(f'episodes_per_update ({self.episodes_per_update}) must be a multiple of '
+                             f'samples_per_task ({self.samples_per_task})')
         for name in ('updates', 'episodes_per_update', 'workers', 'resolution', 'max_steps'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
@@ -111,15 +124,19 @@ class FinetuneConfig:
         return Timing(self.timing, self.gap, self.epsilon)
 
 
-def episode_plan(n_tasks: int, update: int, per_update: int, seed: int) -> list[tuple[int, int]]:
-    """(task index, episode seed) of each episode of update `update` (0-based): the tasks in a
-    shuffled order per pass (seeded by `seed` and the pass), consecutive episodes of that order."""
+def episode_plan(n_tasks: int, update: int, per_update: int, seed: int, samples: int = 1) -> list[tuple[int, int, int]]:
+    """(task index, episode seed, sampling seed) of each episode of update `update` (0-based): the
+    tasks in a shuffled order per pass (seeded by `seed` and the pass), consecutive tasks of that order,
+    each played `samples` times from the same start (episode seed) with different sampling seeds."""
     out = []
-    for k in range(update * per_update, (update + 1) * per_update):
+    per = per_update // samples
+    for k in range(update * per, (update + 1) * per):
         epoch, pos = divmod(k, n_tasks)
         order = list(range(n_tasks))
         random.Random(f'{seed}/pass{epoch}').shuffle(order)
-        out.append((order[pos], int(np.random.SeedSequence([seed, k]).generate_state(1)[0])))
+        start = int(np.random.SeedSequence([seed, k]).generate_state(1)[0])
+        for j in range(samples):
+            out.append((order[pos], start, int(np.random.SeedSequence([seed, k, j]).generate_state(1)[0])))
     return out
 
 
@@ -147,16 +164,16 @@ def _init_worker(cfg_json: str) -> None:
                           if cfg.perturb_type else None)
 
 
-def _play_chunk(args: tuple[dict, list[tuple[int, int, int]]]) -> list[tuple[int, dict]]:
-    """Play (episode number, task index, seed) with the policy's weights `state`."""
+def _play_chunk(args: tuple[dict, list[tuple[int, int, int, int]]]) -> list[tuple[int, dict]]:
+    """Play (episode number, task index, episode seed, sampling seed) with the policy's weights `state`."""
     from .rollout import play
     state, jobs = args
     cfg, policy = _W['cfg'], _W['policy']
     policy.model.load_state_dict(state)
     policy.model.eval()
     out = []
-    for number, task_index, seed in jobs:
-        policy.generator.manual_seed(seed)
+    for number, task_index, seed, sample_seed in jobs:
+        policy.generator.manual_seed(sample_seed)
         ep = play(_W['env'], _W['performer'], policy, _W['tasks'][task_index], seed, cfg.timing_of,
                   REWARDS[cfg.rewards], _W['perturbation'])
         out.append((number, {
@@ -173,21 +190,29 @@ def _play_chunk(args: tuple[dict, list[tuple[int, int, int]]]) -> list[tuple[int
 def update_step(model: Questioner, opt, episodes: list[dict], cfg: FinetuneConfig) -> dict:
     """One actor-critic step on every decision of `episodes` (complete episodes, in order)."""
     from .policy import batch_records
-    records, rewards, ends = [], [], []
+    records, rewards, ends, starts = [], [], [], []
     for ep in episodes:
+        if ep['records']:
+            starts.append(len(records))
         records.extend(ep['records'])
         rewards.extend(ep['rewards'])
         ends.extend([False] * (len(ep['records']) - 1) + [True] if ep['records'] else [])
     if not records:
         return {'policy': 0.0, 'critic': 0.0, 'entropy': 0.0, 'advantage_mean': 0.0, 'decisions': 0}
     returns = discounted_returns(rewards, ends, cfg.gamma)
+    baseline = None
+    if cfg.baseline == 'group':
+        played = [ep for ep in episodes if ep['records']]
+        baseline = group_baseline([float(returns[k]) for k in starts], [ep['group'] for ep in played],
+                                  [len(ep['records']) for ep in played])
     b = batch_records(records)
     model.eval()           # no dropout: the log-probabilities of the policy that played
     enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
     log_probs = model.log_prob(enc, b['types'], b['nouns'])
     entropies = model.entropy(enc, b['types'])
     values = model.value(enc)
-    loss, parts = actor_critic_loss(log_probs, values, entropies, returns, cfg.value_weight, cfg.entropy)
+    loss, parts = actor_critic_loss(log_probs, values, entropies, returns, cfg.value_weight, cfg.entropy,
+                                    baseline=baseline)
     opt.zero_grad()
     loss.backward()
     if cfg.grad_clip:
@@ -277,13 +302,14 @@ def finetune(cfg: FinetuneConfig) -> dict:
     cfg_json = json.dumps(dataclasses.asdict(cfg))
     with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(cfg_json,)) as pool:
         while update < cfg.updates:
-            plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed)
-            jobs = [(update * cfg.episodes_per_update + k, t, s) for k, (t, s) in enumerate(plan)]
+            plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed, cfg.samples_per_task)
+            jobs = [(update * cfg.episodes_per_update + k, t, s, z) for k, (t, s, z) in enumerate(plan)]
             state = {k: v.detach().clone() for k, v in model.state_dict().items()}
             chunks = [jobs[w::cfg.workers] for w in range(cfg.workers)]
             played = sorted((x for part in pool.map(_play_chunk, [(state, c) for c in chunks if c]) for x in part),
                             key=lambda x: x[0])
-            episodes = [ep for _, ep in played]
+            episodes = [dict(ep, group=(number - update * cfg.episodes_per_update) // cfg.samples_per_task)
+                        for number, ep in played]
             t_play = time.monotonic()
             parts = update_step(model, opt, episodes, cfg)
             update += 1

@@ -10,13 +10,19 @@ never got a gradient, and summed rewards and log-probabilities as running totals
 - `discounted_returns`: R_t = r_t + gamma R_{t+1} within an episode, restarting at its end;
 - `actor_critic_loss`: advantages A_t = R_t - V(s_t) with the value detached for the policy term
   (-A_t log pi(a_t|s_t)), the critic regressed on R_t (its gradient reaches the critic), an entropy
-  bonus; advantages may be normalised over the batch.
+  bonus; advantages may be normalised over the batch;
+- `group_baseline`: a baseline from the other episodes of the same task and start (a leave-one-out
+  mean of their returns). The env and the frozen performer are deterministic, so episodes of one
+  task from one seed differ only by the questioner's choices: this baseline removes the task's
+  difficulty from the advantage, which the critic, seeing only the instruction, the frame and the
+  step, cannot do well (measured in docs/benchmarks.md). It does not depend on the episode's own
+  actions, so the policy gradient stays unbiased.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Optional, Sequence
 
 import torch
 import torch.nn.functional as F
@@ -62,11 +68,12 @@ def discounted_returns(rewards: Sequence[float], episode_ends: Sequence[bool], g
 
 def actor_critic_loss(log_probs: torch.Tensor, values: torch.Tensor, entropies: torch.Tensor,
                       returns: torch.Tensor, value_weight: float = 0.5, entropy_weight: float = 0.01,
-                      normalise: bool = True) -> tuple[torch.Tensor, dict]:
+                      normalise: bool = True, baseline: Optional[torch.Tensor] = None) -> tuple[torch.Tensor, dict]:
     """(loss, parts) over a batch of decisions: log pi(a_t|s_t), V(s_t), the policy's entropy at s_t,
-    and the returns R_t. The policy term uses A_t = R_t - V(s_t) with V detached; the critic term
-    is the squared error of V(s_t) against R_t, so its gradient flows into the critic."""
-    advantages = returns - values.detach()
+    and the returns R_t. The policy term uses A_t = R_t - V(s_t) with V detached (or R_t - baseline_t
+    when a `baseline` is given, e.g. `group_baseline`); the critic term is the squared error of V(s_t)
+    against R_t, so its gradient flows into the critic either way."""
+    advantages = returns - (values.detach() if baseline is None else baseline)
     if normalise and advantages.numel() > 1:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
     policy = -(advantages * log_probs).mean()
@@ -75,3 +82,20 @@ def actor_critic_loss(log_probs: torch.Tensor, values: torch.Tensor, entropies: 
     loss = policy + value_weight * critic - entropy_weight * entropy
     return loss, {'policy': float(policy.detach()), 'critic': float(critic.detach()),
                   'entropy': float(entropy.detach()), 'advantage_mean': float((returns - values.detach()).mean())}
+
+
+def group_baseline(first_returns: Sequence[float], groups: Sequence[int], decisions: Sequence[int]) -> torch.Tensor:
+    """A baseline per decision: for each episode (its return from its first decision, its group, its
+    number of decisions), the mean first-decision return of the other episodes of its group, repeated
+    for each of its decisions; 0.0 for an episode alone in its group."""
+    if not len(first_returns) == len(groups) == len(decisions):
+        raise ValueError('first_returns, groups and decisions must have one entry per episode')
+    totals: dict = {}
+    for g, r in zip(groups, first_returns):
+        n, s = totals.get(g, (0, 0.0))
+        totals[g] = (n + 1, s + r)
+    out = []
+    for g, r, d in zip(groups, first_returns, decisions):
+        n, s = totals[g]
+        out.extend([(s - r) / (n - 1) if n > 1 else 0.0] * d)
+    return torch.tensor(out, dtype=torch.float32)
