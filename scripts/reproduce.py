@@ -78,6 +78,14 @@ RL_RUNS = {
     'rl_anytime_10': dict(timing='anytime', gap=10),
     'rl_mc': dict(timing='confusion'),
     **{f'rl_anytime_withhold_{t}': dict(timing='anytime', gap=5, perturb_type=t) for t in QUESTION_TYPES},
+    # Beyond the paper: RL anytime reading the instruction only, as the original questioner did (ablation).
+    'rl_anytime_no_dialogue': dict(timing='anytime', gap=5, dialogue=False),
+}
+# Rows beyond the paper's tables: (name, what it shows).
+EXTRA = {
+    'pretrained': 'Pre-trained only (no RL; asks at the start)',
+    'rl_anytime': 'RL anytime (reads the dialogue so far)',
+    'rl_anytime_no_dialogue': 'RL anytime, instruction only (the original\'s input)',
 }
 
 # The paper's numbers. Table II rows 1-4 come from scripts/baselines.py; rows 5-6 here.
@@ -124,11 +132,12 @@ def settings() -> list[Setting]:
     for split in SPLITS:
         for key, b in TABLE2_BASELINES.items():
             out.append(Setting(key, split, b.questioner))
-        out += [Setting('rl_begin', split, 'rl:rl_begin'), Setting('rl_anytime', split, 'rl:rl_anytime')]
+        out += [Setting('rl_begin', split, 'rl:rl_begin'), Setting('rl_anytime', split, 'rl:rl_anytime'),
+                Setting('pretrained', split, 'rl:pretrained')]
     for t in QUESTION_TYPES:
         out.append(Setting(f'rl_anytime_withhold_{t}', 'valid_unseen', f'rl:rl_anytime_withhold_{t}', t))
         out.append(Setting(f'random_qa_withhold_{t}', 'valid_unseen', 'random', t))
-    for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc'):
+    for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue'):
         out.append(Setting(run, 'valid_unseen', f'rl:{run}'))
     return out
 
@@ -236,8 +245,11 @@ class Plan:
         return base
 
     def questioner_checkpoint(self, run: str) -> Path:
+        """The checkpoint of an RL run, or of the pre-trained questioner for 'pretrained'."""
         if self.cfg.shipped:
             return SHIPPED_QUESTIONERS / f'{run}.pt'
+        if run == 'pretrained':
+            return self.pretrain_dir / 'best.pt'
         return self.run / 'questioner' / run / 'final.pt'
 
     def eval_config(self, s: Setting):
@@ -312,7 +324,7 @@ class Runner:
             'eval': lambda: {'settings': [dataclasses.asdict(s) for s in settings() if p.available(s)],
                              'in_process': p.in_process, 'limit': p.eval_limit, 'seed': self.cfg.seed,
                              'performer': str(p.performer_checkpoint),
-                             'questioners': {r: str(p.questioner_checkpoint(r)) for r in RL_RUNS},
+                             'questioners': {r: str(p.questioner_checkpoint(r)) for r in (*RL_RUNS, 'pretrained')},
                              'shipped': self.shipped_hashes() if self.cfg.shipped else None},
             'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit},
         }[stage]()
@@ -320,7 +332,7 @@ class Runner:
                 'upstream': {u: self.hashes.get(u, 'shipped') for u in UPSTREAM[stage]}}
 
     def shipped_hashes(self) -> dict:
-        files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in RL_RUNS]
+        files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in (*RL_RUNS, 'pretrained')]
         return {str(f): sha256_of(f.read_bytes()) if f.exists() else None for f in files}
 
     def stamp_path(self, stage: str) -> Path:
@@ -521,7 +533,9 @@ def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
     total = sum(r.questions for r in results)
     shares = ({t: counts[t] / recorded for t in QUESTION_TYPES} if recorded else
               ({t: 0.0 for t in QUESTION_TYPES} if total == 0 else None))
-    return {'n': len(results), 'tasks': len(tasks),
+    asked = [[(qa['type'], qa['noun']) for qa in r.dialogue] for r in results]
+    repeats = sum(len(a) - len(set(a)) for a in asked)
+    return {'n': len(results), 'tasks': len(tasks), 'repeats': round(repeats / recorded, 3) if recorded else 0.0,
             **{k: round(overall[k], 2 if k != 'NQ' else 3) for k in ('SR', 'PWSR', 'GC', 'NQ')},
             'CI95': {k: [round(lo, 2 if k != 'NQ' else 3), round(hi, 2 if k != 'NQ' else 3)]
                      for k, (lo, hi) in ci.items()},
@@ -749,6 +763,21 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     for key, (name, sr, pwsr, nq) in PAPER_T4.items():
         r = rows[('valid_unseen', key)]
         out.append(f'| {name} | {_n(r)} | {_v(r, "SR")} | {sr} | {_v(r, "PWSR")} | {pwsr} | {_v(r, "NQ")} | {nq} |')
+    # beyond the paper
+    out += ['', '## Beyond the paper: the pre-trained questioner, and reading the dialogue (valid_unseen)', '',
+            'The pre-trained questioner before any RL (greedy, at the start, as its annotators asked), and RL anytime '
+            'fine-tuned the same way with the original questioner\'s input (the instruction only, never the dialogue '
+            'so far). Repeats: the share of questions that repeat one already asked in the episode.', '',
+            '| setting | n | SR [95%] | PWSR [95%] | NQ [95%] | repeats | location | appearance | direction |',
+            '|---|---|---|---|---|---|---|---|---|']
+    for key, name in EXTRA.items():
+        r = rows[('valid_unseen', key)]
+        out.append(f'| {name} | {_n(r)} | {_v(r, "SR")} | {_v(r, "PWSR")} | {_v(r, "NQ")} | '
+                   f'{r["repeats"]:.3f} | ' if r.get('n') else f'| {name} | 0 | no results | | | | ')
+        if r.get('n'):
+            out[-1] += ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' |'
+        else:
+            out[-1] += ' | | |'
     # plot
     out += ['', '## Cost and benefit: SR against NQ', '',
             f'![SR against NQ, every setting on valid_unseen]({plot_name})', '',
@@ -793,7 +822,8 @@ def write_outputs(plan: Plan, report: dict) -> tuple[Path, Path]:
     rows = report['rows']
     points = []
     names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
-             **{k: v[0] for k, v in PAPER_T4.items()}}
+             **{k: v[0] for k, v in PAPER_T4.items()}, 'pretrained': 'Pre-trained only',
+             'rl_anytime_no_dialogue': 'RL anytime, instruction only'}
     seen = set()
     for s in settings():
         r = rows[(s.split, s.key)]

@@ -67,6 +67,8 @@ def test_the_doc_has_every_table_row_and_the_plot(first):
         assert f'| {name} | 8 |' in doc
     for name, *_ in reproduce.PAPER_T4.values():
         assert f'| {name} | 8 |' in doc
+    for name in reproduce.EXTRA.values():
+        assert f'| {name} | 8 |' in doc
     assert 'no results' not in doc and 'not recorded' not in doc
     assert doc.count('**holds**') + doc.count('**does not hold**') >= 8
     png = out / 'sr_nq.png'
