@@ -4,7 +4,9 @@ temporary run folder (about 4 minutes on 2 cores).
 Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, doc) and writes its
 stamp; the document has Tables II, III and IV with every row, what holds, and the SR-NQ plot next to
 it; the results record each episode's dialogue (question types); a rerun skips every stage (stamps
-match); rerunning the doc stage alone writes the same bytes; the quick caches stay in the run folder.
+match); rerunning the doc stage alone writes the same bytes; the quick caches stay in the run folder;
+a second run from nothing, in another folder with the same seed, gives the same tables and the same
+weights of every model it trains.
 """
 
 from __future__ import annotations
@@ -92,6 +94,20 @@ def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first
     assert forced['stages']['doc']['status'] == 'ran'
     assert all(forced['stages'][s]['status'] == 'skipped' for s in STAGES[:-1])
     assert (out / 'results.md').read_bytes() == before
+
+
+def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first, tmp_path):
+    import torch
+    out, _ = first
+    other = tmp_path / 'again'
+    run(other)
+    tables = lambda path: (path / 'results.md').read_text().split('## Run times')[0]  # noqa: E731
+    mine, theirs = tables(out), tables(other)
+    assert mine.replace(str(out), '') == theirs.replace(str(other), '')
+    for name in reproduce.RL_RUNS:
+        a = torch.load(out / 'questioner' / name / 'final.pt', weights_only=False)['state_dict']
+        b = torch.load(other / 'questioner' / name / 'final.pt', weights_only=False)['state_dict']
+        assert all(torch.equal(a[k], b[k]) for k in a), name
 
 
 def test_bad_settings_are_refused():
