@@ -86,6 +86,13 @@ def test_a_malformed_line_raises_a_clear_value_error(line, message):
         EpisodeResult.from_json(line)
 
 
+def test_a_result_written_before_dialogues_were_recorded_loads_with_none():
+    good = json.loads(result(questions=2).to_json())
+    del good['dialogue']
+    old = EpisodeResult.from_json(json.dumps(good))
+    assert old.dialogue == [] and old.questions == 2 and old.question_types == {}
+
+
 def test_a_field_of_the_wrong_type_or_unknown_is_rejected():
     good = json.loads(result().to_json())
     with pytest.raises(ValueError, match="field 'steps' should be int"):

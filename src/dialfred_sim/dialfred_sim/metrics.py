@@ -105,7 +105,8 @@ class EpisodeResult:
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise ValueError(f'unknown episode result fields {unknown}')
-        missing = [name for name, f in known.items() if name not in data and f.default is MISSING]
+        missing = [name for name, f in known.items()
+                   if name not in data and f.default is MISSING and f.default_factory is MISSING]
         if missing:
             raise ValueError(f'episode result is missing fields {missing}')
         for name, value in data.items():
