@@ -48,7 +48,8 @@ class QuestionerNode(Node):
         self.declare_parameter('questioner', 'random', ParameterDescriptor(
             description='random, all, confusion (needs the confusion_gap of each request), a shipped learned '
                         'questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
-                        'rl-anytime-withhold-<type>), learned (with `checkpoint`), learned:PATH, or '
+                        'rl-anytime-withhold-<type>, rl-anytime-no-dialogue), learned (with `checkpoint`), '
+                        'learned:PATH, or '
                         'package.module:ClassName', **ro))
         self.declare_parameter('checkpoint', '', ParameterDescriptor(
             description='for questioner=learned: the questioner checkpoint file', **ro))
