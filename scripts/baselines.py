@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""The paper's baselines 1-4 (Table II) with the learned performer: results files, JSON and docs/results.md.
+"""The paper's baselines 1-4 (Table II) with the learned performer: results files, JSON and a results document (out/baselines/results.md).
 
     ./dialfred baselines [--checkpoint PATH] [--splits valid_seen,valid_unseen]
                          [--baselines instruction_only,all_qas,random_qa,random_mc] [--limit N] [--workers 2]
-                         [--resolution 64] [--graph] [--out out/baselines] [--doc docs/results.md]
+                         [--resolution 64] [--graph] [--out out/baselines] [--doc out/baselines/results.md]
     ./dialfred baselines --results-only      # run nothing: rewrite the doc from the results files there are
 
 Each (split, baseline) is one `dialfred_eval.run_eval` of the `et` performer of `--checkpoint` with the
@@ -81,7 +81,7 @@ class BaselinesConfig:
                              'instead of in this process (eval --agent et)')
     seed: int = arg(0, "the evaluation's seed (each episode's seed comes from it)")
     out: str = arg('out/baselines', 'folder of the results files <split>_<baseline>.jsonl')
-    doc: str = arg('docs/results.md', 'the results document to write')
+    doc: str = arg('out/baselines/results.md', 'the results document to write (docs/results.md is written by ./dialfred reproduce --shipped)')
     results_only: bool = arg(False, 'run nothing: print the JSON and rewrite the doc from the results files')
     resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
     progress: bool = arg(True, 'progress bars on stderr')
