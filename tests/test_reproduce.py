@@ -101,9 +101,14 @@ def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first
     out, _ = first
     other = tmp_path / 'again'
     run(other)
-    tables = lambda path: (path / 'results.md').read_text().split('## Run times')[0]  # noqa: E731
+    # From Table II to the run times: the settings above name the checkpoints' file hashes, which
+    # differ with the run folder written into each checkpoint's command; their weights are compared below.
+    tables = lambda path: (path / 'results.md').read_text().split('## Table II')[1].split('## Run times')[0]  # noqa: E731
     mine, theirs = tables(out), tables(other)
     assert mine.replace(str(out), '') == theirs.replace(str(other), '')
+    a = torch.load(out / 'performer' / 'best.pt', weights_only=False)
+    b = torch.load(other / 'performer' / 'best.pt', weights_only=False)
+    assert all(torch.equal(a['state_dict'][k], b['state_dict'][k]) for k in a['state_dict'])
     for name in reproduce.RL_RUNS:
         a = torch.load(out / 'questioner' / name / 'final.pt', weights_only=False)['state_dict']
         b = torch.load(other / 'questioner' / name / 'final.pt', weights_only=False)['state_dict']
