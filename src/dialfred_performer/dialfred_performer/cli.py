@@ -126,3 +126,11 @@ def ensure_malloc_settings(module: str) -> None:
     sys.stdout.flush()
     sys.stderr.flush()
     os.execve(sys.executable, [sys.executable, '-m', module, *sys.argv[1:]], env)
+
+
+def config_changes(saved: dict, cfg, allowed: Sequence[str]) -> dict:
+    """{field: (saved value, value now)} for each field of the dataclass config `cfg` that differs
+    from `saved` (the config a run was started with, as a dict), except the fields in `allowed`:
+    what makes a --resume of that run refuse."""
+    now = dataclasses.asdict(cfg)
+    return {k: (saved.get(k), now[k]) for k in now if k not in allowed and saved.get(k) != now[k]}

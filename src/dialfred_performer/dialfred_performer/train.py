@@ -41,7 +41,7 @@ import torch
 
 from dialfred_sim.tasks.demonstrations import default_dir
 
-from .cli import MALLOC_SETTINGS, arg, command_line, ensure_malloc_settings, parse
+from .cli import MALLOC_SETTINGS, arg, command_line, config_changes, ensure_malloc_settings, parse
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
@@ -271,8 +271,7 @@ def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler) 
     if 'optimizer' not in extra:
         raise ValueError(f'{path} has no optimiser state: it cannot be resumed from')
     saved = json.loads(extra['train_config'])
-    now = dataclasses.asdict(cfg)
-    diff = {k: (saved.get(k), now[k]) for k in now if k not in RESUMABLE_CHANGES and saved.get(k) != now[k]}
+    diff = config_changes(saved, cfg, RESUMABLE_CHANGES)
     if diff:
         raise ValueError(f'--resume: the config differs from the one {path} was trained with '
                          f'(field: (then, now)): {diff}')

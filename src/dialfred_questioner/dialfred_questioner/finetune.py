@@ -43,7 +43,7 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_performer.cli import arg, parse
+from dialfred_performer.cli import arg, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit
 
 from dialfred_sim.agents import QUESTION_TYPES as QUESTION_TYPES_ASKED
@@ -276,8 +276,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
     if cfg.resume:
         state = torch.load(out / 'last.pt', map_location='cpu', weights_only=False)
         saved = json.loads(state['extra']['config'])
-        mine = dataclasses.asdict(cfg)
-        differ = sorted(k for k in mine if k not in RESUMABLE_CHANGES and mine[k] != saved.get(k))
+        differ = sorted(config_changes(saved, cfg, RESUMABLE_CHANGES))
         if differ:
             raise ValueError(f'--resume: the config differs from the run in {out} in {differ}')
         model.load_state_dict(state['state_dict'])

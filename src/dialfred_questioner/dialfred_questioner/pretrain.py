@@ -29,7 +29,7 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_performer.cli import arg, command_line, parse
+from dialfred_performer.cli import arg, command_line, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_performer.train import held_out
@@ -155,8 +155,7 @@ def pretrain(cfg: PretrainConfig) -> dict:
     if cfg.resume:
         state = torch.load(out / 'last.pt', map_location='cpu', weights_only=False)
         saved = json.loads(state['extra']['config'])
-        mine = dataclasses.asdict(cfg)
-        differ = sorted(k for k in mine if k not in RESUMABLE_CHANGES and mine[k] != saved.get(k))
+        differ = sorted(config_changes(saved, cfg, RESUMABLE_CHANGES))
         if differ:
             raise ValueError(f'--resume: the config differs from the run in {out} in {differ}')
         model.load_state_dict(state['state_dict'])
