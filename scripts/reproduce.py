@@ -15,7 +15,7 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | demos | the performer's demonstrations of train (`dialfred_performer.prepare`) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
 | performer | performer training (`dialfred_performer.train`, the shipped command: 2 epochs, 24,000 updates) | `performer/best.pt` |
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train`) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
-| frames | train's first frames (`dialfred_questioner.frames`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
+| frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
 | rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
 | eval | every setting of the tables (`dialfred_eval.run_eval`; through the ROS graph, performer nodes, unless `--in-process`); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
@@ -215,7 +215,7 @@ class Plan:
                     dialogue_dir=str(self.dialogue_dir) if self.dialogue_dir else '')
 
     def frames_config(self) -> dict:
-        return dict(split='train', resolution=RESOLUTION, out=str(self.frames), workers=self.cfg.workers,
+        return dict(split='train', resolution=RESOLUTION, out=str(self.frames), demonstrations=str(self.demos),
                     limit=self.train_limit)
 
     @property
@@ -298,7 +298,7 @@ CODE = {
     'doc': ('scripts/reproduce.py', 'scripts/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
 }
 UPSTREAM = {
-    'demos': (), 'performer': ('demos',), 'dialogues': (), 'frames': (), 'pretrain': ('performer', 'dialogues', 'frames'),
+    'demos': (), 'performer': ('demos',), 'dialogues': (), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
     'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'doc': ('eval',),
 }
 TRAINING = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
@@ -416,8 +416,8 @@ class Runner:
     def frames(self, resume: bool) -> dict:
         from dialfred_questioner.frames import build_first_frames
         c = self.plan.frames_config()
-        path = build_first_frames(c['split'], c['resolution'], Path(c['out']), workers=c['workers'], limit=c['limit'],
-                                  progress=self.cfg.progress)
+        path = build_first_frames(c['split'], c['resolution'], Path(c['out']), limit=c['limit'],
+                                  progress=self.cfg.progress, demonstrations=Path(c['demonstrations']))
         return {'path': str(path)}
 
     def with_dialogues_env(self, fn):

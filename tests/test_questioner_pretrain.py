@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -92,3 +93,23 @@ def test_a_pretrained_checkpoint_asks_in_a_rollout_and_as_a_questioner(setup, tm
     (tmp_path / 'bad.pt').write_bytes(b'not a checkpoint')
     with pytest.raises(ValueError, match='not a questioner checkpoint'):
         LearnedQuestioner.from_checkpoint(tmp_path / 'bad.pt')
+
+
+def test_first_frames_copied_out_of_demonstrations_are_the_rendered_ones(setup, tmp_path):
+    from dialfred_sim.tasks.demonstrations import build_demonstrations
+    from dialfred_questioner.frames import main
+    build_demonstrations('valid_unseen', 64, tmp_path / 'demos', workers=1, limit=6, progress=False)
+    copied = build_first_frames('valid_unseen', 64, tmp_path / 'copied.npz', limit=6, progress=False,
+                                demonstrations=tmp_path / 'demos')
+    rendered = FirstFrames(setup[0])
+    first = FirstFrames(copied)
+    assert first.task_ids == rendered.task_ids[:6]
+    assert np.array_equal(first.frames, rendered.frames[:6])
+    # more tasks than the build has, or another resolution: a clear error, no file
+    with pytest.raises(ValueError, match='lacks 2 of the tasks'):
+        build_first_frames('valid_unseen', 64, tmp_path / 'more.npz', limit=8, demonstrations=tmp_path / 'demos')
+    with pytest.raises(ValueError, match='rendered at 64'):
+        build_first_frames('valid_unseen', 32, tmp_path / 'small.npz', limit=6, demonstrations=tmp_path / 'demos')
+    assert main(['valid_unseen', '--limit', '6', '--demonstrations', str(tmp_path / 'nothing'),
+                 '--out', str(tmp_path / 'x.npz')]) == 2
+    assert not (tmp_path / 'more.npz').exists() and not (tmp_path / 'x.npz').exists()
