@@ -1,0 +1,374 @@
+"""Episodes as ROS 2 bags: rosbag2 directories in MCAP storage, written and read without a ROS install.
+
+Whoever drives an episode (the performer node playing a RunTask goal, the launcher's in-process
+agent, the `dialogue` job) feeds an `EpisodeRecorder` what it sent and received, and `save` writes one
+bag per episode: a rosbag2 directory (`metadata.yaml` + one `.mcap` file, written with the `rosbags`
+library, the format `ros2 bag info/play` and Foxglove open). The messages are the project's own ROS
+types, serialized as CDR, with their definitions stored in the file (so a reader needs no
+dialfred_msgs install):
+
+| topic | type | when |
+|---|---|---|
+| /task | dialfred_msgs/msg/TaskDescription | once, at the start (what the agent is told, never more) |
+| /camera/image | sensor_msgs/msg/Image (rgb8) | after the reset and after every action |
+| /camera/image/compressed | sensor_msgs/msg/CompressedImage (png or jpeg) | instead, with `image_format` |
+| /agent/pose | dialfred_msgs/msg/AgentPose | with every frame |
+| /agent/pose_stamped | geometry_msgs/msg/PoseStamped (frame `map`, yaw only) | with every frame, for 3D views |
+| /dialogue/qa | dialfred_msgs/msg/QAPair | every question and the oracle's answer |
+| /performer/action | dialfred_msgs/msg/Action | every action command |
+| /performer/feedback | dialfred_msgs/action/RunTask_Feedback | every action's result (success, questions so far) |
+| /episode/result | dialfred_msgs/action/RunTask_Result | once, at the end |
+
+Time in a bag is the simulator's clock, not the wall clock: the reset is at 0 and each action takes
+`STEP_NS` (0.1 s), so step k's frame is at k * 0.1 s, the questions asked before action k+1 at
+k * 0.1 s + 1, 2, ... ms, the action command at + 50 ms and its feedback with the next frame. A bag of
+a seeded episode is therefore the same bytes on every rerun. A bag is written whole under a temporary
+name and renamed into place, so an interrupted run never leaves half a bag.
+
+    ./dialfred replay BAG [--gif OUT.gif] [--sheet OUT.png]   # the dialogue and actions; pictures from the bag alone
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import io
+import math
+import os
+import shutil
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+STEP_NS = 100_000_000          # one action of the simulator's clock: 0.1 s
+QA_NS = 1_000_000              # questions before an action: 1 ms apart
+ACTION_NS = 50_000_000         # an action command: half a step after the frame it was decided on
+RESULT_NS = 90_000_000         # the result: after the last frame
+IMAGE_FORMATS = ('raw', 'png', 'jpeg')
+CAMERA_FRAME, MAP_FRAME = 'agent_camera', 'map'
+
+TOPICS = {     # topic -> type, in the order their connections are written
+    '/task': 'dialfred_msgs/msg/TaskDescription',
+    '/camera/image': 'sensor_msgs/msg/Image',
+    '/camera/image/compressed': 'sensor_msgs/msg/CompressedImage',
+    '/agent/pose': 'dialfred_msgs/msg/AgentPose',
+    '/agent/pose_stamped': 'geometry_msgs/msg/PoseStamped',
+    '/dialogue/qa': 'dialfred_msgs/msg/QAPair',
+    '/performer/action': 'dialfred_msgs/msg/Action',
+    '/performer/feedback': 'dialfred_msgs/action/RunTask_Feedback',
+    '/episode/result': 'dialfred_msgs/action/RunTask_Result',
+}
+RANK = {topic: k for k, topic in enumerate(TOPICS)}
+OWN_MESSAGES = ('TaskDescription', 'AgentPose', 'QAPair', 'Action')
+RESULT_FIELDS = ('success', 'steps', 'goal_conditions_met', 'goal_conditions_total', 'failed_actions', 'questions',
+                 'invalid_questions', 'end_reason', 'error', 'last_action')
+
+
+class BagError(ValueError):
+    """A bag that is missing, truncated or not an episode bag."""
+
+
+def _interface_dir() -> Path:
+    """dialfred_msgs' interface files: the installed share folder, else the source tree beside this package."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        return Path(get_package_share_directory('dialfred_msgs'))
+    except Exception:  # noqa: BLE001 - no ament index (a bare checkout): the source tree has the same files
+        return Path(__file__).resolve().parents[2] / 'dialfred_msgs'
+
+
+@functools.lru_cache(maxsize=1)
+def typestore():
+    """ROS 2 Jazzy's standard types and dialfred_msgs' (from their .msg / .action files)."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    folder = _interface_dir()
+    types = {}
+    for name in OWN_MESSAGES:
+        types.update(get_types_from_msg((folder / 'msg' / f'{name}.msg').read_text(), f'dialfred_msgs/msg/{name}'))
+    goal, result, feedback = (folder / 'action' / 'RunTask.action').read_text().split('\n---\n')
+    # the action's parts name `Action` unqualified: within dialfred_msgs that is dialfred_msgs/msg/Action
+    feedback = feedback.replace('\nAction ', '\ndialfred_msgs/Action ')
+    types.update(get_types_from_msg(result, 'dialfred_msgs/action/RunTask_Result'))
+    types.update(get_types_from_msg(feedback, 'dialfred_msgs/action/RunTask_Feedback'))
+    store.register(types)
+    return store
+
+
+def bag_name(task_id: str) -> str:
+    """The folder name of a task's bag: valid_unseen/000012 -> valid_unseen_000012."""
+    return task_id.replace('/', '_')
+
+
+# --------------------------------------------------------------------------------------------- writing
+
+class EpisodeRecorder:
+    """Collects one episode's messages as they happen; `save` writes them as a bag.
+
+    Steps count actions: `observation(0, ...)` is the frame after the reset, `action(k + 1, ...)` the
+    action decided on frame k, `question(k, ...)` a QA asked before that action."""
+
+    def __init__(self, task_id: str, scene: str, split: str, instruction: str, object_nouns: Sequence[str],
+                 image_format: str = 'raw'):
+        if image_format not in IMAGE_FORMATS:
+            raise ValueError(f'image_format must be one of {", ".join(IMAGE_FORMATS)}, got {image_format!r}')
+        self.task_id, self.image_format = task_id, image_format
+        self.store = typestore()
+        self.messages: list[tuple[int, str, int, object]] = []    # (time, topic, sequence, message)
+        self._questions: dict[int, int] = {}
+        self._add(0, '/task', self._t('dialfred_msgs/msg/TaskDescription')(
+            task_id=task_id, scene=scene, split=split, instruction=instruction, object_nouns=list(object_nouns)))
+
+    def _t(self, name: str):
+        return self.store.types[name]
+
+    def _add(self, time_ns: int, topic: str, msg) -> None:
+        self.messages.append((int(time_ns), topic, len(self.messages), msg))
+
+    def _header(self, time_ns: int, frame_id: str):
+        stamp = self._t('builtin_interfaces/msg/Time')(sec=time_ns // 1_000_000_000, nanosec=time_ns % 1_000_000_000)
+        return self._t('std_msgs/msg/Header')(stamp=stamp, frame_id=frame_id)
+
+    def observation(self, step: int, rgb: np.ndarray, pose: Sequence[float], camera_height: float) -> None:
+        """The frame after `step` actions and the agent's pose (x, y, rotation_deg, horizon_deg)."""
+        t = step * STEP_NS
+        rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
+        if rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise ValueError(f'rgb must be H x W x 3, got shape {rgb.shape}')
+        header = self._header(t, CAMERA_FRAME)
+        if self.image_format == 'raw':
+            h, w = rgb.shape[:2]
+            self._add(t, '/camera/image', self._t('sensor_msgs/msg/Image')(
+                header=header, height=h, width=w, encoding='rgb8', is_bigendian=0, step=w * 3,
+                data=rgb.reshape(-1)))
+        else:
+            self._add(t, '/camera/image/compressed', self._t('sensor_msgs/msg/CompressedImage')(
+                header=header, format=self.image_format, data=np.frombuffer(encode_image(rgb, self.image_format),
+                                                                            np.uint8)))
+        x, y, rotation, horizon = (float(v) for v in pose)
+        self._add(t, '/agent/pose', self._t('dialfred_msgs/msg/AgentPose')(
+            x=x, y=y, camera_height=float(camera_height), rotation_deg=rotation, horizon_deg=horizon))
+        yaw = math.radians(rotation)
+        point = self._t('geometry_msgs/msg/Point')(x=x, y=y, z=float(camera_height))
+        quat = self._t('geometry_msgs/msg/Quaternion')(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+        self._add(t, '/agent/pose_stamped', self._t('geometry_msgs/msg/PoseStamped')(
+            header=self._header(t, MAP_FRAME), pose=self._t('geometry_msgs/msg/Pose')(position=point, orientation=quat)))
+
+    def question(self, step: int, question_type: str, object_noun: str, question: str, answer: str,
+                 valid: bool) -> None:
+        """A QA asked on the frame after `step` actions (before the next action)."""
+        k = self._questions.get(step, 0) + 1
+        self._questions[step] = k
+        self._add(step * STEP_NS + k * QA_NS, '/dialogue/qa', self._t('dialfred_msgs/msg/QAPair')(
+            question_type=question_type, object_noun=object_noun, question=question,
+            answer=answer if valid else '', valid=bool(valid)))
+
+    def action(self, step: int, name: str, x: int, y: int, success: bool, questions: int) -> None:
+        """Action number `step` (1-based): its command, then its result (as the RunTask feedback says it)."""
+        if step < 1:
+            raise ValueError(f'actions count from 1, got {step}')
+        command = self._t('dialfred_msgs/msg/Action')(action=name, x=int(x), y=int(y))
+        self._add((step - 1) * STEP_NS + ACTION_NS, '/performer/action', command)
+        self._add(step * STEP_NS, '/performer/feedback', self._t('dialfred_msgs/action/RunTask_Feedback')(
+            step=step, action=command, action_success=bool(success), questions=int(questions)))
+
+    def result(self, **fields) -> None:
+        """The episode's end (RunTask.Result's fields: success, steps, ..., end_reason, error, last_action)."""
+        unknown = set(fields) - set(RESULT_FIELDS)
+        if unknown:
+            raise ValueError(f'unknown result fields: {", ".join(sorted(unknown))}')
+        values = {'success': False, 'end_reason': '', 'error': '', 'last_action': '',
+                  **{k: 0 for k in RESULT_FIELDS if k not in ('success', 'end_reason', 'error', 'last_action')},
+                  **fields}
+        self._add(int(values['steps']) * STEP_NS + RESULT_NS, '/episode/result',
+                  self._t('dialfred_msgs/action/RunTask_Result')(**values))
+
+    def save(self, folder: Path) -> Path:
+        """Write the bag into `folder` (as `folder/<task>`, replacing an older one); returns its path."""
+        folder = Path(folder)
+        return write_bag(folder / bag_name(self.task_id), self.messages, self.store)
+
+
+def encode_image(rgb: np.ndarray, fmt: str) -> bytes:
+    from PIL import Image
+    buf = io.BytesIO()
+    if fmt == 'png':
+        Image.fromarray(rgb).save(buf, format='PNG', compress_level=6)
+    else:
+        Image.fromarray(rgb).save(buf, format='JPEG', quality=90)
+    return buf.getvalue()
+
+
+def write_bag(path: Path, messages: list, store=None) -> Path:
+    """Write (time, topic, sequence, message) tuples as the rosbag2/MCAP bag `path`, in time order
+    (ties: the topic order of TOPICS, then the order they were added). Atomic: a temporary folder
+    beside it is renamed into place."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    store = store or typestore()
+    path = Path(path)
+    staging = path.parent / f'.{path.name}.{os.getpid()}.part'
+    if staging.exists():
+        shutil.rmtree(staging)
+    staging.mkdir(parents=True)
+    ordered = sorted(messages, key=lambda m: (m[0], RANK[m[1]], m[2]))
+    try:
+        with Writer(staging / path.name, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            connections = {}
+            for topic in TOPICS:
+                if any(m[1] == topic for m in ordered):
+                    connections[topic] = writer.add_connection(topic, TOPICS[topic], typestore=store)
+            for time_ns, topic, _, msg in ordered:
+                writer.write(connections[topic], time_ns, store.serialize_cdr(msg, TOPICS[topic]))
+        if path.exists():
+            old = path.parent / f'.{path.name}.{os.getpid()}.old'
+            path.rename(old)
+            (staging / path.name).rename(path)
+            shutil.rmtree(old)
+        else:
+            (staging / path.name).rename(path)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return path
+
+
+# --------------------------------------------------------------------------------------------- reading
+
+@dataclass
+class RecordedEpisode:
+    """One bag read back: everything the agent was told, saw, asked, did and got."""
+
+    path: Path
+    task: dict
+    frames: list = field(default_factory=list)       # (time_ns, step, rgb array)
+    poses: list = field(default_factory=list)        # (step, x, y, rotation_deg, horizon_deg)
+    dialogue: list = field(default_factory=list)     # (step, question_type, object_noun, question, answer, valid)
+    actions: list = field(default_factory=list)      # (step, action, x, y, success, questions so far)
+    result: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)       # topic -> messages
+
+    def frame(self, step: int) -> np.ndarray:
+        """The frame after `step` actions (the newest one before it if there is none at `step`)."""
+        seen = [f for f in self.frames if f[1] <= step] or self.frames[:1]
+        return seen[-1][2]
+
+
+def decode_image(msg, compressed: bool) -> np.ndarray:
+    if compressed:
+        from PIL import Image
+        return np.asarray(Image.open(io.BytesIO(bytes(msg.data))).convert('RGB'))
+    if msg.encoding != 'rgb8':
+        raise BagError(f'camera image encoding {msg.encoding!r}, expected rgb8')
+    return np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.width, 3)
+
+
+def read_episode(path: Path) -> RecordedEpisode:
+    """Read an episode bag (a folder written by `write_bag`, or its .mcap file); BagError if it is not one."""
+    from rosbags.rosbag2 import Reader
+    path = Path(path)
+    folder = path.parent if path.suffix == '.mcap' else path
+    if not (folder / 'metadata.yaml').is_file():
+        raise BagError(f'{folder} is not a rosbag2 bag (no metadata.yaml)')
+    store = typestore()
+    try:
+        with Reader(folder) as reader:
+            rows = [(c.topic, c.msgtype, t, store.deserialize_cdr(raw, c.msgtype))
+                    for c, t, raw in reader.messages()]
+    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds for a cut or foreign file
+        raise BagError(f'{folder}: cannot be read ({type(exc).__name__}: {exc})') from exc
+    tasks = [m for topic, _, _, m in rows if topic == '/task']
+    if len(tasks) != 1:
+        raise BagError(f'{folder}: {len(tasks)} /task messages, expected 1 (not an episode bag?)')
+    t = tasks[0]
+    ep = RecordedEpisode(folder, dict(task_id=t.task_id, scene=t.scene, split=t.split, instruction=t.instruction,
+                                      object_nouns=list(t.object_nouns)))
+    for topic, _, time_ns, m in rows:
+        ep.counts[topic] = ep.counts.get(topic, 0) + 1
+        step = time_ns // STEP_NS
+        if topic in ('/camera/image', '/camera/image/compressed'):
+            ep.frames.append((time_ns, step, decode_image(m, topic.endswith('compressed'))))
+        elif topic == '/agent/pose':
+            ep.poses.append((step, m.x, m.y, m.rotation_deg, m.horizon_deg))
+        elif topic == '/dialogue/qa':
+            ep.dialogue.append((step, m.question_type, m.object_noun, m.question, m.answer, bool(m.valid)))
+        elif topic == '/performer/feedback':
+            ep.actions.append((int(m.step), m.action.action, int(m.action.x), int(m.action.y), bool(m.action_success),
+                               int(m.questions)))
+        elif topic == '/episode/result':
+            ep.result = {k: getattr(m, k) for k in RESULT_FIELDS}
+    return ep
+
+
+# --------------------------------------------------------------------------------------------- replay
+
+def transcript(ep: RecordedEpisode) -> list[str]:
+    """The episode as lines of text: the task, each QA and action in order, the outcome."""
+    lines = [f'{ep.task["task_id"]} in {ep.task["scene"]}: "{ep.task["instruction"]}"']
+    events = [(s, 0, k, f'  Q [{q[1]}{": " + q[2] if q[2] else ""}] -> '
+                        f'{q[4] if q[5] else "(the oracle could not answer)"}')
+              for k, q in enumerate(ep.dialogue) for s in [q[0]]]
+    events += [(a[0] - 1, 1, k, f'{a[0]:>4} {a[1]:<10} {f"({a[2]}, {a[3]})" if a[2] >= 0 else "":<10} '
+                                f'{"ok" if a[4] else "failed"}') for k, a in enumerate(ep.actions)]
+    lines += [text for *_, text in sorted(events)]
+    r = ep.result
+    if r:
+        lines.append(f'outcome: {"success" if r["success"] else "failure"} ({r["end_reason"]}) after {r["steps"]} '
+                     f'steps, {r["questions"]} questions, goal conditions {r["goal_conditions_met"]}/'
+                     f'{r["goal_conditions_total"]}' + (f'; {r["error"]}' if r["error"] else ''))
+    else:
+        lines.append('outcome: not recorded (the episode did not end)')
+    return lines
+
+
+def film(ep: RecordedEpisode) -> list:
+    """(frame, caption lines) pairs for a captioned GIF: the start, each QA over the frame it was asked
+    on, each action over the frame after it."""
+    title = f'{ep.task["task_id"]}: "{ep.task["instruction"]}"'
+    out = [(ep.frame(0), [title, 'start'])]
+    qas = sorted(ep.dialogue, key=lambda q: q[0])
+    qi = 0
+    for a in ep.actions:
+        while qi < len(qas) and qas[qi][0] < a[0]:
+            q = qas[qi]
+            out.append((ep.frame(q[0]), [title, f'Q [{q[1]}{": " + q[2] if q[2] else ""}]',
+                                         f'A: {q[4] if q[5] else "(no answer)"}']))
+            qi += 1
+        target = f' at ({a[2]}, {a[3]})' if a[2] >= 0 else ''
+        out.append((ep.frame(a[0]), [title, f'{a[0]}: {a[1]}{target} {"ok" if a[4] else "failed"}']))
+    if ep.result:
+        out[-1][1].append('success' if ep.result['success'] else f'failure ({ep.result["end_reason"]})')
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog='dialfred replay', description='Print an episode bag\'s dialogue and actions '
+                                 'and render it as a captioned GIF and a contact sheet (no simulator).')
+    ap.add_argument('bag', help='a bag folder written with --record (or its .mcap file)')
+    ap.add_argument('--gif', default=None, help='captioned GIF (default <bag>.gif beside the bag; "" = none)')
+    ap.add_argument('--sheet', default=None, help='contact sheet PNG (default <bag>_sheet.png; "" = none)')
+    args = ap.parse_args(argv)
+    try:
+        ep = read_episode(Path(args.bag))
+    except BagError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    print('\n'.join(transcript(ep)))
+    if not ep.frames:
+        print('(no camera frames in this bag: no pictures)', file=sys.stderr)
+        return 0
+    from .film import save_captioned_gif, save_contact_sheet
+    gif = Path(args.gif) if args.gif else ep.path.parent / f'{ep.path.name}.gif'
+    sheet = Path(args.sheet) if args.sheet else ep.path.parent / f'{ep.path.name}_sheet.png'
+    if args.gif != '':
+        save_captioned_gif(film(ep), gif)
+        print(f'GIF: {gif}')
+    if args.sheet != '':
+        save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
+        print(f'contact sheet: {sheet}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
