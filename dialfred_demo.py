@@ -21,7 +21,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dialfred_eval import EvalConfig, PerformerWorker, play_episodes, worker_nodes
+from dialfred_eval import EvalConfig, PerformerWorker, add_record_options, play_episodes, record_options, worker_nodes
 from dialfred_sim.graph import Graph
 
 REPO = Path(__file__).resolve().parent
@@ -89,7 +89,7 @@ def outcome_text(result) -> str:
 def demo_config(args) -> EvalConfig:
     return EvalConfig(split='valid_unseen', performer='et', questioner='' if args.questioner == 'none' else args.questioner,
                       checkpoint=Path(args.checkpoint) if args.checkpoint else None, resolution=args.resolution,
-                      seed=args.seed, workers=1, episode_timeout=600.0)
+                      seed=args.seed, workers=1, episode_timeout=600.0, **record_options(args))
 
 
 def run_demo(args) -> int:
@@ -196,3 +196,4 @@ def add_demo_parser(sub) -> None:
                            'benchmark\'s limit is 1000)')
     demo.add_argument('--seed', type=int, default=0)
     demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
+    add_record_options(demo)

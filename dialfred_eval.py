@@ -54,6 +54,8 @@ class EvalConfig:
                                         # '' = the agent is a Python object of this process (the in-process path)
     checkpoint: Optional[Path] = None   # the `et` performer's checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)
     episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
+    record: Optional[Path] = None       # write each episode as a rosbag2/MCAP bag into this folder
+    record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.recording)
 
     @functools.cached_property
     def tasks_source(self):
@@ -149,6 +151,11 @@ class EvalConfig:
     def check(self) -> None:
         """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
         from dialfred_oracle.answers import QUESTION_TYPES
+        from dialfred_sim.recording import IMAGE_FORMATS
+        if self.record_format not in IMAGE_FORMATS:
+            raise ValueError(f'--record-format must be one of {", ".join(IMAGE_FORMATS)}, got {self.record_format!r}')
+        if self.record is not None and Path(self.record).exists() and not Path(self.record).is_dir():
+            raise ValueError(f'--record {self.record} exists and is not a folder')
         if self.performer:
             if self.performer != 'et':
                 raise ValueError(f'--performer must be et (the Episodic-Transformer performer node), got {self.performer!r}')
@@ -240,6 +247,7 @@ class SimWorker:
         self.questions, self.invalid_questions = 0, 0
         self.dialogue = []
         self.asked_in_a_row = 0
+        self.recorder = None
         self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False),
                    'reset')
 
@@ -258,6 +266,12 @@ class SimWorker:
             if not reply.ok:
                 return self._result('error', error=reply.error)
             self.goal_conditions = (0, reply.goal_conditions_total)
+            if self.config.record is not None:
+                from dialfred_sim.recording import EpisodeRecorder
+                t = reply.task       # what the agent is told
+                self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
+                                                image_format=self.config.record_format)
+                self.recorder.observation_msg(reply.observation)
             self.agent.reset(task_view(self.agent, self.task), self.episode_seed)   # the public view, unless privileged
             return self._act(reply.observation)
         return self._after_step(reply)
@@ -268,6 +282,10 @@ class SimWorker:
         if not reply.ok:
             return self._result('error', obs, error=reply.error)
         self.goal_conditions = (reply.goal_conditions_met, reply.goal_conditions_total)
+        if self.recorder is not None:
+            name, x, y = self.traces[self.task.task_id][-1]
+            self.recorder.action(int(obs.step_count), name, x, y, obs.last_action_success, self.questions)
+            self.recorder.observation_msg(obs)
         if not obs.last_action_success:
             self.last_error = obs.last_action_error
         if reply.terminated or reply.truncated:
@@ -304,7 +322,11 @@ class SimWorker:
         self.invalid_questions += not reply.valid
         self.dialogue.append(dialogue_entry(self.question.question_type, self.question.object_noun,
                                             bool(reply.valid), reply.answer))
-        self.agent.hear(QA(self.question, bool(reply.valid), reply.answer, reply.reason))
+        qa = QA(self.question, bool(reply.valid), reply.answer, reply.reason)
+        if self.recorder is not None:
+            from dialfred_sim.messages import qa_msg
+            self.recorder.question_msg(int(self.observation.step_count), qa_msg(qa))
+        self.agent.hear(qa)
         return self._act(self.observation)
 
     def _send(self, cli, request, pending: str) -> None:
@@ -328,6 +350,14 @@ class SimWorker:
         from dialfred_sim.metrics import EpisodeResult
         task = self.task
         met, total = self.goal_conditions
+        if self.recorder is not None:
+            self.recorder.result(success=bool(success), steps=int(obs.step_count) if obs is not None else 0,
+                                 goal_conditions_met=int(met), goal_conditions_total=int(total),
+                                 failed_actions=int(obs.failed_actions) if obs is not None else 0,
+                                 questions=self.questions, invalid_questions=self.invalid_questions, end_reason=reason,
+                                 error='' if success else (error or self.last_error), last_action=self.last_action)
+            self.recorder.save(Path(self.config.record))
+            self.recorder = None
         return EpisodeResult(
             task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(success),
             goal_conditions_met=int(met), goal_conditions_total=int(total),
@@ -489,9 +519,11 @@ def worker_nodes(config: EvalConfig, namespace: str, **sim_params) -> list:
             learned = config.learned_questioner_path     # the node may run elsewhere: an absolute path
             name = f'learned:{learned.resolve()}' if learned is not None else config.questioner
             nodes.append(NodeProcess('dialfred_questioner', {'questioner': name}, namespace=namespace))
+        record = {'record_dir': str(Path(config.record).resolve()),
+                  'record_format': config.record_format} if config.record is not None else {}
         nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
                                                         'questioner': bool(config.questioner),
-                                                        'request_timeout': config.request_timeout},
+                                                        'request_timeout': config.request_timeout, **record},
                                  namespace=namespace))
     return nodes
 
@@ -645,7 +677,22 @@ def eval_config(args) -> EvalConfig:
                       workers=args.workers,
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
                       tasks_file=Path(args.tasks) if args.tasks else None,
-                      performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None)
+                      performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
+                      **record_options(args))
+
+
+def add_record_options(parser) -> None:
+    """--record / --record-format, for every job that plays episodes (eval, demo, dialogue)."""
+    parser.add_argument('--record', default=None, metavar='DIR',
+                        help='write each episode as a ROS 2 bag (rosbag2, MCAP storage) into DIR/<split>_<number>/: '
+                             'task, camera, poses, QAs, actions and their results, the outcome; '
+                             '`./dialfred replay DIR/<bag>` prints and renders one')
+    parser.add_argument('--record-format', default='raw', choices=['raw', 'png', 'jpeg'],
+                        help='camera frames in the bags: raw sensor_msgs/Image (default) or CompressedImage')
+
+
+def record_options(args) -> dict:
+    return {'record': Path(args.record) if args.record else None, 'record_format': args.record_format}
 
 
 def run_eval_command(args) -> int:
@@ -708,5 +755,6 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--seed', type=int, default=0)
     ev.add_argument('--resolution', type=int, default=128)
     ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
+    add_record_options(ev)
 
 

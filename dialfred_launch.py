@@ -47,7 +47,7 @@ REPO = Path(__file__).resolve().parent
 use_project_environment(REPO)
 
 from dialfred_demo import add_demo_parser, run_demo  # noqa: E402
-from dialfred_eval import ResultsFileError, add_eval_parser, run_eval_command  # noqa: E402
+from dialfred_eval import ResultsFileError, add_eval_parser, add_record_options, run_eval_command  # noqa: E402
 
 
 def run_explore(args) -> int:
@@ -131,10 +131,13 @@ def run_dialogue(args) -> int:
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
-    from dialfred_sim.agents import scale_pixel
+    from dialfred_sim.agents import Question, scale_pixel
+    from dialfred_sim.messages import question_text
+    from dialfred_sim.recording import EpisodeRecorder
     from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]
     film = []   # (frame, caption lines) for --gif
+    episode = {}   # the task's recorder and counts, with --record
     with Graph([sim_node(args.resolution), oracle_node(human=args.human)]) as graph:
         reset_cli = graph.client(SimReset, '/sim/reset')
         step_cli = graph.client(SimStep, '/sim/step')
@@ -146,6 +149,11 @@ def run_dialogue(args) -> int:
                               retry_after=None if args.human else RESEND_AFTER_S)
             said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
             print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
+            episode['questions'] += 1
+            episode['invalid'] += not reply.valid
+            if episode.get('recorder'):
+                episode['recorder'].question(episode['steps'], qtype, noun, question_text(Question(qtype, noun)),
+                                             reply.answer, reply.valid)
             film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
 
         for task in tasks:
@@ -155,6 +163,11 @@ def run_dialogue(args) -> int:
                 print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
                 return 1
             t = reply.task     # the public view; this job, like the checker, knows the type from its split
+            episode.update(steps=0, questions=0, invalid=0, recorder=None)
+            if args.record:
+                episode['recorder'] = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
+                                                      image_format=args.record_format)
+                episode['recorder'].observation_msg(reply.observation)
             frame = image_array(reply.observation.rgb)
             title = f'{t.task_id} ({task.task_type}): "{t.instruction}"'
             print(f'\n{t.task_id} ({task.task_type}) in {t.scene}: "{t.instruction}"')
@@ -174,6 +187,11 @@ def run_dialogue(args) -> int:
                 step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=x, y=y),
                                                             with_depth=False, with_segmentation=False))
                 target = f' at ({x}, {y})' if x >= 0 else ''
+                episode['steps'] = int(step.observation.step_count)
+                if episode['recorder']:
+                    episode['recorder'].action(episode['steps'], a.action, x, y, step.observation.last_action_success,
+                                               episode['questions'])
+                    episode['recorder'].observation_msg(step.observation)
                 film.append((image_array(step.observation.rgb), [title, f'expert action {k + 1}: {a.action}{target}']))
                 return step
 
@@ -183,9 +201,18 @@ def run_dialogue(args) -> int:
                     break
             print(f'  ... after {n - 1} of the expert\'s {n} actions:')
             ask('direction', '', film[-1][0], title)
-            outcome = 'goal reached' if expert_step(n - 1).success else 'goal NOT reached'
+            last = expert_step(n - 1)
+            outcome = 'goal reached' if last.success else 'goal NOT reached'
             print(f'  ... the expert\'s last action, {task.expert_actions[-1].action}: {outcome}')
             film[-1][1].append(outcome)
+            if episode['recorder']:
+                episode['recorder'].result(
+                    success=bool(last.success), steps=episode['steps'], goal_conditions_met=int(last.goal_conditions_met),
+                    goal_conditions_total=int(last.goal_conditions_total),
+                    failed_actions=int(last.observation.failed_actions), questions=episode['questions'],
+                    invalid_questions=episode['invalid'], end_reason='success' if last.success else 'stop',
+                    last_action=task.expert_actions[-1].action)
+                print(f'  bag: {episode["recorder"].save(Path(args.record))}')
     if args.gif:
         save_captioned_gif(film, Path(args.gif))
         print(f'saved {len(film)} captioned frames to {args.gif}')
@@ -216,6 +243,7 @@ def main(argv=None) -> int:
     dialogue.add_argument('--human', action='store_true', help='the oracle asks you in this terminal')
     dialogue.add_argument('--resolution', type=int, default=128)
     dialogue.add_argument('--gif', help='also save the dialogue as a GIF of captioned frames to this path')
+    add_record_options(dialogue)
     add_eval_parser(sub)
     args = parser.parse_args(argv)
     # Ctrl-C and SIGTERM both unwind through the Graph context, which stops every child.

@@ -16,6 +16,10 @@ before every question and action. Its clients live in a reentrant callback group
 executor and wait for replies with a timeout (never spin inside a callback); a reset or question
 that got no reply is sent again, a step never is. A bad goal (unknown task, missing or corrupt
 checkpoint, negative seed) ends aborted with end_reason 'error' and the reason; the node keeps serving.
+
+With the `record_dir` parameter set, each goal's episode is also written as a ROS 2 bag (rosbag2,
+MCAP storage; `dialfred_sim.recording`): `<record_dir>/<split>_<number>/`, from the messages this node
+sent and received (the task, every frame and pose, QA, action, its feedback and the result).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from dialfred_questioner.baselines import top2_gap
 from dialfred_sim.agents import QA, Question
 from dialfred_sim.messages import public_task_from_msg, qa_msg, task_description_msg
 from dialfred_sim.metrics import end_reason
+from dialfred_sim.recording import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, refused_request, run_node
 
 from .agent import PerformerAgent
@@ -72,7 +77,16 @@ class PerformerNode(Node):
             description='questions in a row without acting before the goal fails'))
         self.declare_parameter('torch_threads', 1, ParameterDescriptor(
             description='torch intra-op threads (1: the simulators and other workers share the cores)', **ro))
+        self.declare_parameter('record_dir', '', ParameterDescriptor(
+            description="write each goal's episode as a rosbag2/MCAP bag into this folder ('' = no recording)", **ro))
+        self.declare_parameter('record_format', 'raw', ParameterDescriptor(
+            description='camera frames in the bags: raw (sensor_msgs/Image), png or jpeg (CompressedImage)', **ro))
         p = self.get_parameter
+        self.record_dir = str(p('record_dir').value)
+        self.record_format = str(p('record_format').value)
+        if self.record_format not in IMAGE_FORMATS:
+            raise ValueError(f'record_format must be one of {", ".join(IMAGE_FORMATS)}, got {self.record_format!r}')
+        self.recorder = None       # the running goal's EpisodeRecorder, when recording
         torch.set_num_threads(max(1, int(p('torch_threads').value)))
         self.checkpoint = p('checkpoint').value
         self.use_questioner = bool(p('questioner').value)
@@ -129,9 +143,21 @@ class PerformerNode(Node):
             result.end_reason, result.error = 'error', f'internal error: {type(exc).__name__}: {str(exc)[:200]}'
             goal_handle.abort()
         finally:
+            self.save_recording(result)
             with self._lock:
                 self._busy = False
         return result
+
+    def save_recording(self, result: RunTask.Result) -> None:
+        """Write the goal's bag (when recording); a failure to write is logged, the goal's result stands."""
+        recorder, self.recorder = self.recorder, None
+        if recorder is None:
+            return
+        try:
+            recorder.result_msg(result)
+            recorder.save(Path(self.record_dir))
+        except Exception as exc:  # noqa: BLE001 - a full disk must not take the node down
+            self.get_logger().error(f'recording {recorder.task_id}: {type(exc).__name__}: {exc}')
 
     def play(self, goal_handle, result: RunTask.Result) -> None:
         """Play the goal's task to its end, filling `result` as it goes."""
@@ -147,6 +173,10 @@ class PerformerNode(Node):
         if not reply.ok:
             raise GoalFailed(f'reset: {reply.error}')
         task = public_task_from_msg(reply.task)     # the public view: all the simulator tells any client
+        if self.record_dir:
+            self.recorder = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns,
+                                            image_format=self.record_format)
+            self.recorder.observation_msg(reply.observation)
         policy.reset(task, int(goal.seed))
         result.goal_conditions_total = int(reply.goal_conditions_total)
         observation, dialogue, last_error = reply.observation, [], ''
@@ -172,6 +202,9 @@ class PerformerNode(Node):
             goal_handle.publish_feedback(RunTask.Feedback(step=result.steps, action=action,
                                                           action_success=observation.last_action_success,
                                                           questions=result.questions))
+            if self.recorder is not None:
+                self.recorder.action(result.steps, name, x, y, observation.last_action_success, result.questions)
+                self.recorder.observation_msg(observation)
             if reply.terminated or reply.truncated:
                 result.success = bool(reply.success)
                 result.end_reason = end_reason(result.success, name, result.failed_actions, reply.truncated)
@@ -205,6 +238,8 @@ class PerformerNode(Node):
             result.invalid_questions += not qa.valid
             policy.hear(qa)
             self.qa_pub.publish(qa_msg(qa))
+            if self.recorder is not None:
+                self.recorder.question_msg(result.steps, qa_msg(qa))
 
     # ------------------------------------------------------------------ helpers
 

@@ -157,6 +157,22 @@ class EpisodeRecorder:
         self._add(t, '/agent/pose_stamped', self._t('geometry_msgs/msg/PoseStamped')(
             header=self._header(t, MAP_FRAME), pose=self._t('geometry_msgs/msg/Pose')(position=point, orientation=quat)))
 
+    def observation_msg(self, obs) -> None:
+        """Record a dialfred_msgs/Observation (its rgb8 frame and pose, at its step_count)."""
+        if obs.rgb.encoding != 'rgb8':
+            raise ValueError(f'the observation\'s rgb has encoding {obs.rgb.encoding!r}, expected rgb8')
+        rgb = np.frombuffer(bytes(obs.rgb.data), np.uint8).reshape(obs.rgb.height, obs.rgb.width, 3)
+        p = obs.pose
+        self.observation(int(obs.step_count), rgb, (p.x, p.y, p.rotation_deg, p.horizon_deg), p.camera_height)
+
+    def question_msg(self, step: int, qa) -> None:
+        """Record a dialfred_msgs/QAPair asked on the frame after `step` actions."""
+        self.question(step, qa.question_type, qa.object_noun, qa.question, qa.answer, qa.valid)
+
+    def result_msg(self, result) -> None:
+        """Record a dialfred_msgs RunTask result (or anything with its fields)."""
+        self.result(**{k: getattr(result, k) for k in RESULT_FIELDS})
+
     def question(self, step: int, question_type: str, object_noun: str, question: str, answer: str,
                  valid: bool) -> None:
         """A QA asked on the frame after `step` actions (before the next action)."""
