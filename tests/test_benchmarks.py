@@ -100,3 +100,10 @@ def test_split_physics_finds_every_shipped_valid_episode_allowed():
     report = run_bench('split_physics', '--split', 'valid_unseen', '--limit', '6')
     assert report['episodes'] == 6 and report['tasks'] > 0
     assert report['episodes_refused'] == 0 and report['refused'] == [] and report['reasons'] == {}
+
+
+def test_recording_reports_the_overhead_and_the_bag_size_per_episode():
+    report = run_bench('recording', '--limit', '2', '--rounds', '1', '--workers', '1', '--settings', 'off', 'png')
+    png = report['settings']['png']
+    assert report['same_episodes_in_every_run'] and png['episodes'] == 2
+    assert png['bytes_per_episode'] > 1000 and 'overhead_pct' in png and png['kB_per_frame'] > 0
