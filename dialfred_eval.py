@@ -56,6 +56,8 @@ class EvalConfig:
     episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
     record: Optional[Path] = None       # write each episode as a rosbag2/MCAP bag into this folder
     record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.recording)
+    max_restarts: int = 3               # a worker whose node dies is restarted (its episode replayed) this many
+                                        # times in a row at most; 0 = a dead node ends the run
 
     @functools.cached_property
     def tasks_source(self):
@@ -152,6 +154,8 @@ class EvalConfig:
         """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
         from dialfred_oracle.answers import QUESTION_TYPES
         from dialfred_sim.recording import IMAGE_FORMATS
+        if self.max_restarts < 0:
+            raise ValueError(f'--max-restarts must be 0 or more, got {self.max_restarts}')
         if self.record_format not in IMAGE_FORMATS:
             raise ValueError(f'--record-format must be one of {", ".join(IMAGE_FORMATS)}, got {self.record_format!r}')
         if self.record is not None and Path(self.record).exists() and not Path(self.record).is_dir():
@@ -190,6 +194,7 @@ class EvalReport:
     startup_s: float        # loading the tasks and the results file, starting the nodes until they answer
     wall_s: float           # the whole run, start-up included
     summary: dict
+    restarts: int = 0       # workers restarted after a node died or hung (their episodes replayed)
 
     def to_json(self) -> dict:
         from dialfred_sim.metrics import failures
@@ -203,7 +208,8 @@ class EvalReport:
             'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent == 'et' else None),
             'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
-                         'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None},
+                         'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None,
+                         'restarts': self.restarts},
             'summary': self.summary,
             'failures': [{'task_id': r.task_id, 'task_type': r.task_type, 'end_reason': r.end_reason,
                           'error': r.error} for r in failures(self.results)],
@@ -225,8 +231,9 @@ class SimWorker:
         self.reset_cli = graph.client(SimReset, sim_service(namespace, 'reset'))
         self.step_cli = graph.client(SimStep, sim_service(namespace, 'step'))
         self.ask_cli = graph.client(OracleAnswer, f'{namespace.rstrip("/")}/oracle/answer') if oracle else None
-        self.namespace, self.agent, self.config = namespace, agent, config
+        self.graph, self.namespace, self.agent, self.config = graph, namespace, agent, config
         self.future = None
+        self.job = None
         self.sent_at = 0.0
         self.task = None
         self.pending = ''      # what the request in flight is: 'reset', 'step' or 'question'
@@ -240,6 +247,7 @@ class SimWorker:
         from dialfred_msgs.srv import SimReset
 
         from dialfred_sim.agents import episode_seed
+        self.job = (index, task)
         self.task, self.episode_seed = task, episode_seed(self.config.seed, index)
         self.started = time.monotonic()
         self.last_action, self.last_error = '', ''
@@ -253,6 +261,11 @@ class SimWorker:
 
     def overdue(self) -> bool:
         return self.busy and time.monotonic() - self.sent_at > self.config.request_timeout
+
+    def close(self) -> None:
+        """Abandon the episode in flight (this worker's nodes are being restarted). Its clients stay with
+        the client node: destroying an entity the executor may be waiting on can crash rclpy."""
+        self.future, self.recorder = None, None
 
     def advance(self):
         """Handle the finished request: the next request is sent, or the episode's result returned."""
@@ -388,18 +401,33 @@ class PerformerWorker:
             graph.check()
             if time.monotonic() > deadline:
                 raise TimeoutError(f'action server {self.name} not available after 60 s')
-        # every QA the performer node asks goes out on dialogue/qa, in order: the results' dialogues
-        from dialfred_msgs.msg import QAPair
-        self.heard = collections.deque()
-        self.subscription = graph.client_node.create_subscription(
-            QAPair, f'{namespace.rstrip("/")}/dialogue/qa', lambda msg: self.heard.append(msg), 1000)
-        graph.spin_until_any([], SETTLE_S)       # the reply paths may match a moment later (see Graph.client)
         self.graph, self.namespace, self.config = graph, namespace, config
+        self._prove_paths(deadline)
         self.on_feedback = on_feedback    # called with (task, RunTask.Feedback) as each step's feedback comes
         self.future = self.goal_handle = self.cancel_future = None
-        self.task = None
+        self.task = self.job = None
         self.pending = ''       # 'goal' (waiting for acceptance) or 'result'
         self.traces = collections.defaultdict(list)   # task id -> the actions of its feedback, (name, x, y)
+
+    def _prove_paths(self, deadline: float) -> None:
+        """Wait until a goal's reply paths work. "Server available" means the goal request reader
+        matched; the replies (goal response, result) may not have, and a reply sent before they match
+        is lost: a goal then waits for its acceptance until request_timeout (the hang once seen in an
+        evaluation, and after every node restart under load). So: a goal the node refuses to play (a
+        negative seed: aborted before it touches the simulator) is sent until its result comes back."""
+        from dialfred_msgs.action import RunTask
+        while True:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'action server {self.name} gave no reply to a probe goal in 60 s')
+            sent = self.client.send_goal_async(RunTask.Goal(task_id='', seed=-1))
+            self.graph.spin_until_any([sent], 1.0)
+            if not sent.done() or not sent.result().accepted:      # lost, or the previous probe still running
+                continue
+            result = sent.result().get_result_async()
+            self.graph.spin_until_any([result], 2.0)
+            if result.done():
+                self.graph.spin_until_any([], SETTLE_S)
+                return
 
     @property
     def busy(self) -> bool:
@@ -409,6 +437,7 @@ class PerformerWorker:
         from dialfred_msgs.action import RunTask
 
         from dialfred_sim.agents import episode_seed
+        self.job = (index, task)
         self.task, self.started = task, time.monotonic()
         self.sent_at, self.cancel_future, self.goal_handle = self.started, None, None
         trace = self.traces[task.task_id]
@@ -450,18 +479,13 @@ class PerformerWorker:
     def resend_if_lost(self) -> bool:
         return False         # a goal is never sent twice: the node refuses a second one while the first runs
 
-    def _dialogue(self, asked: int) -> list:
-        """The `asked` QAs of the episode that ended, in order, from dialogue/qa (waiting a moment for
-        the last ones, which may come after the result)."""
-        from dialfred_sim.metrics import dialogue_entry
-        deadline = time.monotonic() + 2.0
-        while len(self.heard) < asked and time.monotonic() < deadline:
-            self.graph.spin_until_any([], 0.05)
-        taken = [self.heard.popleft() for _ in range(min(asked, len(self.heard)))]
-        return [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in taken]
+    def close(self) -> None:
+        """Abandon the goal in flight (this worker's nodes are being restarted). The action client stays
+        with the client node: destroying an entity the executor may be waiting on can crash rclpy."""
+        self.future = None
 
     def _result(self, result, error: str = ''):
-        from dialfred_sim.metrics import EpisodeResult
+        from dialfred_sim.metrics import EpisodeResult, dialogue_entry
         task, r = self.task, result
         reason = 'error' if error or r is None or r.end_reason in ('error', 'canceled') else r.end_reason
         success = bool(r.success) if r is not None and reason != 'error' else False
@@ -474,34 +498,139 @@ class PerformerWorker:
             failed_actions=int(r.failed_actions) if r else 0, end_reason=reason,
             error='' if success else (error or (r.error if r else '')), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed, wall_s=round(time.monotonic() - self.started, 4),
-            privileged=False, dialogue=self._dialogue(int(r.questions)) if r else self.heard.clear() or [])
+            privileged=False, dialogue=[dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer)
+                                        for m in r.dialogue] if r else [])
 
 
 SETTLE_S = 0.2
 
 
-def play_episodes(graph: Graph, workers: list, jobs: list, on_result) -> None:
+def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor=None) -> None:
     """Play every (index, task) of `jobs` on the workers, each keeping one request in flight, and
-    call `on_result(result)` as each episode ends (in the order they end)."""
+    call `on_result(result)` as each episode ends (in the order they end).
+
+    With a `supervisor` (a Supervisor), a worker whose node died or stopped answering has its nodes
+    restarted and its episode played again from the start; without one, NodeDied or TimeoutError ends
+    the run."""
     queue = collections.deque(jobs)
     for w in workers:
         if queue:
             w.begin(*queue.popleft())
-    while any(w.busy for w in workers):
-        graph.spin_until_any([w.future for w in workers if w.busy])
+    while any(w.busy for w in workers) or (supervisor is not None and queue):
+        for w in workers:
+            if not w.busy and queue:
+                w.begin(*queue.popleft())
+        try:
+            graph.spin_until_any([w.future for w in workers if w.busy])
+        except NodeDied:
+            if supervisor is None:
+                raise
+            supervisor.recover(workers, queue, supervisor.dead_namespaces())
+            continue
         for w in workers:
             if w.busy and w.future.done():
                 result = w.advance()
                 if result is not None:
                     on_result(result)
+                    if supervisor is not None:
+                        supervisor.finished(w.namespace)
                     if queue:
                         w.begin(*queue.popleft())
             elif w.busy and w.resend_if_lost():
                 continue
-            elif w.overdue():
+            elif w.busy and w.overdue():
                 node = {'question': 'oracle', 'goal': 'performer', 'result': 'performer'}.get(w.pending, 'sim')
-                raise TimeoutError(f'no reply from {w.namespace or "/"} {node} node after '
-                                   f'{w.config.request_timeout:.0f} s (task {w.task.task_id})')
+                message = (f'no reply from {w.namespace or "/"} {node} node after {w.config.request_timeout:.0f} s '
+                           f'(task {w.task.task_id})')
+                if supervisor is None:
+                    raise TimeoutError(message)
+                supervisor.recover(workers, queue, {w.namespace}, reason=message)
+                break
+
+
+class Supervisor:
+    """Keeps an evaluation's workers alive: when a node of a worker dies (or stops answering), every
+    node of that worker is stopped and started again, a new worker object is made for them, and the
+    episode it was playing goes back to the front of the queue, to be played again from its start
+    (episodes are seeded by their index, and no node carries state from one episode to the next, so
+    the replay is the episode an uninterrupted run plays). A worker restarted more than
+    `max_restarts` times in a row without finishing an episode is given up on: NodeDied, with the
+    last output of the node that keeps dying."""
+
+    def __init__(self, graph: Graph, nodes_of: dict, make_worker, max_restarts: int = 3, log=None):
+        self.graph, self.nodes_of, self.make_worker = graph, nodes_of, make_worker
+        self.max_restarts = max_restarts
+        self.strikes = collections.Counter()     # namespace -> restarts since its last finished episode
+        self.restarts = 0                        # all restarts of this run
+        self.log = log or (lambda text: print(f'[eval] {text}', file=sys.stderr, flush=True))
+
+    def start(self, namespaces: list) -> list:
+        """A worker for each namespace, restarting the nodes of any that die while they start."""
+        made: dict = {}
+        while len(made) < len(namespaces):
+            try:
+                for ns in namespaces:
+                    if ns not in made:
+                        made[ns] = self.make_worker(ns)
+            except NodeDied:
+                for ns in self.dead_namespaces():
+                    if ns in made:
+                        made.pop(ns).close()
+                    self._restart(ns, '')
+        return [made[ns] for ns in namespaces]
+
+    def dead_namespaces(self) -> set:
+        return {n.namespace for ns, nodes in self.nodes_of.items() for n in nodes
+                if n.proc is not None and n.proc.poll() is not None}
+
+    def finished(self, namespace: str) -> None:
+        self.strikes[namespace] = 0
+
+    def recover(self, workers: list, queue: collections.deque, namespaces: set, reason: str = '') -> None:
+        """Restart the nodes of the workers in `namespaces` (and of any other whose node died meanwhile),
+        requeue their episodes, make new workers for them and give every idle worker a job."""
+        pending = set(namespaces)
+        while pending:
+            for w in workers:
+                if w.namespace not in pending:
+                    continue
+                if w.job is not None and w.busy:
+                    queue.appendleft(w.job)
+                    w.traces.pop(w.job[1].task_id, None)      # the replay traces it afresh
+                w.close()
+                self._restart(w.namespace, reason)
+            try:
+                for k, w in enumerate(workers):
+                    if w.namespace in pending:
+                        workers[k] = self.make_worker(w.namespace)
+                        workers[k].traces.update(w.traces)      # the actions of the episodes it finished
+                pending = set()
+            except NodeDied:                      # a node died while the new workers waited for their services
+                pending = self.dead_namespaces()
+                reason = ''
+        for w in workers:
+            if not w.busy and queue:
+                w.begin(*queue.popleft())
+
+    def _restart(self, namespace: str, reason: str) -> None:
+        nodes = self.nodes_of[namespace]
+        dead = [n for n in nodes if n.proc is not None and n.proc.poll() is not None]
+        self.strikes[namespace] += 1
+        if self.strikes[namespace] > self.max_restarts:
+            culprit = dead[0] if dead else nodes[0]
+            out = '\n    '.join(list(culprit.tail)[-15:]) or '(no output)'
+            raise NodeDied(f'worker {namespace}: restarted {self.max_restarts} times in a row without finishing an '
+                           f'episode; giving up. {reason or culprit.label + " node died with exit code " + str(culprit.proc.returncode)}'
+                           f'; its last output:\n    {out}')
+        what = reason or ', '.join(f'{n.label} node died (exit code {n.proc.returncode})' for n in dead)
+        self.log(f'{what}; restarting worker {namespace} ({self.strikes[namespace]}/{self.max_restarts}) and '
+                 'replaying its episode')
+        for n in nodes:
+            n.stop(timeout=1.0)
+        for n in nodes:
+            n.tail.clear()
+            n.start()
+        self.restarts += 1
 
 
 def worker_nodes(config: EvalConfig, namespace: str, **sim_params) -> list:
@@ -617,17 +746,20 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in enumerate(tasks) if t.task_id not in done]
-    ran, startup_s = 0, 0.0
+    ran, startup_s, restarts = 0, 0.0, 0
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
-        nodes = [node for ns in namespaces for node in worker_nodes(config, ns)]
+        nodes_of = {ns: worker_nodes(config, ns) for ns in namespaces}
+        nodes = [node for ns in namespaces for node in nodes_of[ns]]
         with Graph(nodes) as graph:
-            if config.performer:
-                workers = [PerformerWorker(graph, ns, config) for ns in namespaces]
-            else:
-                workers = [SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
-                           for ns in namespaces]
+            def make_worker(ns: str):
+                if config.performer:
+                    return PerformerWorker(graph, ns, config)
+                return SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
+
+            supervisor = Supervisor(graph, nodes_of, make_worker, config.max_restarts) if config.max_restarts else None
+            workers = supervisor.start(namespaces) if supervisor else [make_worker(ns) for ns in namespaces]
             startup_s = time.monotonic() - t0
             with progress_bar(len(tasks), len(done), progress) as bar:
                 def record(result) -> None:
@@ -637,14 +769,15 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
                     ran += 1
                     bar.update(1)
 
-                play_episodes(graph, workers, jobs, record)
+                play_episodes(graph, workers, jobs, record, supervisor)
+            restarts = supervisor.restarts if supervisor else 0
             if traces is not None:
                 if config.performer:
                     graph.spin_until_any([], 0.5)     # feedback of the last steps may come after the result
                 for w in workers:
                     traces.update(w.traces)
     results = [done[t.task_id] for t in tasks]
-    report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results))
+    report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts)
     config.summary_path.write_text(json.dumps(report.to_json(), indent=1) + '\n')
     return report
 
@@ -678,7 +811,7 @@ def eval_config(args) -> EvalConfig:
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
                       tasks_file=Path(args.tasks) if args.tasks else None,
                       performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
-                      **record_options(args))
+                      max_restarts=args.max_restarts, **record_options(args))
 
 
 def add_record_options(parser) -> None:
@@ -755,6 +888,9 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--seed', type=int, default=0)
     ev.add_argument('--resolution', type=int, default=128)
     ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
+    ev.add_argument('--max-restarts', type=int, default=3,
+                    help='a worker whose node dies or stops answering has its nodes restarted and its episode '
+                         'replayed from the start, at most this many times in a row (default 3; 0 = stop the run)')
     add_record_options(ev)
 
 

@@ -237,6 +237,7 @@ class PerformerNode(Node):
             result.questions += 1
             result.invalid_questions += not qa.valid
             policy.hear(qa)
+            result.dialogue.append(qa_msg(qa))
             self.qa_pub.publish(qa_msg(qa))
             if self.recorder is not None:
                 self.recorder.question_msg(result.steps, qa_msg(qa))

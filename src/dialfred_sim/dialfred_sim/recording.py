@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import re
 import io
 import math
 import os
@@ -90,8 +91,9 @@ def typestore():
     for name in OWN_MESSAGES:
         types.update(get_types_from_msg((folder / 'msg' / f'{name}.msg').read_text(), f'dialfred_msgs/msg/{name}'))
     goal, result, feedback = (folder / 'action' / 'RunTask.action').read_text().split('\n---\n')
-    # the action's parts name `Action` unqualified: within dialfred_msgs that is dialfred_msgs/msg/Action
-    feedback = feedback.replace('\nAction ', '\ndialfred_msgs/Action ')
+    # the action's parts name the package's messages unqualified (Action, QAPair[]): qualify them
+    for name in OWN_MESSAGES:
+        result, feedback = (re.sub(rf'(?m)^{name}(\[\]|\s)', rf'dialfred_msgs/{name}\1', part) for part in (result, feedback))
     types.update(get_types_from_msg(result, 'dialfred_msgs/action/RunTask_Result'))
     types.update(get_types_from_msg(feedback, 'dialfred_msgs/action/RunTask_Feedback'))
     store.register(types)
@@ -199,8 +201,9 @@ class EpisodeRecorder:
         values = {'success': False, 'end_reason': '', 'error': '', 'last_action': '',
                   **{k: 0 for k in RESULT_FIELDS if k not in ('success', 'end_reason', 'error', 'last_action')},
                   **fields}
+        dialogue = [m for _, topic, _, m in self.messages if topic == '/dialogue/qa']    # the QAs recorded
         self._add(int(values['steps']) * STEP_NS + RESULT_NS, '/episode/result',
-                  self._t('dialfred_msgs/action/RunTask_Result')(**values))
+                  self._t('dialfred_msgs/action/RunTask_Result')(**values, dialogue=dialogue))
 
     def save(self, folder: Path) -> Path:
         """Write the bag into `folder` (as `folder/<task>`, replacing an older one); returns its path."""
