@@ -93,7 +93,7 @@ class TrainConfig:
     seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
     deterministic: bool = arg(True, 'torch.use_deterministic_algorithms (warn only on CUDA)')
     device: str = arg('auto', "'auto' (cuda if present, else cpu), 'cpu', 'cuda' or 'cuda:N'")
-    threads: int = arg(0, 'torch CPU threads (0: every core this process may use)')
+    threads: int = arg(0, 'torch CPU threads (0: the cores this process may use, shared among the training processes of its host)')
     loader_workers: int = arg(0, 'DataLoader worker processes (0: load in the training process)')
     log_every: int = arg(50, 'updates per line of metrics.jsonl')
     checkpoint_every: int = arg(500, 'updates between writes of last.pt')
