@@ -514,8 +514,10 @@ def parse_shard(text: str) -> tuple:
 
 def run_namespace() -> str:
     """The namespace of this run's nodes (/eval_<pid>): no other run, even in the same ROS domain,
-    can reach them or be reached by this one."""
-    return f'/eval_{os.getpid()}'
+    can reach them or be reached by this one. Where discovery reaches other hosts (a shard per host,
+    docs/scaling.md), the host's name goes in too (/eval_<host>_<pid>): a pid is unique on one host only."""
+    from dialfred_sim.graph import discovery_spans_hosts, host_token
+    return f'/eval_{host_token()}_{os.getpid()}' if discovery_spans_hosts() else f'/eval_{os.getpid()}'
 
 
 def resumable_results(config: EvalConfig, task_ids: list) -> dict:

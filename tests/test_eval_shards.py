@@ -3,8 +3,9 @@
 Claims: the shards of a run, played by the in-process evaluation one after the other, merge into the
 very episodes and the summary of the unsharded run (the random agent: every episode depends on its
 seed, so a shard that seeded by its own task count would differ); and so do two launcher processes
-started side by side in one ROS domain, each with its own nodes in its own namespace (/eval_<pid>):
-the multi-host recipe of docs/scaling.md, as far as one machine goes.
+started side by side in one ROS domain, with static peers set as on hosts, each with its own nodes in
+its own namespace (/eval_<host>_<pid> where discovery reaches other hosts): the multi-host recipe of
+docs/scaling.md, as far as one machine goes.
 (tests/test_shards.py checks the selection and the merge's refusals without ROS.)
 """
 
@@ -67,9 +68,30 @@ def test_shards_played_one_after_the_other_merge_into_the_whole_run(whole_run, t
     assert run(tmp_path / 'run_shard1of2.jsonl', shard=(1, 2)).ran == 0       # a shard resumes its own file
 
 
+def test_a_run_namespace_names_the_host_where_discovery_reaches_other_hosts(monkeypatch):
+    from rclpy.validate_namespace import validate_namespace
+
+    from dialfred_eval import run_namespace
+    from dialfred_sim.graph import host_token
+    monkeypatch.setattr('socket.gethostname', lambda: 'gpu-07.lab.example')
+    assert host_token() == 'gpu_07_lab_example'
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
+    assert run_namespace() == f'/eval_{os.getpid()}'          # pids are unique on this host
+    for env in ({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}, {'ROS_STATIC_PEERS': '10.0.0.2;10.0.0.3'}):
+        with monkeypatch.context() as m:
+            for k, v in env.items():
+                m.setenv(k, v)
+            assert run_namespace() == f'/eval_gpu_07_lab_example_{os.getpid()}'
+            validate_namespace(run_namespace())              # raises for a name ROS refuses
+    monkeypatch.setattr('socket.gethostname', lambda: '--')
+    assert host_token() == 'host'
+
+
 @pytest.mark.slow
 def test_two_launchers_in_one_ros_domain_play_the_shards_side_by_side(whole_run, tmp_path):
-    env = {**os.environ, 'ROS_DOMAIN_ID': os.environ['ROS_DOMAIN_ID']}     # one domain (conftest's), as on hosts
+    # one domain (conftest's) and static peers, as on hosts; discovery stays on this host (LOCALHOST)
+    env = {**os.environ, 'ROS_DOMAIN_ID': os.environ['ROS_DOMAIN_ID'], 'ROS_STATIC_PEERS': '127.0.0.1'}
     procs = [subprocess.Popen([sys.executable, str(REPO / 'dialfred_launch.py'), 'eval', '--split', SPLIT,
                                '--agent', 'random', '--limit', str(LIMIT), '--workers', '1',
                                '--resolution', str(RESOLUTION), '--shard', f'{k}/2',

@@ -220,3 +220,16 @@ def test_results_of_another_agent_in_a_shard_file_are_refused(shards, tmp_path, 
     append_result(parts[0], dataclasses.replace(r, agent='expert'))
     check_refused(parts, r"result 4 \(valid_unseen/000000\) is of split, agent, oracle, seed .*'expert'.* the file "
                          'mixes runs', tmp_path, capsys)
+
+
+def test_a_result_of_a_task_not_in_the_split_is_refused_and_one_beyond_the_limit_ignored(shards, tmp_path, capsys):
+    _, parts = shards
+    r = EpisodeResult.from_json(parts[0].read_text().splitlines()[0])
+    beyond = load_split(SPLIT)[LIMIT + 2]           # shard 0 of 3 run earlier with a longer --limit
+    append_result(parts[0], dataclasses.replace(r, task_id=beyond.task_id))
+    out = tmp_path / 'beyond.jsonl'
+    assert main([str(p) for p in parts] + ['--out', str(out)]) == 0
+    assert 'ignored 1 result(s) of tasks beyond --limit 7' in capsys.readouterr().out
+    assert len(load_results(out)) == LIMIT
+    append_result(parts[0], dataclasses.replace(r, task_id='valid_unseen/999999'))
+    check_refused(parts, 'task valid_unseen/999999 is not a task of valid_unseen', tmp_path, capsys)
