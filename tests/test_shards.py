@@ -233,3 +233,28 @@ def test_a_result_of_a_task_not_in_the_split_is_refused_and_one_beyond_the_limit
     assert len(load_results(out)) == LIMIT
     append_result(parts[0], dataclasses.replace(r, task_id='valid_unseen/999999'))
     check_refused(parts, 'task valid_unseen/999999 is not a task of valid_unseen', tmp_path, capsys)
+
+
+def test_shards_of_a_tasks_file_merge_with_that_file_found_by_its_sha256(tmp_path, capsys):
+    import gzip
+
+    from dialfred_sim.tasks.split_files import split_path
+    rows = gzip.decompress(split_path(SPLIT).read_bytes()).splitlines(keepends=True)
+    tasks_file = tmp_path / 'mine.jsonl.gz'
+    tasks_file.write_bytes(gzip.compress(b''.join(rows[:LIMIT + 1])))
+    results = fake_results()
+    parts = [write_run(tmp_path / 'runs' / f'run_shard{k}of2.jsonl', results, (k, 2), tasks_file=tasks_file)
+             for k in range(2)]
+    assert summary_of(parts[0])['tasks_file']['path'] == str(tasks_file)
+    moved = tmp_path / 'elsewhere' / 'copy.jsonl.gz'
+    moved.parent.mkdir()
+    tasks_file.rename(moved)                           # as on the host where the shards are merged
+    check_refused(parts, r'the shards were run on a tasks file: .* does not exist.*--tasks PATH', tmp_path, capsys)
+    other = tmp_path / 'other.jsonl.gz'
+    other.write_bytes(gzip.compress(b''.join(rows[:LIMIT + 2])))
+    check_refused(parts, r'other.jsonl.gz is not the tasks file the shards were run on', tmp_path, capsys,
+                  '--tasks', str(other))
+    out = tmp_path / 'merged.jsonl'
+    assert main([str(p) for p in parts] + ['--out', str(out), '--tasks', str(moved)]) == 0
+    assert [r.task_id for r in load_results(out)] == [r.task_id for r in results]
+    assert summary_of(out)['summary'] == summarize(results)
