@@ -14,6 +14,10 @@ are counted (NQ, NQ_invalid).
 With `--tasks PATH` (a split file of your own, such as a sealed test split) instead of `--split`,
 every simulator node reads that file (its `tasks_file` parameter), and <out without .jsonl>.tasks.json
 records the file's path and sha256: results of another file are refused, never mixed in.
+
+With `--shard K/N`, only the tasks whose index in the split is K modulo N are played (seeded by that
+index, as in a whole run) into <out>_shardKofN.jsonl; `./dialfred merge` joins the shards' files
+(dialfred_sim/shards.py, docs/scaling.md).
 """
 
 from __future__ import annotations
