@@ -14,6 +14,10 @@ are counted (NQ, NQ_invalid).
 With `--tasks PATH` (a split file of your own, such as a sealed test split) instead of `--split`,
 every simulator node reads that file (its `tasks_file` parameter), and <out without .jsonl>.tasks.json
 records the file's path and sha256: results of another file are refused, never mixed in.
+
+With `--shard K/N`, only the tasks whose index in the split is K modulo N are played (seeded by that
+index, as in a whole run) into <out>_shardKofN.jsonl; `./dialfred merge` joins the shards' files
+(dialfred_sim/shards.py, docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service, use_project_environment  # noqa: F401
+from dialfred_sim.metrics import ResultsFileError  # noqa: F401  (the launcher and tests import it from here)
+from dialfred_sim.shards import check_shard, shard_suffix, shard_tasks
 
 REPO = Path(__file__).resolve().parent
 use_project_environment(REPO)
@@ -58,6 +64,7 @@ class EvalConfig:
     record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.recording)
     max_restarts: int = 3               # a worker whose node dies is restarted (its episode replayed) this many
                                         # times in a row at most; 0 = a dead node ends the run
+    shard: Optional[tuple] = None       # (K, N): only shard K of N of the selected tasks (see dialfred_sim.shards.shard_tasks)
 
     @functools.cached_property
     def tasks_source(self):
@@ -125,7 +132,7 @@ class EvalConfig:
         perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
         source = self.tasks_source
         tasks = f'{source.split}-{source.sha256[:8]}' if source else self.split   # a file: named by its content
-        return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}.jsonl'
+        return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}{shard_suffix(self.shard)}.jsonl'
 
     @property
     def tasks_record_path(self) -> Path:
@@ -153,6 +160,7 @@ class EvalConfig:
     def check(self) -> None:
         """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
         from dialfred_oracle.answers import QUESTION_TYPES
+        check_shard(self.shard)
         from dialfred_sim.recording import IMAGE_FORMATS
         if self.max_restarts < 0:
             raise ValueError(f'--max-restarts must be 0 or more, got {self.max_restarts}')
@@ -206,7 +214,8 @@ class EvalReport:
             'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
             'workers': c.workers, 'through': 'performer node' if c.performer else 'in-process agent',
             'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent == 'et' else None),
-            'limit': c.limit, 'results_file': str(c.results_path), 'tasks': len(self.results),
+            'limit': c.limit, 'shard': {'index': c.shard[0], 'count': c.shard[1]} if c.shard else None,
+            'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None,
                          'restarts': self.restarts},
@@ -657,14 +666,23 @@ def worker_nodes(config: EvalConfig, namespace: str, **sim_params) -> list:
     return nodes
 
 
+def parse_shard(text: str) -> tuple:
+    """--shard K/N -> (K, N); argparse's usage error unless 0 <= K < N."""
+    import argparse
+
+    from dialfred_sim.shards import parse_shard as parse
+    try:
+        return parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def run_namespace() -> str:
     """The namespace of this run's nodes (/eval_<pid>): no other run, even in the same ROS domain,
-    can reach them or be reached by this one."""
-    return f'/eval_{os.getpid()}'
-
-
-class ResultsFileError(ValueError):
-    """The results file cannot be resumed: corrupt, or written by another split, agent or seed."""
+    can reach them or be reached by this one. Where discovery reaches other hosts (a shard per host,
+    docs/scaling.md), the host's name goes in too (/eval_<host>_<pid>): a pid is unique on one host only."""
+    from dialfred_sim.graph import discovery_spans_hosts, host_token
+    return f'/eval_{host_token()}_{os.getpid()}' if discovery_spans_hosts() else f'/eval_{os.getpid()}'
 
 
 def resumable_results(config: EvalConfig, task_ids: list) -> dict:
@@ -744,8 +762,10 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
 
     t0 = time.monotonic()
     tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
+    selected = shard_tasks(tasks, config.shard)       # (index in the split, task): the index seeds the episode
+    tasks = [t for _, t in selected]
     done = resumable_results(config, [t.task_id for t in tasks])
-    jobs = [(k, t) for k, t in enumerate(tasks) if t.task_id not in done]
+    jobs = [(k, t) for k, t in selected if t.task_id not in done]
     ran, startup_s, restarts = 0, 0.0, 0
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
@@ -788,7 +808,8 @@ def print_report(report: EvalReport) -> None:
     rate = f', {info["episodes_per_s"]:.2f} episodes/s' if info['episodes_per_s'] else ''
     privileged = (' (PRIVILEGED: given the expert\'s plan; a reference, not a benchmark result)'
                   if any(r.privileged for r in report.results) else '')
-    print(f'{c.split}, {c.agent_name} agent{privileged}, seed {c.seed}: {len(report.results)} tasks '
+    shard = f', shard {c.shard[0]}/{c.shard[1]}' if c.shard else ''
+    print(f'{c.split}{shard}, {c.agent_name} agent{privileged}, seed {c.seed}: {len(report.results)} tasks '
           f'({report.ran} played now in {report.wall_s:.1f} s{rate})')
     print(format_table(report.summary))
     if c.agent == 'expert':
@@ -811,7 +832,8 @@ def eval_config(args) -> EvalConfig:
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
                       tasks_file=Path(args.tasks) if args.tasks else None,
                       performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
-                      max_restarts=args.max_restarts, **record_options(args))
+                      max_restarts=args.max_restarts, shard=getattr(args, 'shard', None),
+                      **record_options(args))
 
 
 def add_record_options(parser) -> None:
@@ -882,6 +904,11 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--perturb-probability', type=float, default=0.5,
                     help='how often it withholds them (default 0.5, as in the paper)')
     ev.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
+    ev.add_argument('--shard', type=parse_shard, default=None, metavar='K/N',
+                    help='only shard K of N (0 <= K < N) of the selected tasks (after --limit): those whose index '
+                         'in the split is K modulo N, seeded as in a whole run; results go to '
+                         '<default name>_shardKofN.jsonl. Join the shards\' files with `./dialfred merge` '
+                         '(docs/scaling.md)')
     ev.add_argument('--workers', type=int, default=2, help='simulator nodes playing episodes in parallel')
     ev.add_argument('--out', default=None,
                     help='results file (default out/eval/<split>_<agent>[+<questioner>].jsonl)')

@@ -107,3 +107,27 @@ def test_recording_reports_the_overhead_and_the_bag_size_per_episode():
     png = report['settings']['png']
     assert report['same_episodes_in_every_run'] and png['episodes'] == 2
     assert png['bytes_per_episode'] > 1000 and 'overhead_pct' in png and png['kB_per_frame'] > 0
+
+
+def test_bench_scaling_reports_throughput_by_workers_and_the_cost_on_n_machines(tmp_path):
+    png = tmp_path / 'scaling.png'
+    report = run_bench('bench_scaling', '--workers', '1', '2', '--limit', '3', '--resolution', '64',
+                       '--machines', '1', '4', '--plot', str(png))
+    assert [r['workers'] for r in report['by_workers']] == [1, 2]
+    for row in report['by_workers']:
+        assert row['episodes'] == 3 and row['episodes_per_s'] > 0 and row['startup_s'] > 0
+        assert row['s_per_task'] == pytest.approx(1 / row['episodes_per_s'], rel=1e-3)
+    assert report['by_workers'][0]['speedup'] == 1.0
+    best = max(report['by_workers'], key=lambda r: r['episodes_per_s'])
+    one, four = report['cost']['table']
+    assert (one['machines'], one['tasks_per_machine'], four['tasks_per_machine']) == (1, 1000, 250)
+    assert one['wall_min'] * 60 == pytest.approx(best['startup_s'] + 1000 * best['s_per_task'], abs=1)
+    assert four['wall_min'] < one['wall_min']
+    from PIL import Image
+    assert Image.open(png).size[0] > 600
+
+
+def test_bench_scaling_rejects_a_bad_budget():
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'bench_scaling.py'), '--workers', '0'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and '--workers must be integers >= 1' in proc.stderr

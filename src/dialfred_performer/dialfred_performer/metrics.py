@@ -45,9 +45,10 @@ def to_device(batch: dict, device: torch.device) -> dict:
 
 @torch.no_grad()
 def evaluate(model, ds, items: Sequence[int], lengths: Sequence[int], batch_size: int, pointer_weight: float,
-             device: torch.device) -> dict:
+             device: torch.device, reduce=None) -> dict:
     """Validation: loss, action and pointer accuracy over `items` of the dataset `ds` (episodes of
-    `lengths` steps, batched shortest first), in eval mode; uses no random numbers."""
+    `lengths` steps, batched shortest first), in eval mode; uses no random numbers. `reduce`: applied
+    to the summed statistics before the summary (the sum over training processes, each with its share)."""
     was_training = model.training
     model.eval()
     total = dict.fromkeys(STAT_KEYS, 0)
@@ -57,7 +58,7 @@ def evaluate(model, ds, items: Sequence[int], lengths: Sequence[int], batch_size
         for k, v in batch_stats(model(batch), batch).items():
             total[k] += v
     model.train(was_training)
-    return summarize(total, pointer_weight)
+    return summarize(reduce(total) if reduce else total, pointer_weight)
 
 
 class MetricsLog:

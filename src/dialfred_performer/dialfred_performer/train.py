@@ -19,6 +19,14 @@ stops after the current update and writes last.pt; --resume goes on from there.
 
 An epoch shows every training task once per question-type combination (8x its frames; the paper's
 augmentation); --no-every-combination shows each once, with a combination drawn per epoch.
+
+On several processes (one host or many), with DistributedDataParallel (gloo on CPU, nccl on CUDA):
+
+    torchrun --nproc_per_node 2 -m dialfred_performer.train --threads 1 --out out/performer ...
+
+The global batch stays --batch-size (each process takes an equal share of every batch, in the
+single process's order), only rank 0 writes files, and --resume works as with one process
+(`distributed.py` says what is and is not the same computation as one process).
 """
 
 from __future__ import annotations
@@ -44,6 +52,8 @@ from dialfred_sim.tasks.demonstrations import default_dir
 from .cli import MALLOC_SETTINGS, arg, command_line, config_changes, ensure_malloc_settings, parse
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
+from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,
+                          rank_seed, rank_share, reduce_stats, sharded_loss, zero_stats)
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
 from .model import Performer, PerformerConfig, git_commit, load_checkpoint, performer_loss, save_checkpoint
 from .prepare import VOCABULARY_FILE
@@ -83,7 +93,7 @@ class TrainConfig:
     seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
     deterministic: bool = arg(True, 'torch.use_deterministic_algorithms (warn only on CUDA)')
     device: str = arg('auto', "'auto' (cuda if present, else cpu), 'cpu', 'cuda' or 'cuda:N'")
-    threads: int = arg(0, 'torch CPU threads (0: every core this process may use)')
+    threads: int = arg(0, 'torch CPU threads (0: the cores this process may use, shared among the training processes of its host)')
     loader_workers: int = arg(0, 'DataLoader worker processes (0: load in the training process)')
     log_every: int = arg(50, 'updates per line of metrics.jsonl')
     checkpoint_every: int = arg(500, 'updates between writes of last.pt')
@@ -254,17 +264,22 @@ class Progress:
 
 
 def save_training(path: Path, model, vocab, cfg, optimizer, scheduler, progress: Progress, full: bool = True,
-                  commit: Optional[str] = None) -> None:
+                  commit: Optional[str] = None, rank_rng: Optional[list] = None) -> None:
+    """`rank_rng`: every training process's torch RNG state (several processes), so each resumes its stream."""
     extra = {'train_config': json.dumps(dataclasses.asdict(cfg)), 'progress': dataclasses.asdict(progress)}
     if full:
         extra.update(optimizer=optimizer.state_dict(), scheduler=scheduler.state_dict(),
                      torch_rng=torch.get_rng_state(),
                      cuda_rng=torch.cuda.get_rng_state_all() if torch.cuda.is_available() else [])
+        if rank_rng is not None:
+            extra['rank_torch_rng'] = rank_rng
     save_checkpoint(path, model, vocab, command=command_line(MODULE, cfg), extra=extra, commit=commit)
 
 
-def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler) -> tuple[Vocabulary, Progress]:
-    """Load `path` (a full last.pt) into model, optimiser and schedule; restore the RNG; the progress.
+def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler,
+                     ranks: Ranks = Ranks()) -> tuple[Vocabulary, Progress]:
+    """Load `path` (a full last.pt) into model, optimiser and schedule; restore the RNG (this rank's,
+    if the run had as many processes; else a stream of (seed, rank, update)); the progress.
     ValueError if its config differs from `cfg` in anything but RESUMABLE_CHANGES."""
     loaded, vocab, info = load_checkpoint(path)
     extra = info['extra']
@@ -281,7 +296,13 @@ def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler) 
     torch.set_rng_state(extra['torch_rng'])
     if extra['cuda_rng'] and torch.cuda.is_available():
         torch.cuda.set_rng_state_all(extra['cuda_rng'])
-    return vocab, Progress(**extra['progress'])
+    progress = Progress(**extra['progress'])
+    per_rank = extra.get('rank_torch_rng') or []
+    if len(per_rank) == ranks.world and ranks.distributed:
+        torch.set_rng_state(per_rank[ranks.rank])
+    elif ranks.rank:         # the run had another number of processes: rank 0 goes on with its stream
+        torch.manual_seed(rank_seed(cfg.seed, ranks.rank, progress.update))
+    return vocab, progress
 
 
 # ---------------------------------------------------------------------- training
@@ -309,8 +330,11 @@ def ignore_interrupts(_worker_id: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def train(cfg: TrainConfig) -> dict:
-    """Train (or continue) the run of `cfg`; the final summary (also the last line printed by main)."""
+def train(cfg: TrainConfig, ranks: Optional[Ranks] = None) -> dict:
+    """Train (or continue) the run of `cfg` as process `ranks` of a distributed run (default: torchrun's
+    environment; one process without it); the final summary (also the last line printed by main)."""
+    ranks = ranks or Ranks.from_env()
+    check_batch(cfg.batch_size, ranks)
     out = Path(cfg.out)
     commit = git_commit()        # the code this run starts with, recorded in every checkpoint it writes
     check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
@@ -318,9 +342,10 @@ def train(cfg: TrainConfig) -> dict:
         check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
     if cfg.resume and not (out / 'last.pt').is_file():
         raise FileNotFoundError(f'--resume: no {out / "last.pt"} to continue from')
-    device = pick_device(cfg.device)
-    torch.set_num_threads(cfg.threads or len(os.sched_getaffinity(0)))
+    device = rank_device(pick_device(cfg.device), ranks)
+    torch.set_num_threads(cfg.threads or max(1, len(os.sched_getaffinity(0)) // ranks.local_world))
     seed_everything(cfg.seed, cfg.deterministic, device)
+    init(ranks, device)
     out.mkdir(parents=True, exist_ok=True)
 
     vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
@@ -333,29 +358,45 @@ def train(cfg: TrainConfig) -> dict:
         optimizer, lambda u: lr_factor(u, cfg.warmup_updates, total, cfg.final_lr_fraction))
     progress = Progress()
     if cfg.resume:
-        _, progress = restore_training(out / 'last.pt', cfg, model, optimizer, scheduler)
-    log = MetricsLog(out / 'metrics.jsonl', progress.update if cfg.resume else None)
-    (out / 'config.json').write_text(json.dumps(dataclasses.asdict(cfg), indent=1) + '\n')
+        _, progress = restore_training(out / 'last.pt', cfg, model, optimizer, scheduler, ranks)
+    elif ranks.rank:
+        torch.manual_seed(rank_seed(cfg.seed, ranks.rank))     # this rank's dropout stream (after the same init)
+    net = model
+    if ranks.distributed:
+        net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == 'cuda'
+                                                        else None)
+    log = None
+    if ranks.main:       # the only process that writes files
+        log = MetricsLog(out / 'metrics.jsonl', progress.update if cfg.resume else None)
+        (out / 'config.json').write_text(json.dumps(dataclasses.asdict(cfg), indent=1) + '\n')
 
     from tqdm import tqdm
-    bar = tqdm(total=total, initial=progress.update, unit='update', file=sys.stderr, disable=not cfg.progress,
-               dynamic_ncols=True, desc=f'epoch {progress.epoch + 1}/{cfg.epochs}')
+    bar = tqdm(total=total, initial=progress.update, unit='update', file=sys.stderr,
+               disable=not (cfg.progress and ranks.main), dynamic_ncols=True,
+               desc=f'epoch {progress.epoch + 1}/{cfg.epochs}')
     session_updates, frames_seen, t_start = 0, 0, time.monotonic()
     t_window, last = time.monotonic(), {}
 
     def checkpoint(name: str = 'last.pt', full: bool = True) -> None:
-        save_training(out / name, model, vocab, cfg, optimizer, scheduler, progress, full, commit)
+        """Rank 0 writes; with several processes every rank must call it (a full one gathers their RNGs)."""
+        rank_rng = gather_rng(ranks) if full and ranks.distributed else None
+        if ranks.main:
+            save_training(out / name, model, vocab, cfg, optimizer, scheduler, progress, full, commit, rank_rng)
 
     def validate_and_draw() -> None:
         if data.val is not None and data.val_items:
-            val = evaluate(model, data.val, data.val_items, Data.item_lengths(data.val, data.val_items),
-                           cfg.batch_size, cfg.pointer_weight, device)
-            log.write({'kind': 'val', 'update': progress.update, 'epoch': progress.epoch, **val})
+            mine = data.val_items[ranks.rank::ranks.world]          # each process a share; the sums all-reduced
+            val = evaluate(model, data.val, mine, Data.item_lengths(data.val, mine), cfg.batch_size,
+                           cfg.pointer_weight, device,
+                           reduce=(lambda totals: reduce_stats(totals, device)) if ranks.distributed else None)
+            if log is not None:
+                log.write({'kind': 'val', 'update': progress.update, 'epoch': progress.epoch, **val})
             last['val'] = val
             if val['loss'] < progress.best_val_loss:
                 progress.best_val_loss = val['loss']
                 checkpoint('best.pt', full=False)
-        draw_curves(out / 'metrics.jsonl', out / 'curves.png')
+        if ranks.main:
+            draw_curves(out / 'metrics.jsonl', out / 'curves.png')
 
     stop_request = StopRequest()
     try:
@@ -366,16 +407,24 @@ def train(cfg: TrainConfig) -> dict:
             batches = epoch_batches(Data.item_lengths(data.train, items), cfg.batch_size, cfg.seed, progress.epoch,
                                     cfg.bucket)
             todo = [[items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
+            # this process's share of each global batch (all of it for one process); a stand-in weighs 0
+            shares = [rank_share(b, ranks) for b in todo] if ranks.distributed else [(b, False) for b in todo]
             # Its own generator: a DataLoader iterator draws a seed, which must not come from torch's global
             # RNG (dropout's), or a resumed run (one more iterator) would draw different dropout masks.
-            loader = torch.utils.data.DataLoader(data.train, batch_sampler=todo, collate_fn=collate,
+            loader = torch.utils.data.DataLoader(data.train, batch_sampler=[b for b, _ in shares], collate_fn=collate,
                                                  num_workers=cfg.loader_workers,
                                                  generator=torch.Generator().manual_seed(cfg.seed),
                                                  worker_init_fn=ignore_interrupts if cfg.loader_workers else None)
-            for batch in loader:
+            for batch, (_, stand_in) in zip(loader, shares):
                 batch = to_device(batch, device)
-                outputs = model(batch)
-                loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
+                if ranks.distributed:
+                    steps, targets = global_counts(batch, stand_in, device)
+                    outputs = net(batch)
+                    loss = sharded_loss(outputs, batch, cfg.pointer_weight, steps, targets, ranks.world,
+                                        weight=0.0 if stand_in else 1.0)
+                else:
+                    outputs = model(batch)
+                    loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 if cfg.grad_clip > 0:
@@ -385,11 +434,13 @@ def train(cfg: TrainConfig) -> dict:
                 progress.update += 1
                 progress.batch_in_epoch += 1
                 session_updates += 1
-                for k, v in batch_stats(outputs, batch).items():
+                stats = zero_stats() if stand_in else batch_stats(outputs, batch)
+                stats = reduce_stats(stats, device) if ranks.distributed else stats     # the global batch's
+                for k, v in stats.items():
                     progress.window[k] += v
-                frames_seen += int(batch['step_valid'].sum())
+                frames_seen += stats['steps']
                 bar.update(1)
-                if progress.update % cfg.log_every == 0:
+                if progress.update % cfg.log_every == 0 and log is not None:
                     now = time.monotonic()
                     row = summarize(progress.window, cfg.pointer_weight)
                     row.update(frames_per_s=round(row['steps'] / max(now - t_window, 1e-9), 2),
@@ -398,10 +449,13 @@ def train(cfg: TrainConfig) -> dict:
                     bar.set_postfix(loss=f'{row["loss"]:.3f}', act=f'{row["action_accuracy"]:.3f}',
                                     fps=f'{row["frames_per_s"]:.0f}')
                     last['train'] = row
-                    progress.window, t_window = dict.fromkeys(STAT_KEYS, 0), now
+                if progress.update % cfg.log_every == 0:
+                    progress.window, t_window = dict.fromkeys(STAT_KEYS, 0), time.monotonic()
                 if progress.update % cfg.checkpoint_every == 0:
                     checkpoint()
                 halt = (bool(cfg.stop_after) and session_updates >= cfg.stop_after) or stop_request.asked
+                if ranks.distributed:
+                    halt = any_rank(halt, device)        # a Ctrl-C seen by one process stops all at this update
                 if halt or progress.update >= total:
                     break
             if progress.batch_in_epoch == len(batches):          # the epoch is complete
@@ -416,7 +470,7 @@ def train(cfg: TrainConfig) -> dict:
         if finished and progress.batch_in_epoch and session_updates:   # max_updates ended it inside an epoch
             validate_and_draw()
         checkpoint()
-        if not finished:
+        if not finished and ranks.main:
             draw_curves(out / 'metrics.jsonl', out / 'curves.png')
         bar.close()
     finally:
@@ -425,19 +479,24 @@ def train(cfg: TrainConfig) -> dict:
     return {'finished': finished, 'updates': progress.update, 'epoch': progress.epoch, 'total_updates': total,
             'session_updates': session_updates, 'session_seconds': round(seconds, 2),
             'frames_per_s': round(frames_seen / max(seconds, 1e-9), 2), 'device': str(device),
-            'threads': torch.get_num_threads(), 'malloc_settings': all(k in os.environ for k in MALLOC_SETTINGS),
+            'threads': torch.get_num_threads(), 'processes': ranks.world,
+            'malloc_settings': all(k in os.environ for k in MALLOC_SETTINGS),
             'train_episodes': len(data.train_items),
             'val_episodes': len(data.val_items), 'val': last.get('val'), 'out': str(out)}
 
 
 def main(argv: Optional[list[str]] = None) -> int:
     cfg = parse(TrainConfig, argv, prog=f'python -m {MODULE}')
+    ranks = Ranks.from_env()
     try:
-        summary = train(cfg)
+        summary = train(cfg, ranks)
     except (FileNotFoundError, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    print(json.dumps(summary))
+    finally:
+        finish(ranks)
+    if ranks.main:
+        print(json.dumps(summary))
     return 0
 
 

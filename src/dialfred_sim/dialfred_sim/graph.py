@@ -33,6 +33,21 @@ def use_project_environment(repo: Path) -> None:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 
+def discovery_spans_hosts() -> bool:
+    """Whether this process's DDS discovery reaches other hosts: a range other than LOCALHOST or OFF
+    (Jazzy's default when unset is SUBNET), or static peers (docs/scaling.md)."""
+    reach = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SUBNET').strip().upper()
+    return reach not in ('LOCALHOST', 'OFF') or bool(os.environ.get('ROS_STATIC_PEERS', '').strip(' ;'))
+
+
+def host_token() -> str:
+    """This host's name as a ROS name token (letters, digits, single underscores)."""
+    import re
+    import socket
+    token = re.sub(r'_+', '_', re.sub(r'[^A-Za-z0-9_]', '_', socket.gethostname())).strip('_')
+    return token or 'host'
+
+
 def use_private_ros_domain() -> int:
     """Put this process (and the nodes it starts) in a ROS domain of its own, unless the caller chose
     one: benchmarks must not be answered, or slowed, by another graph on this machine."""

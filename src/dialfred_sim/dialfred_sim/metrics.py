@@ -232,6 +232,11 @@ def format_table(summary: dict) -> str:
 
 # ---------------------------------------------------------------------------------------- JSON lines
 
+class ResultsFileError(ValueError):
+    """A results file that cannot be used as it is: corrupt or cut off, or written by another split,
+    agent, seed or shard (resuming an evaluation, merging shards)."""
+
+
 class TruncatedResultsWarning(UserWarning):
     """The last line of a results file was cut off (an interrupted write) and was skipped."""
 
