@@ -21,7 +21,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dialfred_eval import EvalConfig, PerformerWorker, add_record_options, play_episodes, record_options, worker_nodes
+from dialfred_eval import (EvalConfig, LiveHook, PerformerWorker, add_record_options, play_episodes, record_options,
+                           start_live_view, worker_nodes)
 from dialfred_sim.graph import Graph
 
 REPO = Path(__file__).resolve().parent
@@ -89,7 +90,7 @@ def outcome_text(result) -> str:
 def demo_config(args) -> EvalConfig:
     return EvalConfig(split='valid_unseen', performer='et', questioner='' if args.questioner == 'none' else args.questioner,
                       checkpoint=Path(args.checkpoint) if args.checkpoint else None, resolution=args.resolution,
-                      seed=args.seed, workers=1, episode_timeout=600.0, **record_options(args))
+                      seed=args.seed, workers=1, episode_timeout=600.0, foxglove=args.foxglove, **record_options(args))
 
 
 def run_demo(args) -> int:
@@ -145,6 +146,9 @@ def run_demo(args) -> int:
         frames_qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
         obs_sub = node.create_subscription(Observation, 'sim/observation', seen, frames_qos)
         worker = PerformerWorker(graph, '', config, on_feedback=stepped)
+        if config.foxglove is not None:
+            view = start_live_view(config, graph, [''], len(tasks))
+            worker.live = LiveHook(view, 'w0')
         deadline = time.monotonic() + 30.0
         while qa_sub.get_publisher_count() == 0 or obs_sub.get_publisher_count() == 0:
             graph.spin_until_any([], 0.1)
@@ -174,6 +178,8 @@ def run_demo(args) -> int:
             else:
                 print('  (no frames were received from sim/observation)', file=sys.stderr)
             record = None
+        if config.foxglove is not None:
+            view.close()
     if sheet:
         save_contact_sheet(sheet, out / 'contact_sheet.png')
         print(f'\ncontact sheet: {out / "contact_sheet.png"}')
@@ -196,4 +202,6 @@ def add_demo_parser(sub) -> None:
                            'benchmark\'s limit is 1000)')
     demo.add_argument('--seed', type=int, default=0)
     demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
+    demo.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
+                      help='watch it live in the Foxglove app (a Foxglove WebSocket server on PORT, default 8765)')
     add_record_options(demo)

@@ -23,6 +23,7 @@ index, as in a whole run) into <out>_shardKofN.jsonl; `./dialfred merge` joins t
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import json
 import os
@@ -62,6 +63,7 @@ class EvalConfig:
     episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
     record: Optional[Path] = None       # write each episode as a rosbag2/MCAP bag into this folder
     record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.recording)
+    foxglove: Optional[int] = None      # a port: stream the workers live to Foxglove (dialfred_sim.live)
     max_restarts: int = 3               # a worker whose node dies is restarted (its episode replayed) this many
                                         # times in a row at most; 0 = a dead node ends the run
     shard: Optional[tuple] = None       # (K, N): only shard K of N of the selected tasks (see dialfred_sim.shards.shard_tasks)
@@ -243,6 +245,7 @@ class SimWorker:
         self.graph, self.namespace, self.agent, self.config = graph, namespace, agent, config
         self.future = None
         self.job = None
+        self.live = None       # a LiveHook, with --foxglove
         self.sent_at = 0.0
         self.task = None
         self.pending = ''      # what the request in flight is: 'reset', 'step' or 'question'
@@ -265,6 +268,8 @@ class SimWorker:
         self.dialogue = []
         self.asked_in_a_row = 0
         self.recorder = None
+        if self.live is not None:
+            self.live.begin(task)
         self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False),
                    'reset')
 
@@ -308,6 +313,8 @@ class SimWorker:
             name, x, y = self.traces[self.task.task_id][-1]
             self.recorder.action(int(obs.step_count), name, x, y, obs.last_action_success, self.questions)
             self.recorder.observation_msg(obs)
+        if self.live is not None:
+            self.live.action(int(obs.step_count), self.last_action, obs.last_action_success)
         if not obs.last_action_success:
             self.last_error = obs.last_action_error
         if reply.terminated or reply.truncated:
@@ -348,6 +355,8 @@ class SimWorker:
         if self.recorder is not None:
             from dialfred_sim.messages import qa_msg
             self.recorder.question_msg(int(self.observation.step_count), qa_msg(qa))
+        if self.live is not None:
+            self.live.qa(qa.question.question_type, qa.question.object_noun, qa.answer, qa.valid)
         self.agent.hear(qa)
         return self._act(self.observation)
 
@@ -415,6 +424,7 @@ class PerformerWorker:
         self.on_feedback = on_feedback    # called with (task, RunTask.Feedback) as each step's feedback comes
         self.future = self.goal_handle = self.cancel_future = None
         self.task = self.job = None
+        self.live = None       # a LiveHook, with --foxglove
         self.pending = ''       # 'goal' (waiting for acceptance) or 'result'
         self.traces = collections.defaultdict(list)   # task id -> the actions of its feedback, (name, x, y)
 
@@ -452,9 +462,14 @@ class PerformerWorker:
         trace = self.traces[task.task_id]
         trace.clear()
 
+        if self.live is not None:
+            self.live.begin(task)
+
         def feedback(msg) -> None:
             a = msg.feedback.action
             trace.append((a.action, int(a.x), int(a.y)))
+            if self.live is not None:
+                self.live.action(int(msg.feedback.step), a.action, bool(msg.feedback.action_success))
             if self.on_feedback is not None:
                 self.on_feedback(task, msg.feedback)
 
@@ -541,6 +556,8 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor
                 result = w.advance()
                 if result is not None:
                     on_result(result)
+                    if getattr(w, 'live', None) is not None:
+                        w.live.result(result)
                     if supervisor is not None:
                         supervisor.finished(w.namespace)
                     if queue:
@@ -677,6 +694,52 @@ def parse_shard(text: str) -> tuple:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+class LiveHook:
+    """What one worker tells the Foxglove live view (dialfred_sim.live.LiveView) as its episodes go."""
+
+    def __init__(self, view, worker: str):
+        self.view, self.worker = view, worker
+
+    def begin(self, task) -> None:
+        self.view.task(self.worker, task.task_id, task.scene, task.instruction)
+
+    def qa(self, question_type: str, object_noun: str, answer: str, valid: bool) -> None:
+        self.view.qa(self.worker, question_type, object_noun, answer, valid)
+
+    def action(self, step: int, name: str, success: bool) -> None:
+        self.view.action(self.worker, step, name, success)
+
+    def result(self, r) -> None:
+        self.view.result(self.worker, r.task_id, r.success, r.end_reason, r.steps, r.questions)
+
+
+def start_live_view(config: EvalConfig, graph: Graph, namespaces: list, total: int):
+    """The Foxglove server of --foxglove, fed from each worker's sim/observation (camera, pose) and,
+    for performer nodes, dialogue/qa; the workers' LiveHooks tell it the rest."""
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from dialfred_msgs.msg import Observation, QAPair
+    from dialfred_sim.graph import image_array
+    from dialfred_sim.live import LiveView, describe
+    view = LiveView(len(namespaces), port=config.foxglove, total=total)
+    print(describe(view), file=sys.stderr, flush=True)
+    qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1)
+    for k, ns in enumerate(namespaces):
+        w, base = f'w{k}', ns.rstrip('/')
+
+        def seen(obs, w=w) -> None:
+            p = obs.pose
+            view.frame(w, image_array(obs.rgb), (p.x, p.y, p.rotation_deg, p.horizon_deg), p.camera_height,
+                       int(obs.step_count))
+
+        graph.client_node.create_subscription(Observation, f'{base}/sim/observation', seen, qos)
+        if config.performer:
+            graph.client_node.create_subscription(
+                QAPair, f'{base}/dialogue/qa',
+                lambda m, w=w: view.qa(w, m.question_type, m.object_noun, m.answer, m.valid), 100)
+    return view
+
+
 def run_namespace() -> str:
     """The namespace of this run's nodes (/eval_<pid>): no other run, even in the same ROS domain,
     can reach them or be reached by this one. Where discovery reaches other hosts (a shard per host,
@@ -770,13 +833,22 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     if jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
-        nodes_of = {ns: worker_nodes(config, ns) for ns in namespaces}
+        live = {'publish_observations': True} if config.foxglove is not None else {}
+        nodes_of = {ns: worker_nodes(config, ns, **live) for ns in namespaces}
         nodes = [node for ns in namespaces for node in nodes_of[ns]]
-        with Graph(nodes) as graph:
+        with Graph(nodes) as graph, contextlib.ExitStack() as cleanup:
+            view = start_live_view(config, graph, namespaces, len(tasks)) if config.foxglove is not None else None
+            if view is not None:
+                cleanup.callback(view.close)
+
             def make_worker(ns: str):
                 if config.performer:
-                    return PerformerWorker(graph, ns, config)
-                return SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
+                    worker = PerformerWorker(graph, ns, config)
+                else:
+                    worker = SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
+                if view is not None:
+                    worker.live = LiveHook(view, f'w{namespaces.index(ns)}')
+                return worker
 
             supervisor = Supervisor(graph, nodes_of, make_worker, config.max_restarts) if config.max_restarts else None
             workers = supervisor.start(namespaces) if supervisor else [make_worker(ns) for ns in namespaces]
@@ -832,7 +904,7 @@ def eval_config(args) -> EvalConfig:
                       out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
                       tasks_file=Path(args.tasks) if args.tasks else None,
                       performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
-                      max_restarts=args.max_restarts, shard=getattr(args, 'shard', None),
+                      foxglove=args.foxglove, max_restarts=args.max_restarts, shard=getattr(args, 'shard', None),
                       **record_options(args))
 
 
@@ -915,6 +987,9 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--seed', type=int, default=0)
     ev.add_argument('--resolution', type=int, default=128)
     ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
+    ev.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
+                    help='watch the workers live in the Foxglove app: a Foxglove WebSocket server on PORT (default '
+                         '8765) streams each camera, a top-down map with the agent, the dialogue and the progress')
     ev.add_argument('--max-restarts', type=int, default=3,
                     help='a worker whose node dies or stops answering has its nodes restarted and its episode '
                          'replayed from the start, at most this many times in a row (default 3; 0 = stop the run)')

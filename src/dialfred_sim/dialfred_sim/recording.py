@@ -367,6 +367,10 @@ def main(argv=None) -> int:
     ap.add_argument('bag', help='a bag folder written with --record (or its .mcap file)')
     ap.add_argument('--gif', default=None, help='captioned GIF (default <bag>.gif beside the bag; "" = none)')
     ap.add_argument('--sheet', default=None, help='contact sheet PNG (default <bag>_sheet.png; "" = none)')
+    ap.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
+                    help='also stream the episode to the Foxglove app (a Foxglove WebSocket server on PORT, default '
+                         '8765) at --speed times the simulator clock, then keep serving until Ctrl-C')
+    ap.add_argument('--speed', type=float, default=1.0, help='replay speed for --foxglove (1 = 10 steps/s)')
     args = ap.parse_args(argv)
     try:
         ep = read_episode(Path(args.bag))
@@ -386,6 +390,19 @@ def main(argv=None) -> int:
     if args.sheet != '':
         save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
         print(f'contact sheet: {sheet}')
+    if args.foxglove is not None:
+        from .live import LiveView, describe, replay_bag
+        view = LiveView(1, port=args.foxglove, total=1)
+        print(describe(view), flush=True)
+        try:
+            input('connect Foxglove, then press Enter to stream the episode (Ctrl-C to quit) ')
+            while True:
+                replay_bag(view, ep.path, speed=args.speed)
+                input('streamed; Enter streams it again, Ctrl-C quits ')
+        except (KeyboardInterrupt, EOFError):
+            pass
+        finally:
+            view.close()
     return 0
 
 
