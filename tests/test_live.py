@@ -114,14 +114,17 @@ class Client:
                     return
                 if isinstance(msg, str):
                     data = json.loads(msg)
-                    if data['op'] == 'advertise':
+                    if data['op'] == 'advertise':         # channels may come in several advertisements
                         for c in data['channels']:
                             self.channels[c['topic']] = c
-                        subs = [{'id': k + 1, 'channelId': self.channels[t]['id']} for k, t in enumerate(self.topics)]
-                        by_sub = {s['id']: t for s, t in zip(subs, self.topics)}
-                        await ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subs}))
-                        await asyncio.sleep(0.3)
-                        self.subscribed.set()
+                        new = [t for t in self.topics if t in self.channels and t not in by_sub.values()]
+                        subs = [{'id': len(by_sub) + k + 1, 'channelId': self.channels[t]['id']} for k, t in enumerate(new)]
+                        by_sub.update({s['id']: t for s, t in zip(subs, new)})
+                        if subs:
+                            await ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subs}))
+                        if len(by_sub) == len(self.topics):
+                            await asyncio.sleep(0.3)
+                            self.subscribed.set()
                 else:
                     op, sub, stamp = struct.unpack_from('<BIQ', msg, 0)
                     if op == 1:

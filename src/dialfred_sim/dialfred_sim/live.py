@@ -166,7 +166,9 @@ class LiveView:
         self.progress.log({'finished': self.finished, 'total': self.total, 'successes': self.successes,
                            'sr': round(100.0 * self.successes / self.finished, 1)})
 
-    def close(self) -> None:
+    def close(self, linger: float = 1.0) -> None:
+        """Stop the server, `linger` seconds after the last message (its queue to the clients drains meanwhile)."""
+        time.sleep(linger)
         self.server.stop()
 
     # ------------------------------------------------------------------ helpers
