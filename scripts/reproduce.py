@@ -276,6 +276,18 @@ def sha256_of(data) -> str:
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def newest_mtime(paths) -> float:
+    """The newest modification time of the files under `paths` (0 if there are none)."""
+    times = [0.0]
+    for path in paths:
+        path = Path(path)
+        if path.is_file():
+            times.append(path.stat().st_mtime)
+        elif path.is_dir():
+            times += [f.stat().st_mtime for f in path.rglob('*') if f.is_file()]
+    return max(times)
+
+
 def code_hash(paths: tuple[str, ...]) -> str:
     h = hashlib.sha256()
     for rel in paths:
@@ -371,15 +383,22 @@ class Runner:
                 elif path.exists():
                     path.unlink()
         why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
+        # A resumed stage's time includes its cut-off runs: each lasted from its start until its
+        # outputs were last written (the newest modification time under them).
+        before, runs = (old.get('seconds_before', 0.0) + max(0.0, newest_mtime(outputs) - old.get('started_at', time.time())),
+                        old.get('runs', 1) + 1) if resume else (0.0, 1)
         self.log(f'{stage}: running ({why}, {digest[:12]})')
-        self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'running', 'inputs': inputs})
+        self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'running', 'inputs': inputs,
+                                 'started_at': time.time(), 'seconds_before': round(before, 1), 'runs': runs})
         t0 = time.monotonic()
         report = action(resume) or {}
-        seconds = round(time.monotonic() - t0, 1)
+        this_run = time.monotonic() - t0
+        seconds = round(before + this_run, 1)
         self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'done', 'inputs': inputs,
-                                 'seconds': seconds, 'report': report})
-        self.log(f'{stage}: ran in {seconds:.1f} s')
-        self.summary[stage] = {'status': 'ran', 'hash': digest, 'seconds': seconds, 'report': report}
+                                 'seconds': seconds, 'seconds_this_run': round(this_run, 1), 'runs': runs,
+                                 'report': report})
+        self.log(f'{stage}: ran in {this_run:.1f} s' + (f' ({seconds:.1f} s over {runs} runs)' if runs > 1 else ''))
+        self.summary[stage] = {'status': 'ran', 'hash': digest, 'seconds': seconds, 'runs': runs, 'report': report}
 
     # ---- the stages
 
@@ -651,7 +670,10 @@ def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Pat
 
     from dialfred_performer.curves import _ticks
     font = ImageFont.load_default()
-    W, H, (L, T, R, B) = 720, 480, (56, 30, 200, 40)
+    legend = [f'{label} ({sr:.1f}, {nq:.2f})' for label, sr, nq in points]
+    probe = ImageDraw.Draw(Image.new('RGB', (1, 1)))
+    R = 48 + int(max([probe.textlength(t, font=font) for t in legend] + [100]))     # the legend fits, always
+    W, H, (L, T, B) = 520 + R, max(480, 40 + 14 * len(points)), (56, 30, 40)
     image = Image.new('RGB', (W, H), 'white')
     draw = ImageDraw.Draw(image)
     title = 'SR (valid_unseen) against questions per episode (NQ)'
@@ -682,13 +704,24 @@ def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Pat
             best = sr
     if len(frontier) > 1:
         draw.line(frontier, fill=(200, 200, 200), width=2)
+    def mark(shape: int, x: float, y: float, colour) -> None:
+        """Colours repeat after 10 settings; each round of them gets another shape, so no two settings look alike."""
+        box = (x - 4, y - 4, x + 4, y + 4)
+        if shape == 0:
+            draw.ellipse(box, fill=colour)
+        elif shape == 1:
+            draw.rectangle(box, fill=colour)
+        elif shape == 2:
+            draw.polygon([(x, y - 5), (x - 5, y + 4), (x + 5, y + 4)], fill=colour)
+        else:
+            draw.polygon([(x, y - 5), (x + 5, y), (x, y + 5), (x - 5, y)], fill=colour)
+
     for k, (label, sr, nq) in enumerate(points):
-        colour = palette[k % len(palette)]
-        px, py = at(nq, sr)
-        draw.ellipse((px - 4, py - 4, px + 4, py + 4), fill=colour)
+        colour, shape = palette[k % len(palette)], (k // len(palette)) % 4
+        mark(shape, *at(nq, sr), colour)
         y = top + 14 * k
-        draw.ellipse((right + 12, y + 2, right + 20, y + 10), fill=colour)
-        draw.text((right + 26, y), f'{label} ({sr:.1f}, {nq:.2f})', fill='black', font=font)
+        mark(shape, right + 16, y + 6, colour)
+        draw.text((right + 26, y), legend[k], fill='black', font=font)
     out_path = Path(out_path)
     image.save(out_path)
     return out_path
@@ -809,12 +842,16 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
             out.append(f'  - Q: {question_text(Question(qa["type"], qa["noun"]))} A: {answer}')
     out += ['', '## Run times', '']
     stamps = plan.run / 'stamps'
+    total = 0.0
     for stage in STAGES[:-1]:
         try:
             s = json.loads((stamps / f'{stage}.json').read_text())
-            out.append(f'- {stage}: {s.get("seconds", 0):.0f} s')
+            total += s.get('seconds', 0)
+            runs = s.get('runs', 1)
+            out.append(f'- {stage}: {s.get("seconds", 0):.0f} s' + (f' (over {runs} runs: it was resumed)' if runs > 1 else ''))
         except (OSError, ValueError):
             out.append(f'- {stage}: not run here' + (' (shipped)' if cfg.shipped and stage in TRAINING else ''))
+    out.append(f'- total of the stages: {total / 60:.1f} min')
     return '\n'.join(out) + '\n'
 
 

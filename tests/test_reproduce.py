@@ -120,3 +120,37 @@ def test_bad_settings_are_refused():
         reproduce.ReproduceConfig(force='nope')
     with pytest.raises(ValueError):
         reproduce.ReproduceConfig(quick=True, shipped=True)
+
+
+def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatch):
+    runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
+    monkeypatch.setattr(runner, 'stage_inputs', lambda stage: {'x': 1})
+    out = tmp_path / 'run' / 'outputs'
+
+    def cut_off(resume):
+        out.mkdir(parents=True, exist_ok=True)
+        (out / 'a').write_text('half')
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        runner.run_stage('frames', cut_off, [out])
+    stamp = json.loads((tmp_path / 'run' / 'stamps' / 'frames.json').read_text())
+    stamp['started_at'] -= 30.0                    # the cut-off run began 30 s before its last write
+    (tmp_path / 'run' / 'stamps' / 'frames.json').write_text(json.dumps(stamp))
+    runner.run_stage('frames', lambda resume: {'resumed': resume}, [out])
+    done = json.loads((tmp_path / 'run' / 'stamps' / 'frames.json').read_text())
+    assert done['runs'] == 2 and done['report'] == {'resumed': True}
+    assert 30.0 <= done['seconds'] < 40.0 and done['seconds_this_run'] < 5.0
+
+
+def test_the_frontier_plot_fits_its_legend_however_long_the_labels(tmp_path):
+    from PIL import Image
+    points = [(f'a setting with a rather long name number {k}', 10.0 + k, 0.2 * k) for k in range(24)]
+    path = reproduce.draw_frontier(points, tmp_path / 'f.png')
+    image = Image.open(path)
+    assert image.size[1] >= 14 * 24 + 40
+    import numpy as np
+    edge = np.asarray(image.crop((image.size[0] - 16, 0, image.size[0], image.size[1])).convert('L'))
+    assert edge.min() == 255                                 # nothing drawn in the last 16 px: no cut-off text
+    legend_marks = np.asarray(image.convert('RGB'))[:, -int(image.size[0] - 520) - 1:, :]
+    assert legend_marks.shape[1] > 300                       # the legend area grew with the longest label
