@@ -34,18 +34,15 @@ def _ticks(lo: float, hi: float, n: int = 4) -> list[float]:
     return [first + k * step for k in range(int((hi - first) / step) + 1)]
 
 
-def _panel(draw: ImageDraw.ImageDraw, x0: int, key: str, title: str, rows: list[dict], font) -> None:
+def _axes(draw: ImageDraw.ImageDraw, x0: int, title: str, points: list, y_range, font):
+    """A panel's title, frame, grid lines and ticks; returns its data -> pixel mapping (None without points)."""
     left, top, right, bottom = x0 + MARGIN[0], MARGIN[1], x0 + W - MARGIN[2], H - MARGIN[3]
     draw.text((x0 + W // 2 - len(title) * 3, 8), title, fill='black', font=font)
-    series = {kind: [(r['update'], r[key]) for r in rows if r['kind'] == kind and r.get(key) is not None]
-              for kind in COLOURS}
-    points = [p for s in series.values() for p in s]
     draw.rectangle((left, top, right, bottom), outline=(160, 160, 160))
     if not points:
-        return
-    xs, ys = [p[0] for p in points], [p[1] for p in points]
-    x_lo, x_hi = 0, max(max(xs), 1)
-    y_lo, y_hi = (0.0, 1.0) if 'accuracy' in key else (0.0, max(ys) * 1.05 or 1.0)
+        return None
+    x_lo, x_hi = 0, max(max(p[0] for p in points), 1)
+    y_lo, y_hi = y_range
 
     def at(x: float, y: float) -> tuple[float, float]:
         return (left + (x - x_lo) / (x_hi - x_lo) * (right - left),
@@ -58,6 +55,17 @@ def _panel(draw: ImageDraw.ImageDraw, x0: int, key: str, title: str, rows: list[
     for x in _ticks(x_lo, x_hi):
         px, _ = at(x, y_lo)
         draw.text((px - 8, bottom + 4), f'{x:g}', fill='black', font=font)
+    return at
+
+
+def _panel(draw: ImageDraw.ImageDraw, x0: int, key: str, title: str, rows: list[dict], font) -> None:
+    series = {kind: [(r['update'], r[key]) for r in rows if r['kind'] == kind and r.get(key) is not None]
+              for kind in COLOURS}
+    points = [p for s in series.values() for p in s]
+    y_range = (0.0, 1.0) if 'accuracy' in key else (0.0, max([p[1] for p in points] + [0.0]) * 1.05 or 1.0)
+    at = _axes(draw, x0, title, points, y_range, font)
+    if at is None:
+        return
     for kind, s in series.items():
         pts = [at(x, y) for x, y in sorted(s)]
         if len(pts) > 1:
@@ -95,34 +103,17 @@ def draw_series(rows: list[dict], panels, out_path: Path, x_key: str = 'update',
     draw = ImageDraw.Draw(image)
     for k, (title, lines, y_range) in enumerate(panels):
         x0 = k * W
-        left, top, right, bottom = x0 + MARGIN[0], MARGIN[1], x0 + W - MARGIN[2], H - MARGIN[3]
-        draw.text((x0 + W // 2 - len(title) * 3, 8), title, fill='black', font=font)
-        draw.rectangle((left, top, right, bottom), outline=(160, 160, 160))
         series = [[(r[x_key], r[key]) for r in rows if r.get(key) is not None] for key, _, _ in lines]
         points = [p for s in series for p in s]
         for j, (_, label, colour) in enumerate(lines):
             y = H + 8 + 14 * j
             draw.line((x0 + 12, y, x0 + 36, y), fill=colour, width=3)
             draw.text((x0 + 42, y - 6), label, fill='black', font=font)
-        if not points:
-            continue
-        x_lo, x_hi = 0, max(max(p[0] for p in points), 1)
-        ys = [p[1] for p in points]
+        ys = [p[1] for p in points] or [0.0]
         y_lo, y_hi = y_range or (min(0.0, min(ys)), max(ys) * 1.05 if max(ys) > 0 else 1.0)
-        if y_hi <= y_lo:
-            y_hi = y_lo + 1.0
-
-        def at(x: float, y: float) -> tuple[float, float]:
-            return (left + (x - x_lo) / (x_hi - x_lo) * (right - left),
-                    bottom - (min(max(y, y_lo), y_hi) - y_lo) / (y_hi - y_lo) * (bottom - top))
-
-        for y in _ticks(y_lo, y_hi):
-            _, py = at(x_lo, y)
-            draw.line((left, py, right, py), fill=(230, 230, 230))
-            draw.text((x0 + 4, py - 6), f'{y:.3g}', fill='black', font=font)
-        for x in _ticks(x_lo, x_hi):
-            px, _ = at(x, y_lo)
-            draw.text((px - 8, bottom + 4), f'{x:g}', fill='black', font=font)
+        at = _axes(draw, x0, title, points, (y_lo, y_hi if y_hi > y_lo else y_lo + 1.0), font)
+        if at is None:
+            continue
         for s, (_, _, colour) in zip(series, lines):
             pts = [at(x, y) for x, y in sorted(s)]
             if len(pts) > 1:
