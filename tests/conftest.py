@@ -68,6 +68,24 @@ def spare_ros_domain_id():
 
 
 @pytest.fixture(scope='module')
+def checkpoint(tmp_path_factory) -> Path:
+    """A tiny random-init performer checkpoint (helpers.tiny_checkpoint), made once per test module."""
+    from helpers import tiny_checkpoint
+    return tiny_checkpoint(tmp_path_factory.mktemp('ckpt') / 'tiny.pt')
+
+
+@pytest.fixture
+def restore_torch_globals():
+    """Put torch's global settings (deterministic algorithms, threads) back after a test that changes
+    them; a module opts in with `pytestmark = pytest.mark.usefixtures('restore_torch_globals')`."""
+    import torch
+    deterministic, threads = torch.are_deterministic_algorithms_enabled(), torch.get_num_threads()
+    yield
+    torch.use_deterministic_algorithms(deterministic)
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope='module')
 def env():
     """A 64x64 DialfredEnv shared by a test module; each test resets it to the situation it needs."""
     from dialfred_sim.env import DialfredEnv

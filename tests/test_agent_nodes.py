@@ -27,11 +27,6 @@ from helpers import tiny_checkpoint  # noqa: E402
 RES = 64
 
 
-@pytest.fixture(scope='module')
-def checkpoint(tmp_path_factory) -> Path:
-    return tiny_checkpoint(tmp_path_factory.mktemp('ckpt') / 'tiny.pt')
-
-
 def test_the_node_path_and_the_in_process_path_play_identical_episodes(checkpoint, tmp_path):
     torch.set_num_threads(1)            # as the node (torch_threads=1): the same arithmetic
     common = dict(split='valid_unseen', questioner='confusion', limit=3, workers=1, resolution=RES, seed=5,

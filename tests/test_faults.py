@@ -26,16 +26,10 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from helpers import tiny_checkpoint  # noqa: E402
 
 RES, TASKS = 64, 8
 KEY = ('task_id', 'success', 'steps', 'goal_conditions_met', 'goal_conditions_total', 'questions',
        'invalid_questions', 'failed_actions', 'end_reason', 'error', 'dialogue')
-
-
-@pytest.fixture(scope='module')
-def checkpoint(tmp_path_factory) -> Path:
-    return tiny_checkpoint(tmp_path_factory.mktemp('ckpt') / 'tiny.pt')
 
 
 def command(checkpoint: Path, out: Path, *extra: str) -> list[str]:

@@ -42,12 +42,7 @@ def folder(tmp_path_factory):
     return out
 
 
-@pytest.fixture(autouse=True)
-def restore_torch_globals():
-    deterministic, threads = torch.are_deterministic_algorithms_enabled(), torch.get_num_threads()
-    yield
-    torch.use_deterministic_algorithms(deterministic)
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures('restore_torch_globals')
 
 
 def tiny(folder, out, **changes) -> TrainConfig:

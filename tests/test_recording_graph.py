@@ -20,14 +20,8 @@ sys.path.insert(0, str(REPO))
 
 from dialfred_eval import EvalConfig, run_eval  # noqa: E402
 from dialfred_sim.recording import bag_name, main as replay_main, read_episode  # noqa: E402
-from helpers import tiny_checkpoint  # noqa: E402
 
 RES = 64
-
-
-@pytest.fixture(scope='module')
-def checkpoint(tmp_path_factory) -> Path:
-    return tiny_checkpoint(tmp_path_factory.mktemp('ckpt') / 'tiny.pt')
 
 
 def check_bags_match_results(report, folder: Path) -> None:
