@@ -127,6 +127,7 @@ def test_the_page_shows_the_settings_and_the_summary_with_its_bootstrap_interval
                          ('oracle', 'exact answers'), ('seed', '3'), ('tasks', '8'),
                          ('checkpoint', 'sha256 0123abcd' + 'f' * 56)):
         assert f'<dt>{label}</dt><dd>{value}' in page, label
+    assert '<h1>DialFRED evaluation: et-0123abcd+all on synthetic</h1>' in page
     summary, bounds = summarize(results), intervals(results)
     assert report.summary == summary and report.bounds == bounds
     for key, digits, unit in (('SR', 1, '%'), ('PWSR', 1, '%'), ('GC', 1, '%'), ('NQ', 2, '')):
@@ -277,6 +278,12 @@ def test_without_a_summary_file_the_settings_come_from_the_results(tmp_path):
     assert ('agent', 'et-0123abcd') in report.settings and ('seed', '3') in report.settings
     assert ('checkpoint', 'sha256 0123abcd... (from the agent name)') in report.settings
     assert 'no run.summary.json beside the results' in page.read_text()
+
+
+def test_a_perturbed_oracle_is_named_with_what_it_withholds(tmp_path):
+    path = write_results(tmp_path)
+    path.with_suffix('.summary.json').write_text(json.dumps({**SUMMARY, 'oracle': 'location:0.5'}))
+    assert ('oracle', 'withholds location answers with probability 0.5') in build_report(path)[1].settings
 
 
 def test_a_summary_of_another_run_is_flagged(tmp_path):

@@ -126,18 +126,29 @@ def _one_or_several(values) -> str:
     return values[0] if len(values) == 1 else 'several: ' + ', '.join(values)
 
 
+def agent_name(results: list[EpisodeResult], run: Optional[dict]) -> str:
+    """The name the run's results carry: agent, and its questioner after a '+' (e.g. et-7505bda0+all)."""
+    return (run or {}).get('agent') or _one_or_several(r.agent for r in results)
+
+
+def oracle_text(oracle: str) -> str:
+    """How the oracle answered: '' exactly; 'location:0.5' withholding that type's answers that often."""
+    if not oracle:
+        return 'exact answers'
+    kind, _, probability = oracle.partition(':')
+    return f'withholds {kind} answers with probability {probability}' if probability else oracle
+
+
 def run_settings(results: list[EpisodeResult], run: Optional[dict]) -> tuple[list, list[str]]:
     """(label, value) pairs describing the run, and warnings where the summary and the results disagree."""
     run = run or {}
     agent_names = {r.agent for r in results}
-    agent_name = run.get('agent') or _one_or_several(agent_names)
-    agent, _, questioner = agent_name.partition('+')
-    oracle = run.get('oracle', _one_or_several(r.oracle for r in results))
+    agent, _, questioner = agent_name(results, run).partition('+')
     settings = [('split', run.get('split') or _one_or_several(r.split for r in results)),
                 ('agent', agent + (' (privileged reference: it sees the solution)' if any(r.privileged for r in results)
                                    else '')),
                 ('questioner', questioner or 'none'),
-                ('oracle', f'perturbed: withholds {oracle}' if oracle else 'exact answers'),
+                ('oracle', oracle_text(run.get('oracle', _one_or_several(r.oracle for r in results)))),
                 ('seed', str(run.get('seed', _one_or_several(r.seed for r in results))))]
     checkpoint = run.get('checkpoint')
     if isinstance(checkpoint, dict):
@@ -232,7 +243,9 @@ def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Pat
                     say(f'{bag}: {outcome["note"]}; the episode is shown without a GIF')
                 now = time.monotonic()
                 if k == 1 or k == len(jobs) or now - last >= 2.0:
-                    say(f'GIFs: {k}/{len(jobs)} ({now - start:.1f} s)')
+                    left = (now - start) / k * (len(jobs) - k)
+                    say(f'GIFs: {k}/{len(jobs)} ({now - start:.1f} s' + (f', about {left:.0f} s left)' if k < len(jobs)
+                                                                         else ')'))
                     last = now
         finally:
             if pool:
@@ -275,10 +288,9 @@ def build_report(results_path: Path, bags: Optional[Path] = None, out: Optional[
     else:
         counts = attach_gifs(views, Path(bags), page.parent / f'{page.stem}_media', page.parent, gif_width, embed,
                              workers, say)
-    agent = next(value for label, value in settings if label == 'agent')
     split = next(value for label, value in settings if label == 'split')
     report = Report(
-        title=f'DialFRED evaluation: {agent.split(" (")[0]} on {split}',
+        title=f'DialFRED evaluation: {agent_name(results, run)} on {split}',
         subtitle=f'{len(results)} episodes from {results_path.name}'
                  + (f'; GIFs from the bags in {bags}' if bags is not None else '; no bags given (--bags DIR)'),
         settings=settings + [('results file', str(results_path))], summary=summary,

@@ -182,6 +182,7 @@ background:#eceff2;color:#59636e;border-radius:4px;font-size:13px;padding:6px;bo
 .error{margin:2px 0;color:#8a2b20;font-family:ui-monospace,monospace;font-size:12px}
 .dialogue{margin:4px 0;padding-left:22px}.qtype{font-weight:600}.invalid{color:#8a2b20}
 .no-dialogue{margin:4px 0;color:#59636e}
+@media (max-width:700px){.episode{flex-direction:column}.filters{position:static}}
 """
 
 SCRIPT = """
