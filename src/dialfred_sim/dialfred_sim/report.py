@@ -1,0 +1,339 @@
+"""One static HTML page of an evaluation (no ROS): `./dialfred report RESULTS.jsonl [--bags DIR]`.
+
+From the results file of `launch eval` (and its `.summary.json`, when there is one) it writes a page
+that opens from disk with no server and no network: the run's settings; SR, PWSR, GC and NQ with
+their 95% bootstrap intervals (`metrics.intervals`); SR per task type as bars; and every episode with
+its outcome, steps, dialogue and, when `--bags` holds its bag (`launch eval --record DIR`), a captioned
+GIF rendered from the bag alone (`recording.film` + `film.save_captioned_gif`). The episodes can be
+filtered by task type and outcome.
+
+    ./dialfred report out/eval/valid_unseen_expert.jsonl --bags out/bags
+    # -> out/eval/valid_unseen_expert.html and its GIFs in out/eval/valid_unseen_expert_media/
+
+The GIFs go to a folder beside the page by default, not into it: a full split's 1,363 GIFs would
+make one page of well over 100 MB, which a browser parses slowly, while files load lazily as one
+scrolls. `--embed` puts them into the page as data URIs instead (one file to send; for small runs).
+
+Bad input: a missing, empty or corrupt results file is an error (exit 2, no page written); a cut-off
+last line is skipped with a warning (on stderr and on the page). An episode whose bag is missing or
+cannot be read is shown without a GIF, saying why, and the problem is reported on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import os
+import sys
+import tempfile
+import time
+import urllib.parse
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+from .metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
+from .report_page import OUTCOME_LABELS, render_page
+
+GIF_WIDTH = 256
+
+
+class ReportError(ValueError):
+    """Input the report cannot be made from (no results file, an empty or corrupt one, no bags folder)."""
+
+
+@dataclass
+class EpisodeView:
+    """One episode as the page shows it."""
+
+    result: EpisodeResult
+    instruction: str = ''
+    scene: str = ''
+    gif: str = ''             # the GIF's address, relative to the page, or a data: URI; '' = none
+    media_note: str = ''      # why there is no GIF ('no recording', 'recording unreadable: ...')
+
+
+@dataclass
+class Report:
+    """Everything the page shows (report_page.render_page draws it)."""
+
+    title: str
+    subtitle: str
+    settings: list            # (label, value) pairs
+    summary: dict             # metrics.summarize
+    bounds: dict              # metrics.intervals: metric -> (lo, hi)
+    type_bounds: dict         # task type -> SR's (lo, hi)
+    episodes: list            # EpisodeView, in the results' order
+    resamples: int = 2000
+    seed: int = 0
+    warnings: list = field(default_factory=list)
+
+    @property
+    def type_counts(self) -> dict:
+        return {t: row['n'] for t, row in self.summary['per_type'].items()}
+
+    @property
+    def outcome_counts(self) -> dict:
+        """filter value -> (label, episodes): success, failure, then failure:<reason> for each reason seen."""
+        results = [ep.result for ep in self.episodes]
+        out = {'success': ('success', sum(r.success for r in results)),
+               'failure': ('failure (any)', sum(not r.success for r in results))}
+        for reason in END_REASONS[1:]:
+            n = sum(not r.success and r.end_reason == reason for r in results)
+            if n:
+                out[f'failure:{reason}'] = (f'failure: {OUTCOME_LABELS[reason]}', n)
+        return out
+
+
+# ------------------------------------------------------------------------------------------------ input
+
+def read_results(path: Path) -> tuple[list[EpisodeResult], list[str]]:
+    """The results and any warning about them; ReportError for a missing, empty or corrupt file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ReportError(f'no results file {path} (write one with `./dialfred launch eval ... --out {path}`)')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always', TruncatedResultsWarning)
+        try:
+            results = load_results(path)
+        except ValueError as exc:
+            raise ReportError(str(exc)) from None
+    notes = [str(w.message) for w in caught if issubclass(w.category, TruncatedResultsWarning)]
+    if not results:
+        raise ReportError(f'{path} holds no episode results' + (f' ({notes[0]})' if notes else ''))
+    return results, notes
+
+
+def read_summary(results_path: Path) -> tuple[Optional[dict], list[str]]:
+    """The run's `.summary.json` beside the results (None if there is none) and warnings about it."""
+    path = Path(results_path).with_suffix('.summary.json')
+    if not path.is_file():
+        return None, [f'no {path.name} beside the results: the settings below come from the results alone']
+    try:
+        summary = json.loads(path.read_text())
+        if not isinstance(summary, dict):
+            raise ValueError('not a JSON object')
+    except (ValueError, OSError) as exc:
+        return None, [f'{path} cannot be read ({exc}): the settings below come from the results alone']
+    return summary, []
+
+
+def _one_or_several(values) -> str:
+    values = sorted({str(v) for v in values})
+    return values[0] if len(values) == 1 else 'several: ' + ', '.join(values)
+
+
+def agent_name(results: list[EpisodeResult], run: Optional[dict]) -> str:
+    """The name the run's results carry: agent, and its questioner after a '+' (e.g. et-7505bda0+all)."""
+    return (run or {}).get('agent') or _one_or_several(r.agent for r in results)
+
+
+def oracle_text(oracle: str) -> str:
+    """How the oracle answered: '' exactly; 'location:0.5' withholding that type's answers that often."""
+    if not oracle:
+        return 'exact answers'
+    kind, _, probability = oracle.partition(':')
+    return f'withholds {kind} answers with probability {probability}' if probability else oracle
+
+
+def run_settings(results: list[EpisodeResult], run: Optional[dict]) -> tuple[list, list[str]]:
+    """(label, value) pairs describing the run, and warnings where the summary and the results disagree."""
+    run = run or {}
+    agent_names = {r.agent for r in results}
+    agent, _, questioner = agent_name(results, run).partition('+')
+    settings = [('split', run.get('split') or _one_or_several(r.split for r in results)),
+                ('agent', agent + (' (privileged reference: it sees the solution)' if any(r.privileged for r in results)
+                                   else '')),
+                ('questioner', questioner or 'none'),
+                ('oracle', oracle_text(run.get('oracle', _one_or_several(r.oracle for r in results)))),
+                ('seed', str(run.get('seed', _one_or_several(r.seed for r in results))))]
+    checkpoint = run.get('checkpoint')
+    if isinstance(checkpoint, dict):
+        settings.append(('checkpoint', f'sha256 {checkpoint.get("sha256", "?")} ({checkpoint.get("path", "?")})'))
+    elif agent.startswith('et-'):
+        settings.append(('checkpoint', f'sha256 {agent[3:]}... (from the agent name)'))
+    settings.append(('tasks', str(len(results))))
+    for key, label in (('tasks_file', 'tasks file'), ('resolution', 'resolution'), ('through', 'played'),
+                       ('workers', 'workers'), ('limit', 'limit'), ('shard', 'shard')):
+        value = run.get(key)
+        if value is not None:
+            if key == 'shard':
+                value = f'{value.get("index")}/{value.get("count")}'
+            settings.append((label, str(value)))
+    notes = []
+    if run:
+        if run.get('tasks') is not None and run['tasks'] != len(results):
+            notes.append(f'the summary file counts {run["tasks"]} tasks, the results file holds {len(results)}')
+        if run.get('agent') and agent_names != {run['agent']}:
+            notes.append(f'the summary file names agent {run["agent"]}, the results {", ".join(sorted(agent_names))}')
+    return settings, notes
+
+
+def task_text(task_id: str) -> tuple[str, str]:
+    """(instruction, scene) of a task of a shipped split, ('', '') if it cannot be found there."""
+    try:
+        from .tasks.split_files import get_task
+        task = get_task(task_id)
+    except Exception:  # noqa: BLE001 - a test split or a split not generated here: the page shows less
+        return '', ''
+    return task.instruction, task.scene
+
+
+# ------------------------------------------------------------------------------------------------ GIFs
+
+def render_gif(bag: Path, gif: Path, width: int) -> dict:
+    """Render one bag's captioned GIF (runs in a worker process). Returns {'ok', 'note', 'instruction',
+    'scene', 'frames'}; a bag that cannot be read or has no frames gives ok False and why."""
+    from .film import save_captioned_gif
+    from .recording import BagError, film, read_episode
+    try:
+        ep = read_episode(bag)
+    except BagError as exc:
+        return {'ok': False, 'note': f'recording unreadable: {exc}'}
+    except Exception as exc:  # noqa: BLE001 - a damaged file can fail anywhere in the reader; report it
+        return {'ok': False, 'note': f'recording unreadable: {type(exc).__name__}: {exc}'}
+    info = {'instruction': ep.task.get('instruction', ''), 'scene': ep.task.get('scene', ''), 'frames': len(ep.frames)}
+    if not ep.frames:
+        return {'ok': False, 'note': 'the recording has no camera frames', **info}
+    save_captioned_gif(film(ep), gif, width=width)
+    return {'ok': True, 'note': '', **info}
+
+
+def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Path, width: int, embed: bool,
+                workers: int, say: Callable[[str], None]) -> dict:
+    """Render the GIF of every episode whose bag `bags` holds into `media`, and set each view's gif or
+    media_note. Returns counts {'gifs', 'missing', 'unreadable'}."""
+    from .recording import bag_name
+    todo = []
+    counts = {'gifs': 0, 'missing': 0, 'unreadable': 0}
+    for view in views:
+        bag = bags / bag_name(view.result.task_id)
+        if bag.exists():     # a folder that is no bag is reported as unreadable below
+            todo.append((view, bag))
+        else:
+            view.media_note = 'no recording'
+            counts['missing'] += 1
+    if counts['missing']:
+        say(f'{counts["missing"]} of {len(views)} episodes have no bag in {bags}: shown without a GIF')
+    if not todo:
+        return counts
+    if not embed:
+        media.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix='dialfred-report-') as scratch:
+        target = Path(scratch) if embed else media
+        jobs = [(view, bag, target / f'{bag.name}.gif') for view, bag in todo]
+        start = last = time.monotonic()
+        pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+        try:
+            outcomes = (pool.map(render_gif, [b for _, b, _ in jobs], [g for *_, g in jobs], [width] * len(jobs))
+                        if pool else (render_gif(b, g, width) for _, b, g in jobs))
+            for k, ((view, bag, gif), outcome) in enumerate(zip(jobs, outcomes), start=1):
+                view.instruction = outcome.get('instruction') or view.instruction
+                view.scene = outcome.get('scene') or view.scene
+                if outcome['ok']:
+                    counts['gifs'] += 1
+                    view.gif = (f'data:image/gif;base64,{base64.b64encode(gif.read_bytes()).decode("ascii")}' if embed
+                                else urllib.parse.quote(os.path.relpath(gif, page_dir).replace(os.sep, '/')))
+                else:
+                    counts['unreadable'] += 1
+                    view.media_note = outcome['note']
+                    say(f'{bag}: {outcome["note"]}; the episode is shown without a GIF')
+                now = time.monotonic()
+                if k == 1 or k == len(jobs) or now - last >= 2.0:
+                    left = (now - start) / k * (len(jobs) - k)
+                    say(f'GIFs: {k}/{len(jobs)} ({now - start:.1f} s' + (f', about {left:.0f} s left)' if k < len(jobs)
+                                                                         else ')'))
+                    last = now
+        finally:
+            if pool:
+                pool.shutdown()
+    if counts['gifs'] == 0 and not embed:
+        try:
+            media.rmdir()     # nothing was written there (and it held nothing before)
+        except OSError:
+            pass
+    return counts
+
+
+# ------------------------------------------------------------------------------------------------ report
+
+def build_report(results_path: Path, bags: Optional[Path] = None, out: Optional[Path] = None, embed: bool = False,
+                 gif_width: int = GIF_WIDTH, workers: int = 1, resamples: int = 2000, seed: int = 0,
+                 say: Callable[[str], None] = lambda text: None) -> tuple[Path, Report, dict]:
+    """Write the page of `results_path` (default beside it, `<stem>.html`; GIFs in `<page stem>_media/`).
+    Returns (page path, Report, GIF counts). ReportError (nothing written) for unusable input."""
+    results_path = Path(results_path)
+    page = Path(out) if out else results_path.with_suffix('.html')
+    if bags is not None and not Path(bags).is_dir():
+        raise ReportError(f'--bags {bags} is not a folder (record one with `launch eval ... --record DIR`)')
+    if gif_width < 32:
+        raise ValueError(f'--gif-width must be at least 32, got {gif_width}')
+    results, notes = read_results(results_path)
+    for note in notes:
+        say(f'warning: {note}')
+    run, run_notes = read_summary(results_path)
+    settings, mismatch = run_settings(results, run)
+    summary = summarize(results)
+    by_type: dict = {}
+    for r in results:
+        by_type.setdefault(r.task_type, []).append(r)
+    views = [EpisodeView(r, *task_text(r.task_id)) for r in results]
+    counts = {'gifs': 0, 'missing': len(views) if bags is None else 0, 'unreadable': 0}
+    if bags is None:
+        for view in views:
+            view.media_note = 'no recording'
+    else:
+        counts = attach_gifs(views, Path(bags), page.parent / f'{page.stem}_media', page.parent, gif_width, embed,
+                             workers, say)
+    split = next(value for label, value in settings if label == 'split')
+    report = Report(
+        title=f'DialFRED evaluation: {agent_name(results, run)} on {split}',
+        subtitle=f'{len(results)} episodes from {results_path.name}'
+                 + (f'; GIFs from the bags in {bags}' if bags is not None else '; no bags given (--bags DIR)'),
+        settings=settings + [('results file', str(results_path))], summary=summary,
+        bounds=intervals(results, resamples=resamples, seed=seed),
+        type_bounds={t: intervals(rs, resamples=resamples, seed=seed)['SR'] for t, rs in by_type.items()},
+        episodes=views, resamples=resamples, seed=seed, warnings=notes + run_notes + mismatch)
+    page.parent.mkdir(parents=True, exist_ok=True)
+    staging = page.with_name(f'.{page.name}.{os.getpid()}.part')
+    staging.write_text(render_page(report), encoding='utf-8')
+    staging.replace(page)       # a reader never sees half a page
+    return page, report, counts
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog='dialfred report', description='Write one static HTML page of an evaluation: '
+                                 'its summary with 95%% intervals, SR per task type, and every episode with its '
+                                 'outcome, dialogue and GIF (from its bag), filterable by type and outcome.')
+    ap.add_argument('results', help='a results file of `launch eval` (its .summary.json beside it is read too)')
+    ap.add_argument('--bags', default=None, help='the folder given to `launch eval --record` (GIFs of its bags)')
+    ap.add_argument('--out', default=None, help='the page (default: beside the results, <stem>.html)')
+    ap.add_argument('--embed', action='store_true', help='GIFs inside the page as data URIs (one file), not in '
+                    '<page stem>_media/')
+    ap.add_argument('--gif-width', type=int, default=GIF_WIDTH, help=f'GIF width in pixels (default {GIF_WIDTH})')
+    ap.add_argument('--workers', type=int, default=1, help='processes rendering GIFs (default 1)')
+    ap.add_argument('--resamples', type=int, default=2000, help='bootstrap resamples of the intervals (default 2000)')
+    ap.add_argument('--seed', type=int, default=0, help='seed of the bootstrap (default 0)')
+    args = ap.parse_args(argv)
+
+    def say(text: str) -> None:
+        print(f'[report] {text}', file=sys.stderr, flush=True)
+
+    try:
+        page, report, counts = build_report(Path(args.results), Path(args.bags) if args.bags else None,
+                                            Path(args.out) if args.out else None, args.embed, args.gif_width,
+                                            max(1, args.workers), args.resamples, args.seed, say)
+    except (ReportError, ValueError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    o = report.summary['overall']
+    print(f'{page}: {o["n"]} episodes, SR {o["SR"]:.1f} {report.bounds["SR"][0]:.1f}-{report.bounds["SR"][1]:.1f}, '
+          f'{counts["gifs"]} GIFs, {counts["missing"]} without a bag, {counts["unreadable"]} unreadable bags')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
