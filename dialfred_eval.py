@@ -901,11 +901,25 @@ def eval_config(args) -> EvalConfig:
                       limit=args.limit,
                       perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
                       workers=args.workers,
-                      out=Path(args.out) if args.out else None, seed=args.seed, resolution=args.resolution,
+                      out=Path(args.out) if args.out else None, seed=args.seed,
+                      resolution=args.resolution or default_resolution(args),
                       tasks_file=Path(args.tasks) if args.tasks else None,
                       performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
                       foxglove=args.foxglove, max_restarts=args.max_restarts, shard=getattr(args, 'shard', None),
                       **record_options(args))
+
+
+def default_resolution(args) -> int:
+    """The et performer's training resolution (its checkpoint's: a frame of another size would be
+    resized by area averaging, which is not the rendering it learned from); 128 for other agents. An
+    unreadable checkpoint: 128, and check() says why."""
+    if args.agent != 'et' and args.performer != 'et':
+        return 128
+    from dialfred_performer.model import SHIPPED_CHECKPOINT, CheckpointError, load_checkpoint
+    try:
+        return int(load_checkpoint(Path(args.checkpoint) if args.checkpoint else SHIPPED_CHECKPOINT)[0].config.resolution)
+    except (FileNotFoundError, CheckpointError):
+        return 128
 
 
 def add_record_options(parser) -> None:
@@ -985,7 +999,9 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--out', default=None,
                     help='results file (default out/eval/<split>_<agent>[+<questioner>].jsonl)')
     ev.add_argument('--seed', type=int, default=0)
-    ev.add_argument('--resolution', type=int, default=128)
+    ev.add_argument('--resolution', type=int, default=None,
+                    help='camera pixels (default: for the et performer, the resolution its checkpoint was trained '
+                         'at, 64 for the shipped one; else 128)')
     ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
     ev.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
                     help='watch the workers live in the Foxglove app: a Foxglove WebSocket server on PORT (default '

@@ -468,3 +468,19 @@ def test_the_example_agent_reaches_most_move_goals_by_following_the_oracles_dire
     assert sum(r.success for r in report.results) >= 4          # 151 of 163 on all of valid_unseen
     for r in report.results:
         assert r.questions == r.steps and r.invalid_questions == 0   # it asks before every action
+
+
+def test_the_et_performer_is_evaluated_at_its_training_resolution_unless_told_otherwise(tmp_path):
+    import argparse
+
+    from dialfred_eval import add_eval_parser, eval_config
+    from helpers import tiny_checkpoint
+    checkpoint = tiny_checkpoint(tmp_path / 'r48.pt', resolution=48)
+    parser = argparse.ArgumentParser()
+    add_eval_parser(parser.add_subparsers(dest='command'))
+    config = lambda *a: eval_config(parser.parse_args(['eval', *a]))  # noqa: E731
+    assert config('--agent', 'et').resolution == 64                           # the shipped checkpoint's
+    assert config('--performer', 'et', '--checkpoint', str(checkpoint)).resolution == 48
+    assert config('--agent', 'et', '--resolution', '128').resolution == 128
+    assert config('--agent', 'expert').resolution == 128
+    assert config('--agent', 'et', '--checkpoint', '/nonexistent.pt').resolution == 128   # check() reports it
