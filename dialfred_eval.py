@@ -786,8 +786,9 @@ def check_tasks_record(config: EvalConfig, has_results: bool) -> None:
                                'choose another --out')
     if not has_results:
         if source:
+            from dialfred_sim.metrics import write_text_atomically
             record_path.parent.mkdir(parents=True, exist_ok=True)
-            record_path.write_text(json.dumps(source.describe(), indent=1) + '\n')
+            write_text_atomically(record_path, json.dumps(source.describe(), indent=1) + '\n')
         elif record is not None:
             record_path.unlink()      # left from results that are gone
 
@@ -818,7 +819,7 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     dict to fill with each played task's actions, {task_id: [(name, x, y), ...]} (the performer path
     takes them from the goals' feedback).
     """
-    from dialfred_sim.metrics import append_result, summarize
+    from dialfred_sim.metrics import append_result, summarize, write_text_atomically
     from dialfred_sim.tasks import load_split
 
     config.check()    # an unknown agent or questioner, or a bad setting, fails here before any node starts
@@ -870,7 +871,7 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
                     traces.update(w.traces)
     results = [done[t.task_id] for t in tasks]
     report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts)
-    config.summary_path.write_text(json.dumps(report.to_json(), indent=1) + '\n')
+    write_text_atomically(config.summary_path, json.dumps(report.to_json(), indent=1) + '\n')
     return report
 
 

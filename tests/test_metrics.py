@@ -257,3 +257,23 @@ def test_blank_lines_are_ignored_and_a_line_without_newline_is_not_glued_to(tmp_
     path.write_text('\n' + result('t/1').to_json())    # a complete last line that lacks its newline
     append_result(path, result('t/2'))
     assert [r.task_id for r in load_results(path)] == ['t/1', 't/2']
+
+
+def test_a_file_written_atomically_is_whole_and_leaves_nothing_beside_it(tmp_path, monkeypatch):
+    import os
+
+    from dialfred_sim.metrics import write_text_atomically
+    path = tmp_path / 'summary.json'
+    write_text_atomically(path, 'old\n')
+    real_replace = os.replace
+
+    def power_cut(src, dst):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, 'replace', power_cut)
+    with pytest.raises(KeyboardInterrupt):
+        write_text_atomically(path, 'new\n' * 1000)
+    monkeypatch.setattr(os, 'replace', real_replace)
+    assert path.read_text() == 'old\n' and sorted(p.name for p in tmp_path.iterdir()) == ['summary.json']
+    write_text_atomically(path, 'new\n')
+    assert path.read_text() == 'new\n' and sorted(p.name for p in tmp_path.iterdir()) == ['summary.json']

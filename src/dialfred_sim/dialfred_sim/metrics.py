@@ -241,6 +241,21 @@ class TruncatedResultsWarning(UserWarning):
     """The last line of a results file was cut off (an interrupted write) and was skipped."""
 
 
+def write_text_atomically(path: Union[str, Path], text: str) -> None:
+    """Write a whole file so that a crash leaves the old file or the new one, never half of one: a
+    temporary file beside it, pushed to disk, then renamed over it."""
+    path = Path(path)
+    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+    try:
+        with open(tmp, 'w') as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def append_result(path: Union[str, Path], result: EpisodeResult) -> None:
     """Append one result line and push it to disk (flush + fsync): a crash loses no finished episode."""
     path = Path(path)

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from .metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
-                      summarize)
+                      summarize, write_text_atomically)
 
 SHARD_NAME = re.compile(r'_shard(\d+)of(\d+)$')
 
@@ -303,17 +303,8 @@ def write_merged(merged: Merged, out: Path) -> None:
     """The merged results (one line each, as `metrics.append_result` writes them) and summary, each
     written to a temporary file and renamed into place."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    _write_atomically(out, ''.join(r.to_json() + '\n' for r in merged.results))
-    _write_atomically(summary_path(out), json.dumps(merged.run, indent=1) + '\n')
-
-
-def _write_atomically(path: Path, text: str) -> None:
-    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-    with open(tmp, 'w') as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    write_text_atomically(out, ''.join(r.to_json() + '\n' for r in merged.results))
+    write_text_atomically(summary_path(out), json.dumps(merged.run, indent=1) + '\n')
 
 
 def check_out(out: Path, inputs: Sequence[Path]) -> None:

@@ -179,7 +179,8 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
             'failed_tasks': [done[k]['task_id'] for k in range(len(tasks)) if not done[k]['success']],
             'seconds_this_run': round(time.monotonic() - t0, 1), 'workers': workers,
             'frames_bytes': int(np.prod(shape))}
-    (out / 'meta.json').write_text(json.dumps(meta, indent=1) + '\n')
+    from ..metrics import write_text_atomically
+    write_text_atomically(out / 'meta.json', json.dumps(meta, indent=1) + '\n')   # the build's last word
     return meta
 
 
