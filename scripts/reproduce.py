@@ -81,6 +81,9 @@ RL_RUNS = {
     # Beyond the paper: RL anytime reading the instruction only, as the original questioner did (ablation).
     'rl_anytime_no_dialogue': dict(timing='anytime', gap=5, dialogue=False),
 }
+# The rows of the returns table (both splits where the setting was evaluated there).
+RETURN_ROWS = ('instruction_only', 'all_qas', 'random_qa', 'random_mc', 'pretrained', 'rl_begin', 'rl_anytime',
+               'rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue')
 # Rows beyond the paper's tables: (name, what it shows).
 EXTRA = {
     'pretrained': 'Pre-trained only (no RL; asks at the start)',
@@ -554,7 +557,12 @@ def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
               ({t: 0.0 for t in QUESTION_TYPES} if total == 0 else None))
     asked = [[(qa['type'], qa['noun']) for qa in r.dialogue] for r in results]
     repeats = sum(len(a) - len(set(a)) for a in asked)
+    from dialfred_questioner.rl import Rewards
+    returns = {name: sum(rewards.of_episode(r.success, r.steps, r.questions, r.invalid_questions) for r in results)
+               / len(results) for name, rewards in (('return', Rewards()), ('return_fixed_1', Rewards.fixed_1()))}
     return {'n': len(results), 'tasks': len(tasks), 'repeats': round(repeats / recorded, 3) if recorded else 0.0,
+            'steps': round(sum(r.steps for r in results) / len(results), 2),
+            **{k: round(v, 4) for k, v in returns.items()},
             **{k: round(overall[k], 2 if k != 'NQ' else 3) for k in ('SR', 'PWSR', 'GC', 'NQ')},
             'CI95': {k: [round(lo, 2 if k != 'NQ' else 3), round(hi, 2 if k != 'NQ' else 3)]
                      for k, (lo, hi) in ci.items()},
@@ -661,7 +669,30 @@ def what_holds(rows: dict) -> list[str]:
         rnd = sum(drops['random_qa'].values()) / 3
         lines.append(f'Under a perturbed oracle RL loses less SR than Random (mean drop over the three types '
                      f'{rl:+.1f} vs {rnd:+.1f} points; paper +0.9 vs +2.3): {verdict(rl < rnd)}.')
+    for split in SPLITS:      # beyond the paper: the objective RL maximises, against its start (both ask at the start)
+        rl, start = rows[(split, 'rl_begin')], rows[(split, 'pretrained')]
+        if rl.get('n') and start.get('n') and rl['n'] == start['n']:
+            lo, hi = paired_interval(rl['results'], start['results'])
+            lines.append(f'(Beyond the paper) RL begin raises the return it maximises over its pre-trained start, both '
+                         f'asking at the start, on {split} (return {rl["return"]:+.4f} vs {start["return"]:+.4f}, '
+                         f'difference 95% [{lo:+.4f}, {hi:+.4f}] over the same tasks; SR {rl["SR"]:.1f} vs '
+                         f'{start["SR"]:.1f}, NQ {rl["NQ"]:.2f} vs {start["NQ"]:.2f}): '
+                         + ('**holds**' if lo > 0 else '**not shown** (the interval includes 0)' if hi > 0
+                            else '**does not hold**') + '.')
     return lines
+
+
+def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """95% bootstrap interval of the mean paired difference of the paper's return, a - b (results of the
+    same tasks, in the same order)."""
+    import numpy as np
+
+    from dialfred_questioner.rl import Rewards
+    ret = lambda r: Rewards().of_episode(r.success, r.steps, r.questions, r.invalid_questions)  # noqa: E731
+    d = np.array([ret(x) - ret(y) for x, y in zip(a, b)])
+    rng = np.random.default_rng(seed)
+    means = d[rng.integers(0, len(d), size=(resamples, len(d)))].mean(axis=1)
+    return float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))
 
 
 def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Path:
@@ -811,6 +842,19 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
             out[-1] += ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' |'
         else:
             out[-1] += ' | | |'
+    # what RL optimizes
+    out += ['', '## What RL optimizes: the return under the paper\'s rewards', '',
+            'The mean undiscounted episode return, success +1, each performer step -0.01, each question -0.05, each '
+            'unanswerable question -0.1 more (the Fixed-1 column: -0.002 and -0.01), computed from the same results. '
+            'RL maximises this on valid_seen; SR is only part of it.', '',
+            '| setting | split | n | SR | NQ | steps | return | return (Fixed-1 rewards) |',
+            '|---|---|---|---|---|---|---|---|']
+    for split in SPLITS:
+        for key in RETURN_ROWS:
+            r = rows.get((split, key), {})
+            if r.get('n'):
+                out.append(f'| {setting_name(key)} | {split} | {r["n"]} | {r["SR"]:.1f} | {r["NQ"]:.2f} | '
+                           f'{r["steps"]:.1f} | {r["return"]:+.4f} | {r["return_fixed_1"]:+.4f} |')
     # plot
     out += ['', '## Cost and benefit: SR against NQ', '',
             f'![SR against NQ, every setting on valid_unseen]({plot_name})', '',
@@ -855,18 +899,23 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     return '\n'.join(out) + '\n'
 
 
-def write_outputs(plan: Plan, report: dict) -> tuple[Path, Path]:
-    rows = report['rows']
-    points = []
+def setting_name(key: str) -> str:
+    """A setting's name in the plot and the returns table (the paper's where it has one)."""
     names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
              **{k: v[0] for k, v in PAPER_T4.items()}, 'pretrained': 'Pre-trained only',
              'rl_anytime_no_dialogue': 'RL anytime, instruction only'}
+    return names[key]
+
+
+def write_outputs(plan: Plan, report: dict) -> tuple[Path, Path]:
+    rows = report['rows']
+    points = []
     seen = set()
     for s in settings():
         r = rows[(s.split, s.key)]
         if s.split == 'valid_unseen' and r.get('n') and s.key not in seen:
             seen.add(s.key)
-            points.append((names[s.key], r['SR'], r['NQ']))
+            points.append((setting_name(s.key), r['SR'], r['NQ']))
     plot = draw_frontier(points, plan.run / 'sr_nq.png')
     doc = plan.run / 'results.md'
     doc.write_text(render(plan, report, plot.name))

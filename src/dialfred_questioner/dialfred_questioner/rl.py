@@ -40,6 +40,11 @@ class Rewards:
         """The paper's penalties for asking at every step (Table IV, Fixed 1)."""
         return cls(question=-0.002, invalid=-0.01)
 
+    def of_episode(self, success: bool, steps: int, questions: int, invalid_questions: int) -> float:
+        """An episode's undiscounted return: the sum of its decisions' rewards."""
+        return (self.success * bool(success) + self.step * steps + self.question * questions
+                + self.invalid * invalid_questions)
+
     def of_decision(self, asked: bool, valid: bool, performer_steps: int, success: bool) -> float:
         """The reward of one questioner decision: its question's cost, the performer steps until the
         next decision, and the success bonus if the episode ended in success there."""
