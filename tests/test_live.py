@@ -25,8 +25,8 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from dialfred_sim.live import LiveView, RoomMap, replay_bag  # noqa: E402
-from dialfred_sim.recording import EpisodeRecorder  # noqa: E402
+from dialfred_sim.live import LiveView, RoomMap  # noqa: E402
+from dialfred_sim.recording import EpisodeRecorder, replay_bag  # noqa: E402
 
 TOPICS = {'/w0/camera': 'foxglove.RawImage', '/w0/map': 'foxglove.RawImage', '/w0/pose': 'foxglove.PoseInFrame',
           '/w0/progress': None, '/dialogue': 'foxglove.Log', '/eval/progress': None}

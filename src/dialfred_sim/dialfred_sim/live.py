@@ -183,35 +183,6 @@ class LiveView:
         self.channels[worker]['progress'].log(state)
 
 
-def replay_bag(view: LiveView, path, worker: str = 'w0', speed: float = 1.0) -> None:
-    """Stream a recorded episode bag into the view at `speed` times the simulator's clock (0.1 s a step)."""
-    from dialfred_sim.recording import STEP_NS, read_episode
-    ep = read_episode(path)
-    t = ep.task
-    view.task(worker, t['task_id'], t['scene'], t['instruction'])
-    events = [(time_ns, 0, ('frame', step, rgb)) for time_ns, step, rgb in ep.frames]
-    events += [(q[0] * STEP_NS + 1, 1, ('qa', q)) for q in ep.dialogue]
-    events += [(a[0] * STEP_NS, 2, ('action', a)) for a in ep.actions]
-    poses = {p[0]: p for p in ep.poses}
-    start = time.monotonic()
-    for time_ns, _, event in sorted(events, key=lambda e: (e[0], e[1])):
-        wait = start + time_ns / 1e9 / max(speed, 1e-6) - time.monotonic()
-        if wait > 0:
-            time.sleep(wait)
-        if event[0] == 'frame':
-            p = poses.get(event[1], (event[1], 0.0, 0.0, 0.0, 0.0))
-            view.frame(worker, event[2], (p[1], p[2], p[3], p[4]), 0.9, event[1])
-        elif event[0] == 'qa':
-            q = event[1]
-            view.qa(worker, q[1], q[2], q[4], q[5])
-        else:
-            a = event[1]
-            view.action(worker, a[0], a[1], a[4])
-    if ep.result:
-        r = ep.result
-        view.result(worker, t['task_id'], r['success'], r['end_reason'], r['steps'], r['questions'])
-
-
 def describe(view: LiveView) -> str:
     return (f'Foxglove live view: ws://localhost:{view.port} (Foxglove app -> Open connection -> Foxglove WebSocket); '
             f'topics /w<k>/camera, /w<k>/map, /w<k>/pose, /w<k>/progress, /dialogue, /eval/progress')

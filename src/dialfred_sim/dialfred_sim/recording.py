@@ -32,12 +32,13 @@ from __future__ import annotations
 
 import argparse
 import functools
-import re
 import io
 import math
 import os
+import re
 import shutil
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Sequence
@@ -361,6 +362,35 @@ def film(ep: RecordedEpisode) -> list:
     return out
 
 
+def replay_bag(view, path, worker: str = 'w0', speed: float = 1.0) -> None:
+    """Stream a recorded episode bag into a live view (dialfred_sim.live.LiveView) at `speed` times the
+    simulator's clock (0.1 s a step)."""
+    ep = read_episode(path)
+    t = ep.task
+    view.task(worker, t['task_id'], t['scene'], t['instruction'])
+    events = [(time_ns, 0, ('frame', step, rgb)) for time_ns, step, rgb in ep.frames]
+    events += [(q[0] * STEP_NS + 1, 1, ('qa', q)) for q in ep.dialogue]
+    events += [(a[0] * STEP_NS, 2, ('action', a)) for a in ep.actions]
+    poses = {p[0]: p for p in ep.poses}
+    start = time.monotonic()
+    for time_ns, _, event in sorted(events, key=lambda e: (e[0], e[1])):
+        wait = start + time_ns / 1e9 / max(speed, 1e-6) - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        if event[0] == 'frame':
+            p = poses.get(event[1], (event[1], 0.0, 0.0, 0.0, 0.0))
+            view.frame(worker, event[2], (p[1], p[2], p[3], p[4]), 0.9, event[1])
+        elif event[0] == 'qa':
+            q = event[1]
+            view.qa(worker, q[1], q[2], q[4], q[5])
+        else:
+            a = event[1]
+            view.action(worker, a[0], a[1], a[4])
+    if ep.result:
+        r = ep.result
+        view.result(worker, t['task_id'], r['success'], r['end_reason'], r['steps'], r['questions'])
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog='dialfred replay', description='Print an episode bag\'s dialogue and actions '
                                  'and render it as a captioned GIF and a contact sheet (no simulator).')
@@ -391,7 +421,7 @@ def main(argv=None) -> int:
         save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
         print(f'contact sheet: {sheet}')
     if args.foxglove is not None:
-        from .live import LiveView, describe, replay_bag
+        from .live import LiveView, describe
         view = LiveView(1, port=args.foxglove, total=1)
         print(describe(view), flush=True)
         try:
