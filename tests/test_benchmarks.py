@@ -131,3 +131,22 @@ def test_bench_scaling_rejects_a_bad_budget():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'bench_scaling.py'), '--workers', '0'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and '--workers must be integers >= 1' in proc.stderr
+
+
+def test_training_determinism_compares_fresh_processes_update_by_update(tmp_path):
+    from dialfred_performer.prepare import PrepareConfig, prepare
+    folder = tmp_path / 'valid_unseen_64'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=3, out=str(folder), progress=False))
+    report = run_bench('training_determinism', '--tiny', '--runs', '2', '--updates', '3', '--threads', '1',
+                       '--demonstrations', str(folder), '--env', 'MKL_DYNAMIC=FALSE')
+    assert report['runs'] == 2 and report['env'] == {'MKL_DYNAMIC': 'FALSE'}
+    (other,) = report['against_run_1']
+    assert other['updates'] == 3
+    # one thread, a tiny model, the same seed: the two processes agree bit for bit
+    assert report['identical'] and other['first_different_update'] is None and other['max_relative_difference'] == 0
+
+
+def test_training_determinism_rejects_a_malformed_env():
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'training_determinism.py'), '--env', 'NOEQUALS'],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and 'VAR=VALUE' in proc.stderr
