@@ -37,8 +37,13 @@ The document goes to the run folder, and to docs/results.md only with `--doc doc
 nothing, it checks the pipeline. Caches of the quick run stay in its run folder (DIALFRED_DIALOGUE_DIR
 and explicit paths), so it never replaces the full train data in ~/.cache.
 
-Everything is seeded (`--seed`): two runs with the same seed give the same tables (the run times,
-listed apart from the tables, differ).
+Everything is seeded (`--seed`). Each stage's output is reproducible: the demonstrations, dialogues
+and first frames are byte-identical across runs, and evaluating the same checkpoints gives the same
+episodes. Performer training usually repeats bit for bit, but not always: in session 9, one process
+in two of the same command differed by a rounding in its first updates and trained a different
+model, and the tables moved by up to 4.3 SR points (docs/benchmarks.md; `./dialfred bench
+training_determinism` looks for the cause). The run times, listed apart from the tables, always
+differ.
 """
 
 from __future__ import annotations
