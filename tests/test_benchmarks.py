@@ -138,12 +138,24 @@ def test_training_determinism_compares_fresh_processes_update_by_update(tmp_path
     folder = tmp_path / 'valid_unseen_64'
     prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=3, out=str(folder), progress=False))
     report = run_bench('training_determinism', '--tiny', '--runs', '2', '--updates', '3', '--threads', '1',
-                       '--demonstrations', str(folder), '--env', 'MKL_DYNAMIC=FALSE')
-    assert report['runs'] == 2 and report['env'] == {'MKL_DYNAMIC': 'FALSE'}
+                       '--demonstrations', str(folder), '--env', 'MKL_DYNAMIC=FALSE', '--busy', '1')
+    assert report['runs'] == 2 and report['env'] == {'MKL_DYNAMIC': 'FALSE'} and report['busy'] == 1
     (other,) = report['against_run_1']
-    assert other['updates'] == 3
+    assert other['updates'] == 3 and other['busy_beside'] == 1      # run 2 had a busy process beside it
+    assert report['runs_with_common_stream'] == 2 and len(report['common_stream_sha256']) == 64
     # one thread, a tiny model, the same seed: the two processes agree bit for bit
     assert report['identical'] and other['first_different_update'] is None and other['max_relative_difference'] == 0
+
+
+def test_dialogue_pass_stops_at_the_middle_with_the_same_answers(tmp_path):
+    from dialfred_performer.prepare import PrepareConfig, prepare
+    folder = tmp_path / 'valid_unseen_64'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=3, out=str(folder), progress=False))
+    report = run_bench('dialogue_pass', '--demonstrations', str(folder), '--limit', '3', '--rounds', '1')
+    assert report['tasks'] == 3 and report['steps_per_task'] > 1
+    # the shortened pass gives the whole-episode pass's lines, and the lines prepare wrote
+    assert report['same_lines'] is True and report['same_as_folder_file'] is True
+    assert report['seconds_best']['to_the_middle'] > 0 and report['speedup'] > 0
 
 
 def test_training_determinism_rejects_a_malformed_env():

@@ -178,10 +178,10 @@ def task_dialogue(env, task: dict) -> list[AskedQA]:
     n = len(task['actions'])
     ask_at = sorted({0, n // 2})
     qas = []
-    for step in range(n + 1):
+    for step in range(ask_at[-1] + 1):       # nothing is asked after the middle: no need to play it
         if step in ask_at:
             qas += oracle_qas(env, task['object_nouns'], step)
-        if step < n:
+        if step < ask_at[-1]:
             name, x, y, _ = task['actions'][step]
             env.step({'action': name, 'pixel': (x, y)})
     return qas
