@@ -7,8 +7,8 @@ none) and the largest relative difference. `--env VAR=VALUE` (repeatable) runs t
 that environment (e.g. `MKL_CBWR=COMPATIBLE`, `MKL_DYNAMIC=FALSE`, `OMP_NUM_THREADS=1`), to tell which
 setting removes a difference; `--threads` sets the trainer's torch threads. `--busy N` starts N
 busy-looping processes beside every second run (runs 2, 4, ...), so quiet and loaded processes are
-compared in one invocation (the rounding differences seen in session 9 came from processes that had other
-work beside them).
+compared in one invocation (session 10: load is not what makes a process differ; a quiet one did).
+`common_stream_sha256` names the stream most runs gave, so invocations can be compared.
 
     ./dialfred bench training_determinism [--runs 6] [--updates 60] [--demonstrations DIR] [--env VAR=VALUE]
 
@@ -46,7 +46,7 @@ def run_once(args, out: Path, env: dict) -> tuple[list[float], float]:
     return [r['loss'] for r in rows if r['kind'] == 'train'], time.monotonic() - t0
 
 
-BUSY_LOOP = 'import time\nwhile True:\n    sum(range(10000))\n'
+BUSY_LOOP = 'while True:\n    sum(range(10000))\n'
 
 
 def start_busy(count: int) -> list:
