@@ -4,6 +4,9 @@
     ./dialfred env python3 scripts/annotate_dialogues.py [--splits valid_seen valid_unseen train] [--workers 2]
     ./dialfred env python3 scripts/annotate_dialogues.py --fit          # refit the choice model (valid splits)
     ./dialfred env python3 scripts/annotate_dialogues.py --doc-only     # rewrite the doc from the files present
+    ./dialfred env python3 scripts/annotate_dialogues.py --splits train --from-demonstrations DIR
+                # train's rows from DIR/annotations.jsonl (`python -m dialfred_performer.prepare
+                # --annotations` made them in its oracle pass) instead of resetting every task again
 
 For each task: reset a DialfredEnv to it, take the ground-truth snapshot at its start, and let
 annotators 0 and 1 (`dialfred_oracle.annotator.annotate`, seeds from (split, task number, annotator))
@@ -25,8 +28,8 @@ from typing import Sequence
 
 import numpy as np
 
-from dialfred_oracle.annotator import (
-    CATEGORIES, CHOICE_MODEL, LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, QUESTION_TEMPLATES,
+from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annotator_rng: this script's names too)
+    ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL, LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, QUESTION_TEMPLATES,
     QUESTION_TYPES, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics, evidence,
     expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
 from dialfred_sim.tasks import SPLIT_SIZES
@@ -35,19 +38,11 @@ from dialfred_sim.tasks.splits import SPLIT_CODES
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / 'docs' / 'dialogue_data.md'
 SPLITS = ('valid_seen', 'valid_unseen', 'train')
-ANNOTATORS = (0, 1)
-SEED = 20220226          # the dialogue data's root seed
 CHUNK = 16               # tasks per job sent to a worker
 # Worker processes are replaced after this many chunks (400 tasks): a bound on any memory growth of
 # the simulator across resets (about 1 MB per reset once, which killed a 2-worker train run).
 CHUNKS_PER_WORKER = 25
 EXAMPLES_SPLIT, EXAMPLE_COUNT = 'valid_unseen', 8
-
-
-def annotator_rng(task_id: str, annotator_id: int) -> np.random.Generator:
-    """The generator of one annotator on one task: independent streams from (split, number, annotator)."""
-    split, number = task_id.split('/')
-    return np.random.default_rng(np.random.SeedSequence([SEED, SPLIT_CODES[split], int(number), annotator_id]))
 
 
 # ---------------------------------------------------------------------- workers (one env each)
@@ -69,24 +64,13 @@ def _situation_and_snapshot(task):
     return Situation.of(task, snap), snap
 
 
-def _oracle(snap, question_type: str, noun: str):
-    """The oracle, with the asked object's look rendered only when an appearance question needs it."""
-    from dialfred_oracle.answers import answer
-    from dialfred_sim.ground_truth import snapshot
-    if question_type == 'appearance' and noun in snap.task_objects:
-        snap = snapshot(_ENV, [snap.task_objects[noun]])
-    return answer(snap, question_type, noun)
-
-
 def _annotate_chunk(bounds: tuple[int, int]) -> list[dict]:
     from dialfred_sim.tasks import load_split
     tasks = load_split(_SPLIT)[bounds[0]:bounds[1]]
     rows = []
     for task in tasks:
-        situation, snap = _situation_and_snapshot(task)
-        annotations = tuple(annotate(task, snap, annotator_rng(task.task_id, k), k, situation=situation,
-                                     answer_fn=_oracle) for k in ANNOTATORS)
-        rows.append(TaskDialogues(task.task_id, task.task_type, task.instruction, situation, annotations).to_json())
+        _ENV.reset(options={'task': task})
+        rows.append(annotate_task(_ENV, task).to_json())
     return rows
 
 
@@ -138,6 +122,26 @@ def available_splits(splits: Sequence[str]) -> tuple[list[str], list[str]]:
             absent.append(split)
             print(f'skipping {split}: its tasks are not generated on this machine ({exc})', file=sys.stderr)
     return present, absent
+
+
+def rows_from_demonstrations(folder: Path, split: str, limit: int = 0):
+    """The rows `prepare --annotations` wrote to folder/annotations.jsonl, if they are exactly the first
+    `limit` (0: all) tasks of `split` in order; else None, with the reason on stderr (then the caller
+    annotates in the simulator)."""
+    from dialfred_sim.tasks import load_split
+    path = folder / 'annotations.jsonl'
+    want = [t.task_id for t in load_split(split)[:limit or None]]
+    try:
+        rows = [TaskDialogues.from_json(json.loads(line)) for line in path.read_text().splitlines()]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        print(f'{path}: not usable ({exc}); annotating {split} in the simulator', file=sys.stderr)
+        return None
+    if [r.task_id for r in rows] != want:
+        print(f'{path}: holds {len(rows)} rows, not the {len(want)} tasks asked for; annotating {split} '
+              'in the simulator', file=sys.stderr)
+        return None
+    print(f'{split}: {len(rows)} rows from {path}', file=sys.stderr)
+    return rows
 
 
 # ---------------------------------------------------------------------- the data card
@@ -330,6 +334,9 @@ def main(argv=None) -> int:
     ap.add_argument('--limit', type=int, default=0,
                     help='only the first N tasks of each split (0: all); set DIALFRED_DIALOGUE_DIR and --doc '
                          'so that a slice does not replace the full files')
+    ap.add_argument('--from-demonstrations', default='', metavar='DIR',
+                    help="train's rows from DIR/annotations.jsonl (prepare --annotations) when it holds "
+                         'exactly the tasks asked for')
     args = ap.parse_args(argv)
     if args.fit:
         situations = [s for split in ('valid_seen', 'valid_unseen') for s in valid_situations(split, args.workers)]
@@ -347,7 +354,10 @@ def main(argv=None) -> int:
         present, _ = available_splits(args.splits)
         for split in present:
             t0 = time.monotonic()
-            rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
+            rows = rows_from_demonstrations(Path(args.from_demonstrations), split, args.limit) \
+                if args.from_demonstrations and split == 'train' else None
+            if rows is None:
+                rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
             path = dialogue_path(split)
             write_dialogues(path, rows)
             timings[split] = round(time.monotonic() - t0, 1)

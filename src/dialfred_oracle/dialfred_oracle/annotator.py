@@ -520,6 +520,37 @@ class TaskDialogues:
                    tuple(Annotation.from_json(a) for a in d['annotations']))
 
 
+ANNOTATION_SEED = 20220226     # the dialogue data's root seed
+ANNOTATORS = (0, 1)            # two annotators per task, as in the paper
+
+
+def annotator_rng(task_id: str, annotator_id: int) -> np.random.Generator:
+    """The generator of one annotator on one task: independent streams from (split, number, annotator)."""
+    from dialfred_sim.tasks.splits import SPLIT_CODES
+    split, number = task_id.split('/')
+    return np.random.default_rng(np.random.SeedSequence([ANNOTATION_SEED, SPLIT_CODES[split], int(number),
+                                                         annotator_id]))
+
+
+def annotate_task(env, task) -> TaskDialogues:
+    """Both annotators on `task` (a dialfred_sim Task), with `env` (a DialfredEnv) reset to it and
+    still at its start. The same row whatever ran before (its randomness comes from the task id);
+    changes nothing in the world (the oracle renders the asked object's look only for an appearance
+    question)."""
+    from dialfred_sim.ground_truth import snapshot
+    snap = snapshot(env)
+    situation = Situation.of(task, snap)
+
+    def oracle(s, question_type: str, noun: str) -> Answer:
+        if question_type == 'appearance' and noun in s.task_objects:
+            s = snapshot(env, [s.task_objects[noun]])
+        return oracle_answer(s, question_type, noun)
+
+    annotations = tuple(annotate(task, snap, annotator_rng(task.task_id, k), k, situation=situation,
+                                 answer_fn=oracle) for k in ANNOTATORS)
+    return TaskDialogues(task.task_id, task.task_type, task.instruction, situation, annotations)
+
+
 DIALOGUE_CACHE_ENV = 'DIALFRED_DIALOGUE_DIR'     # where generated dialogue files (train) are kept
 SHIPPED_SPLITS = ('valid_seen', 'valid_unseen')
 

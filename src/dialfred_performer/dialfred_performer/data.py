@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 import json
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 import torch
@@ -171,10 +171,13 @@ def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, ou
     return out
 
 
-def task_dialogue(env, task: dict) -> list[AskedQA]:
+def task_dialogue(env, task: dict, at_start: Optional[Callable] = None) -> list[AskedQA]:
     """The oracle's QAs for one task record of tasks.jsonl: `env` (a DialfredEnv at the
-    demonstrations' resolution) replays the recorded actions, asked at step 0 and step n // 2."""
+    demonstrations' resolution) replays the recorded actions, asked at step 0 and step n // 2.
+    `at_start(env)`, if given, is called right after the reset (e.g. to annotate the task there)."""
     env.reset(options={'task_id': task['task_id']})
+    if at_start is not None:
+        at_start(env)
     n = len(task['actions'])
     ask_at = sorted({0, n // 2})
     qas = []
