@@ -32,6 +32,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+
 TINY = ['--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '64', '--batch-size', '4', '--warmup-updates', '5']
 
 
@@ -108,7 +110,7 @@ def main() -> None:
     counts = {h: streams.count(h) for h in streams}
     common = max(counts, key=counts.get)
     print(json.dumps({
-        'benchmark': 'training_determinism', 'runs': args.runs, 'updates': args.updates, 'seed': args.seed,
+        'benchmark': 'training_determinism', 'cpu': cpu_model(), 'runs': args.runs, 'updates': args.updates, 'seed': args.seed,
         'threads': args.threads, 'tiny': args.tiny, 'env': extra, 'busy': args.busy, 'demonstrations': args.demonstrations,
         'identical': distinct == 1, 'distinct_loss_streams': distinct,
         'common_stream_sha256': hashlib.sha256(common.encode()).hexdigest(), 'runs_with_common_stream': counts[common], 'against_run_1': per_run,
