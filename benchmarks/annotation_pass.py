@@ -1,12 +1,16 @@
-"""The synthetic annotators' train rows made inside prepare's oracle pass vs in a pass of their own. Prints JSON.
+"""Could the synthetic annotators' train rows be made inside prepare's oracle pass? Prints JSON.
 
-Until session 11, `./dialfred reproduce` reset every train task twice after rendering: once in prepare's
-oracle-answers pass (`data.task_dialogue`) and once more in `scripts/annotate_dialogues.py` (its own
-DialfredEnv at the simulator's default resolution, reset, snapshot, two annotators). Now prepare's pass
-annotates each task right after its reset (`prepare --annotations`). This times both ways on the first
-`--limit` tasks of a demonstrations folder, in one process, and checks that they give the same
-dialogue lines and the same annotator rows (the script's own function, `_annotate_chunk`, is the
-reference).
+`./dialfred reproduce` resets every train task twice after rendering: once in prepare's oracle-answers
+pass (`data.task_dialogue`, at the demonstrations' resolution, 64) and once more in
+`scripts/annotate_dialogues.py` (the simulator's default resolution, 300). Annotating each task right
+after the pass's reset (`task_dialogue(..., at_start=...)`) would save the second reset. This times
+both ways on the first `--limit` tasks of a demonstrations folder, in one process, and compares what
+they give with the script's own function (`_annotate_chunk`) as the reference.
+
+Measured in session 11 (first 200 train tasks): 1.45x faster, the same dialogue lines, but 1 of the 200
+annotator rows differed (its situation the same: an appearance answer, whose colour is sampled from the
+agent's frame at the env's resolution). So the rows depend on the resolution, the merge would change
+the train dialogue data, and it is not used: reproduce still runs the script's own pass.
 
     ./dialfred bench annotation_pass [--limit 200] [--demonstrations DIR] [--rounds 2]
 """
@@ -23,7 +27,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+from dialfred_sim.machine import cpu_model  # noqa: E402
 
 
 def load_script():
@@ -82,6 +86,8 @@ def main() -> None:
         'speedup': round(best['separate_passes'] / best['one_pass'], 3),
         'same_dialogue_lines': results['separate_passes'][0] == results['one_pass'][0],
         'same_annotator_rows': results['separate_passes'][1] == results['one_pass'][1],
+        'annotator_rows_differing': sum(a != b for a, b in zip(*(results[k][1] for k in ways))),
+        'situations_differing': sum(a['situation'] != b['situation'] for a, b in zip(*(results[k][1] for k in ways))),
     }, indent=1))
 
 

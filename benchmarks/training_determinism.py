@@ -32,7 +32,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+from dialfred_sim.machine import cpu_model  # noqa: E402
 
 TINY = ['--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '64', '--batch-size', '4', '--warmup-updates', '5']
 

@@ -4,9 +4,6 @@
     ./dialfred env python3 scripts/annotate_dialogues.py [--splits valid_seen valid_unseen train] [--workers 2]
     ./dialfred env python3 scripts/annotate_dialogues.py --fit          # refit the choice model (valid splits)
     ./dialfred env python3 scripts/annotate_dialogues.py --doc-only     # rewrite the doc from the files present
-    ./dialfred env python3 scripts/annotate_dialogues.py --splits train --from-demonstrations DIR
-                # train's rows from DIR/annotations.jsonl (`python -m dialfred_performer.prepare
-                # --annotations` made them in its oracle pass) instead of resetting every task again
 
 For each task: reset a DialfredEnv to it, take the ground-truth snapshot at its start, and let
 annotators 0 and 1 (`dialfred_oracle.annotator.annotate`, seeds from (split, task number, annotator))
@@ -122,26 +119,6 @@ def available_splits(splits: Sequence[str]) -> tuple[list[str], list[str]]:
             absent.append(split)
             print(f'skipping {split}: its tasks are not generated on this machine ({exc})', file=sys.stderr)
     return present, absent
-
-
-def rows_from_demonstrations(folder: Path, split: str, limit: int = 0):
-    """The rows `prepare --annotations` wrote to folder/annotations.jsonl, if they are exactly the first
-    `limit` (0: all) tasks of `split` in order; else None, with the reason on stderr (then the caller
-    annotates in the simulator)."""
-    from dialfred_sim.tasks import load_split
-    path = folder / 'annotations.jsonl'
-    want = [t.task_id for t in load_split(split)[:limit or None]]
-    try:
-        rows = [TaskDialogues.from_json(json.loads(line)) for line in path.read_text().splitlines()]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        print(f'{path}: not usable ({exc}); annotating {split} in the simulator', file=sys.stderr)
-        return None
-    if [r.task_id for r in rows] != want:
-        print(f'{path}: holds {len(rows)} rows, not the {len(want)} tasks asked for; annotating {split} '
-              'in the simulator', file=sys.stderr)
-        return None
-    print(f'{split}: {len(rows)} rows from {path}', file=sys.stderr)
-    return rows
 
 
 # ---------------------------------------------------------------------- the data card
@@ -334,9 +311,6 @@ def main(argv=None) -> int:
     ap.add_argument('--limit', type=int, default=0,
                     help='only the first N tasks of each split (0: all); set DIALFRED_DIALOGUE_DIR and --doc '
                          'so that a slice does not replace the full files')
-    ap.add_argument('--from-demonstrations', default='', metavar='DIR',
-                    help="train's rows from DIR/annotations.jsonl (prepare --annotations) when it holds "
-                         'exactly the tasks asked for')
     args = ap.parse_args(argv)
     if args.fit:
         situations = [s for split in ('valid_seen', 'valid_unseen') for s in valid_situations(split, args.workers)]
@@ -354,10 +328,7 @@ def main(argv=None) -> int:
         present, _ = available_splits(args.splits)
         for split in present:
             t0 = time.monotonic()
-            rows = rows_from_demonstrations(Path(args.from_demonstrations), split, args.limit) \
-                if args.from_demonstrations and split == 'train' else None
-            if rows is None:
-                rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
+            rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
             path = dialogue_path(split)
             write_dialogues(path, rows)
             timings[split] = round(time.monotonic() - t0, 1)

@@ -140,29 +140,6 @@ def test_prepared_dialogues_are_those_of_generate_dialogues_whatever_the_shardin
     assert not list(tmp_path.glob('dialogues-*.part'))
 
 
-def test_annotations_made_in_the_oracle_pass_are_the_annotators_rows_and_leave_the_dialogues_alone(folder, tmp_path):
-    import importlib.util
-    from dialfred_oracle.annotator import load_dialogues
-    from dialfred_performer.prepare import ANNOTATIONS_FILE
-    spec = importlib.util.spec_from_file_location('annotate_dialogues', Path(__file__).resolve().parents[1]
-                                                  / 'scripts' / 'annotate_dialogues.py')
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
-    reference = (folder / DIALOGUES_FILE).read_bytes()
-    for name in ('meta.json', 'tasks.jsonl', 'frames.npy'):
-        (tmp_path / name).write_bytes((folder / name).read_bytes())
-    # a part line of an earlier pass without the annotators' row is done again, not taken
-    _part_path(tmp_path, 0).write_text(reference.decode().splitlines()[0] + '\n')
-    assert write_dialogues(tmp_path, workers=1, progress=False, annotations=True).read_bytes() == reference
-    rows = [json.loads(line) for line in (tmp_path / ANNOTATIONS_FILE).read_text().splitlines()]
-    shipped = load_dialogues('valid_unseen')[:4]       # made by the script, in its own simulator pass
-    assert rows == [r.to_json() for r in shipped]
-    assert script.rows_from_demonstrations(tmp_path, 'valid_unseen', 4) == shipped
-    assert script.rows_from_demonstrations(tmp_path, 'valid_unseen', 3) is None      # not the tasks asked for
-    assert script.rows_from_demonstrations(tmp_path / 'absent', 'valid_unseen', 4) is None
-    assert not list(tmp_path.glob('dialogues-*.part'))
-
-
 def test_the_vocabulary_knows_every_word_the_oracle_says(folder):
     vocab = Vocabulary.load(folder / VOCABULARY_FILE)
     for sentence in ("I don't know.", 'You should turn around.', 'The apple is to your rear left in the fridge.',

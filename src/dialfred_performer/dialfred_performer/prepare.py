@@ -8,12 +8,6 @@
    and append a line per task to `dialogues-<worker>.part` as it is produced, so an interrupted run
    resumes where it stopped; the parts are merged in task order at the end (same bytes with any
    number of workers);
-   With `--annotations`, the same pass also lets the synthetic annotators question each task at its
-   start (`dialfred_oracle.annotator.annotate_task`, the env being reset there anyway) and writes
-   their rows, in task order, to `annotations.jsonl` (what `scripts/annotate_dialogues.py
-   --from-demonstrations` turns into the train dialogue file without resetting every task again).
-   They are annotated at the demonstrations' resolution, the script at the simulator's default;
-   the rows were the same on every task compared (`tests/test_performer_train.py`);
 3. `vocabulary.json`: every token of the instructions, nouns and QAs of the folder, plus every word
    the oracle can say (templates, object nouns, colours, materials), so that no answer heard at
    evaluation is <unk>.
@@ -33,7 +27,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.metrics import write_text_atomically
 from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations
 from dialfred_sim.tasks.splits import SPLIT_SIZES
 
@@ -42,8 +35,6 @@ from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
 from .preprocess import Vocabulary
 
 VOCABULARY_FILE = 'vocabulary.json'
-ANNOTATIONS_FILE = 'annotations.jsonl'   # the synthetic annotators' rows (with --annotations)
-ANNOTATORS_KEY = 'annotators'            # their row in a part line (not in dialogues.jsonl)
 SYNC_EVERY = 10          # tasks between fsyncs of a worker's part file
 
 
@@ -57,8 +48,6 @@ class PrepareConfig:
     limit: int = arg(0, 'only the first N tasks of the split (0: all); use with --out')
     out: str = arg('', 'the demonstrations folder (default: ~/.cache/dialfred/demonstrations/<split>_<resolution>)')
     progress: bool = arg(True, 'progress bars on stderr')
-    annotations: bool = arg(False, "also the synthetic annotators' rows of every task (annotations.jsonl), "
-                                   'made in the oracle pass at each task\'s start')
 
     def __post_init__(self):
         if self.split not in SPLIT_SIZES:
@@ -99,32 +88,24 @@ def _part_path(folder: Path, shard: int) -> Path:
     return folder / f'dialogues-{shard}.part'
 
 
-def _finished_lines(folder: Path, annotations: bool = False) -> dict[str, str]:
-    """{task_id: line} of every part file; a line an interruption cut off is skipped, and so is a
-    line without the annotators' row when `annotations` asks for them."""
+def _finished_lines(folder: Path) -> dict[str, str]:
+    """{task_id: line} of every part file; a line an interruption cut off is skipped."""
     done = {}
     for path in sorted(folder.glob('dialogues-*.part')):
         for line in path.read_text().splitlines():
             try:
-                row = json.loads(line)
-                if not annotations or ANNOTATORS_KEY in row:
-                    done[row['task_id']] = line + '\n'
+                done[json.loads(line)['task_id']] = line + '\n'
             except (ValueError, KeyError, TypeError):
                 continue
     return done
 
 
-def _dialogue_worker(folder: str, shard: int, shards: int, annotations: bool = False) -> None:
+def _dialogue_worker(folder: str, shard: int, shards: int) -> None:
     from dialfred_sim.env import DialfredEnv
     folder = Path(folder)
     demo = load_demonstrations(folder)
-    done = _finished_lines(folder, annotations)
+    done = _finished_lines(folder)
     env = DialfredEnv(resolution=demo.meta['resolution'])
-    split_tasks = {}
-    if annotations:
-        from dialfred_oracle.annotator import annotate_task
-        from dialfred_sim.tasks import load_split
-        split_tasks = {t.task_id: t for t in load_split(demo.meta['split'])[:len(demo.tasks)]}
     path = _part_path(folder, shard)
     cut_off = path.exists() and path.stat().st_size > 0 and not path.read_bytes().endswith(b'\n')
     with open(path, 'a') as part:
@@ -133,37 +114,24 @@ def _dialogue_worker(folder: str, shard: int, shards: int, annotations: bool = F
         for n, task in enumerate(demo.tasks[shard::shards]):
             if task['task_id'] in done:
                 continue
-            row = {}
-            at_start = None
-            if annotations:
-                def at_start(e, task_id=task['task_id']):
-                    row[ANNOTATORS_KEY] = annotate_task(e, split_tasks[task_id]).to_json()
-            line = dialogue_line(task, task_dialogue(env, task, at_start))
-            if annotations:
-                line = json.dumps({**json.loads(line), **row}, separators=(',', ':')) + '\n'
-            part.write(line)
+            part.write(dialogue_line(task, task_dialogue(env, task)))
             part.flush()
             if n % SYNC_EVERY == 0:
                 os.fsync(part.fileno())
     env.close()
 
 
-def _complete(path: Path, total: int) -> bool:
-    return path.exists() and sum(1 for _ in path.open()) == total
-
-
-def write_dialogues(folder: Path, workers: int = 1, progress: bool = True, annotations: bool = False) -> Path:
-    """dialogues.jsonl (and with `annotations`, annotations.jsonl) for every task of the
-    demonstrations `folder` (resumable; see the module doc)."""
+def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Path:
+    """dialogues.jsonl for every task of the demonstrations `folder` (resumable; see the module doc)."""
     from tqdm import tqdm
     folder = Path(folder)
     demo = load_demonstrations(folder)
     out = folder / DIALOGUES_FILE
     total = len(demo.tasks)
-    if _complete(out, total) and (not annotations or _complete(folder / ANNOTATIONS_FILE, total)):
+    if out.exists() and sum(1 for _ in out.open()) == total:
         return out
     workers = max(1, min(workers, total))
-    args = [(str(folder), k, workers, annotations) for k in range(workers)]
+    args = [(str(folder), k, workers) for k in range(workers)]
 
     def count() -> int:
         return sum(p.read_bytes().count(b'\n') for p in folder.glob('dialogues-*.part'))
@@ -182,17 +150,13 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True, annot
                 result.get()               # re-raises a worker's exception
         bar.n = min(count(), total)
         bar.refresh()
-    done = _finished_lines(folder, annotations)
+    done = _finished_lines(folder)
     missing = [t['task_id'] for t in demo.tasks if t['task_id'] not in done]
     if missing:
         raise RuntimeError(f'{len(missing)} tasks have no dialogue (first: {missing[0]})')
-    rows = [json.loads(done[t['task_id']]) for t in demo.tasks]
-    if annotations:        # first: dialogues.jsonl is the pass's last word (a complete one is skipped)
-        write_text_atomically(folder / ANNOTATIONS_FILE, ''.join(
-            json.dumps(r.pop(ANNOTATORS_KEY), separators=(',', ':')) + '\n' for r in rows))
-    # the line dialogue_line wrote (the same bytes: the keys and values it dumped, in its order)
-    write_text_atomically(out, ''.join(json.dumps({'task_id': r['task_id'], 'qas': r['qas']}) + '\n'
-                                       for r in rows))
+    tmp = out.with_name(out.name + '.tmp')
+    tmp.write_text(''.join(done[t['task_id']] for t in demo.tasks))
+    tmp.replace(out)
     for p in folder.glob('dialogues-*.part'):
         p.unlink()
     return out
@@ -214,7 +178,7 @@ def prepare(config: PrepareConfig) -> dict:
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
                                 limit=config.limit or None, progress=config.progress)
     c1 = _clock()
-    write_dialogues(folder, config.workers, config.progress, config.annotations)
+    write_dialogues(folder, config.workers, config.progress)
     c2 = _clock()
     vocab = build_vocabulary(folder)
     vocab.save(folder / VOCABULARY_FILE)
