@@ -167,3 +167,9 @@ def test_training_determinism_rejects_a_malformed_env():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'training_determinism.py'), '--env', 'NOEQUALS'],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and 'VAR=VALUE' in proc.stderr
+
+
+def test_free_spots_times_both_ways_and_finds_the_same_poses():
+    report = run_bench('free_spots', '--tasks', '4', '--rounds', '1')
+    assert report['tasks'] == 4 and report['same_poses'] is True
+    assert set(report['ms_per_reset_best_round']) == {'loop', 'numpy'}
