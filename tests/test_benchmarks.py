@@ -173,3 +173,15 @@ def test_free_spots_times_both_ways_and_finds_the_same_poses():
     report = run_bench('free_spots', '--tasks', '4', '--rounds', '1')
     assert report['tasks'] == 4 and report['same_poses'] is True
     assert set(report['ms_per_reset_best_round']) == {'loop', 'numpy'}
+
+
+def test_closeup_cache_times_both_passes_and_finds_the_same_output(tmp_path):
+    demo = tmp_path / 'demo'
+    subprocess.run([sys.executable, '-m', 'dialfred_performer.prepare', '--split', 'train', '--resolution', '64',
+                    '--limit', '4', '--out', str(demo), '--workers', '1', '--no-progress'],
+                   cwd=REPO, check=True, capture_output=True, timeout=240)
+    report = run_bench('closeup_cache', '--demonstrations', str(demo), '--limit', '4', '--rounds', '1')
+    for name in ('oracle_pass', 'annotators_pass'):
+        assert report[name]['same_output'] is True
+        searches = report[name]['closeup_searches']
+        assert searches['cache'] <= searches['no_cache']

@@ -228,3 +228,56 @@ def test_every_receptacle_type_uses_dialfreds_preposition():
     for name, t in load_catalog().items():
         if t.receptacle:
             assert t.preposition == ('in' if name.lower() in PUT_IN_LIST else 'on'), name
+
+
+def _counting_closeups(monkeypatch):
+    import dialfred_sim.ground_truth as gt
+    calls = []
+    search = gt._search_closeup
+    monkeypatch.setattr(gt, '_search_closeup', lambda w, o, m: calls.append(o.object_id) or search(w, o, m))
+    return calls
+
+
+def test_a_close_up_is_rendered_once_per_world_state(env, monkeypatch):
+    calls = _counting_closeups(monkeypatch)
+    reset(env, 'FloorPlan1', seed=0)
+    fridge = first_of(env, 'Fridge')
+    tomato = spawn_on(env, 'Tomato', fridge.object_id, colour='red')
+    first = appearance(env, tomato.object_id)
+    first.pixels[:] = 0                                   # the caller's copy, not the cache's
+    again = appearance(env, tomato.object_id)
+    assert calls == [tomato.object_id] and len(again.pixels) >= 20 and again.pixels.any()
+    env.world.set_open(fridge, True)                      # a joint moved: rendered again
+    appearance(env, tomato.object_id)
+    assert calls == [tomato.object_id] * 2
+    env.world.set_open(fridge, False)                     # back to the first state: remembered
+    assert np.array_equal(appearance(env, tomato.object_id).pixels, again.pixels)
+    assert len(calls) == 2
+    spawn_on(env, 'Apple', first_of(env, 'CounterTop').object_id)    # a body made: the cache is dropped
+    assert np.array_equal(appearance(env, tomato.object_id).pixels, again.pixels) and len(calls) == 3
+
+
+def test_cached_close_ups_equal_fresh_renders_along_expert_episodes(make_env, valid_unseen, monkeypatch):
+    """The oracle's appearances at the start and halfway through the expert's episode, cache on vs off."""
+    import dialfred_sim.ground_truth as gt
+    env = make_env(resolution=valid_unseen[0].resolution)
+    _counting_closeups(monkeypatch)
+    fresh = lambda w, o, m=gt.MIN_APPEARANCE_PIXELS: gt._search_closeup(w, o, m)  # noqa: E731
+    compared = 0
+    for task in valid_unseen[:8]:
+        env.reset(options={'task': task})
+        plan = task.expert_actions
+        for step in range(len(plan) // 2 + 1):
+            if step in (0, len(plan) // 2):
+                ids = task_object_ids(env)
+                cached = snapshot(env, ids).appearances
+                monkeypatch.setattr(gt, 'closeup_pixels', fresh)
+                uncached = snapshot(env, ids).appearances
+                monkeypatch.undo()
+                for oid in ids:
+                    assert np.array_equal(cached[oid].pixels, uncached[oid].pixels), (task.task_id, step, oid)
+                    compared += not cached[oid].from_current_view
+            if step < len(plan) // 2:
+                a = plan[step]
+                env.step({'action': a.action, 'pixel': (a.x, a.y)})
+    assert compared >= 8

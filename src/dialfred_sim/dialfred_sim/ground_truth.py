@@ -358,10 +358,31 @@ def _render_closeup(world: World, eye, target, near: float) -> tuple[np.ndarray,
     return rgb, np.asarray(seg, dtype=np.int64).reshape(n, n)
 
 
+def render_state(world: World) -> tuple:
+    """What a render of `world` depends on besides the camera: every body's pose and joint positions
+    (no body's colours change after it is made; a body made or removed empties the close-up cache)."""
+    c = world.client
+    out = []
+    for body in sorted(world.body_to_object):
+        pos, orn = c.getBasePositionAndOrientation(body)
+        joints = c.getNumJoints(body)
+        out.append((body, pos, orn, tuple(s[0] for s in c.getJointStates(body, range(joints))) if joints else ()))
+    return tuple(out)
+
+
 def closeup_pixels(world: World, obj: WorldObject, min_pixels: int = MIN_APPEARANCE_PIXELS) -> Optional[np.ndarray]:
     """Samples of `obj`'s body (see `appearance`) from the first close-up camera around it that
     shows >= `min_pixels` of it (None if none does). Objects shut inside a container are tried from
-    very close first."""
+    very close first. Remembered per world state (`render_state`): asking again while nothing has
+    moved (the oracle at step 0 and mid-episode, several annotators) renders nothing."""
+    key = (obj.object_id, min_pixels, render_state(world))
+    if key not in world.closeup_cache:
+        world.closeup_cache[key] = _search_closeup(world, obj, min_pixels)
+    found = world.closeup_cache[key]
+    return None if found is None else found.copy()
+
+
+def _search_closeup(world: World, obj: WorldObject, min_pixels: int) -> Optional[np.ndarray]:
     x, y, z = obj.position
     centre = (x, y, z + obj.spec.size[2] / 2)
     extent = max(obj.spec.size)

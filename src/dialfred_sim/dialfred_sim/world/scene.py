@@ -133,6 +133,14 @@ class World:
         self._fixture_bodies: dict[str, int] = {}      # the current room's furniture, kept for its next episode
         self._carry_cache: dict[tuple, tuple] = {}     # carry_spot per (size, pose), for this room
         self._outline_cache: dict[tuple, list] = {}    # open_part_outlines per (object, pose, fraction)
+        # ground_truth.closeup_pixels per (object, what every body's pose and joints are); emptied
+        # whenever a body is made or removed (see bodies_changed)
+        self.closeup_cache: dict[tuple, object] = {}
+
+    def bodies_changed(self) -> None:
+        """A body was made or removed: renders made before may not repeat bit for bit (pybullet's
+        draw order), so cached close-ups are dropped."""
+        self.closeup_cache = {}
 
     # ------------------------------------------------------------------ building
 
@@ -146,6 +154,7 @@ class World:
         # order makes pybullet hand the freed ids out again in ascending order, so a room gets
         # the same body ids (segmentation values) whatever was built before.
         reuse = self.layout is layout and bool(self._fixture_bodies)
+        self.bodies_changed()
         kept = set(self.structure_bodies) | set(self._fixture_bodies.values()) if reuse else set()
         for body in sorted(set(self.body_to_object) | set(self.structure_bodies), reverse=True):
             if body not in kept:
@@ -210,6 +219,7 @@ class World:
         otype = load_catalog()[type_name]
         spec = shape_for(type_name, otype.dims)
         body = build_body(self.client, spec, colour, position, yaw, self.cache)
+        self.bodies_changed()
         obj = WorldObject(self.new_object_id(type_name), otype, colour, spec, body, tuple(position), yaw, False)
         self._register(obj)
         return obj
@@ -218,6 +228,7 @@ class World:
         obj = self.objects.pop(object_id)
         self.body_to_object.pop(obj.body, None)
         self.client.removeBody(obj.body)
+        self.bodies_changed()
         if obj.parent and object_id in self.objects.get(obj.parent, obj).contents:
             self.objects[obj.parent].contents.remove(object_id)
         if self.held == object_id:
