@@ -67,6 +67,8 @@ class EvalConfig:
     max_restarts: int = 3               # a worker whose node dies is restarted (its episode replayed) this many
                                         # times in a row at most; 0 = a dead node ends the run
     shard: Optional[tuple] = None       # (K, N): only shard K of N of the selected tasks (see dialfred_sim.shards.shard_tasks)
+    local: bool = False                 # no ROS: worker processes with a simulator, the oracle's rules and the agent
+                                        # each (dialfred_local: the same episodes as through the graph, faster)
 
     @functools.cached_property
     def tasks_source(self):
@@ -170,6 +172,8 @@ class EvalConfig:
             raise ValueError(f'--record-format must be one of {", ".join(IMAGE_FORMATS)}, got {self.record_format!r}')
         if self.record is not None and Path(self.record).exists() and not Path(self.record).is_dir():
             raise ValueError(f'--record {self.record} exists and is not a folder')
+        if self.local and (self.performer or self.record is not None or self.foxglove is not None):
+            raise ValueError('--local plays without ROS: it cannot go with --performer, --record or --foxglove')
         if self.performer:
             if self.performer != 'et':
                 raise ValueError(f'--performer must be et (the Episodic-Transformer performer node), got {self.performer!r}')
@@ -214,7 +218,8 @@ class EvalReport:
             'split': c.split, 'tasks_file': c.tasks_source.describe() if c.tasks_source else None,
             'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
             'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
-            'workers': c.workers, 'through': 'performer node' if c.performer else 'in-process agent',
+            'workers': c.workers,
+            'through': 'performer node' if c.performer else ('local processes (no ROS)' if c.local else 'in-process agent'),
             'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent == 'et' else None),
             'limit': c.limit, 'shard': {'index': c.shard[0], 'count': c.shard[1]} if c.shard else None,
             'results_file': str(c.results_path), 'tasks': len(self.results),
@@ -831,7 +836,18 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in selected if t.task_id not in done]
     ran, startup_s, restarts = 0, 0.0, 0
-    if jobs:
+    if jobs and config.local:
+        from dialfred_local import play_local
+        with progress_bar(len(tasks), len(done), progress) as bar:
+            def record_local(result) -> None:
+                nonlocal ran
+                append_result(config.results_path, result)
+                done[result.task_id] = result
+                ran += 1
+                bar.update(1)
+
+            play_local(config, jobs, record_local)
+    elif jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
         live = {'publish_observations': True} if config.foxglove is not None else {}
@@ -907,7 +923,7 @@ def eval_config(args) -> EvalConfig:
                       tasks_file=Path(args.tasks) if args.tasks else None,
                       performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
                       foxglove=args.foxglove, max_restarts=args.max_restarts, shard=getattr(args, 'shard', None),
-                      **record_options(args))
+                      local=bool(getattr(args, 'local', False)), **record_options(args))
 
 
 def default_resolution(args) -> int:
@@ -997,6 +1013,10 @@ def add_eval_parser(sub) -> None:
                          '<default name>_shardKofN.jsonl. Join the shards\' files with `./dialfred merge` '
                          '(docs/scaling.md)')
     ev.add_argument('--workers', type=int, default=2, help='simulator nodes playing episodes in parallel')
+    ev.add_argument('--local', action='store_true',
+                    help='no ROS: each worker is a process with its own simulator, the oracle\'s rules and the agent '
+                         '(the same episodes as through the graph, faster; not with --performer, --record, '
+                         '--foxglove; dialfred_local.py)')
     ev.add_argument('--out', default=None,
                     help='results file (default out/eval/<split>_<agent>[+<questioner>].jsonl)')
     ev.add_argument('--seed', type=int, default=0)

@@ -1,0 +1,54 @@
+"""`launch eval --local` (dialfred_local.py) plays the episodes the ROS graph plays: for every kind of
+questioner, a perturbed oracle and the random agent, the results of both paths are equal field by field
+(but for wall_s); and what cannot go without ROS is refused."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+from dialfred_eval import EvalConfig, run_eval  # noqa: E402
+
+CASES = {
+    'random agent': dict(agent='random', resolution=64),
+    'performer alone': dict(agent='et'),
+    'performer + all QAs': dict(agent='et', questioner='all'),
+    'performer + random QA, location withheld': dict(agent='et', questioner='random', perturb_type='location'),
+    'performer + model confusion': dict(agent='et', questioner='confusion'),
+    'performer + RL anytime (learned)': dict(agent='et', questioner='rl-anytime', limit=12),   # it asks seldom
+}
+
+
+def comparable(results) -> list:
+    return [dataclasses.replace(r, wall_s=0.0) for r in results]
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_local_episodes_equal_the_graphs(tmp_path, case):
+    settings = {'split': 'valid_unseen', 'limit': 5, 'workers': 2, 'resolution': 64, 'seed': 3, **CASES[case]}
+    n = settings['limit']
+    graph = run_eval(EvalConfig(**settings, out=tmp_path / 'graph.jsonl'), progress=False)
+    local = run_eval(EvalConfig(**settings, out=tmp_path / 'local.jsonl', local=True), progress=False)
+    assert len(local.results) == n and local.ran == n
+    assert comparable(local.results) == comparable(graph.results)
+    if settings.get('questioner'):
+        assert sum(r.questions for r in local.results) > 0
+    assert local.to_json()['through'] == 'local processes (no ROS)'
+
+
+def test_a_local_run_resumes_and_refuses_what_needs_ros(tmp_path):
+    out = tmp_path / 'r.jsonl'
+    first = run_eval(EvalConfig(split='valid_unseen', agent='random', limit=2, resolution=64, local=True, out=out),
+                     progress=False)
+    more = run_eval(EvalConfig(split='valid_unseen', agent='random', limit=4, resolution=64, local=True, out=out),
+                    progress=False)
+    assert more.ran == 2 and comparable(more.results[:2]) == comparable(first.results)
+    for bad in (dict(agent='et', performer='et'), dict(record=tmp_path / 'bags'), dict(foxglove=8765)):
+        with pytest.raises(ValueError, match='--local'):
+            EvalConfig(split='valid_unseen', agent=bad.pop('agent', 'random'), local=True, **bad).check()
