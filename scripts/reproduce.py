@@ -6,7 +6,7 @@
     ./dialfred reproduce --shipped --doc docs/results.md
                                               # no training: evaluate the shipped checkpoints, write the doc
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
-    ./dialfred reproduce --in-process         # evaluations in this process instead of through the ROS graph
+    ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
 
 Stages, in order (each calls the project's own API or command; none repeats their logic):
 
@@ -18,7 +18,8 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
 | rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
-| eval | every setting of the tables (`dialfred_eval.run_eval`; through the ROS graph, performer nodes, unless `--in-process`); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| eval | every setting of the tables (`dialfred_eval.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| check | the first `--check-tasks` tasks of every setting played again through the ROS graph (performer, questioner, oracle and simulator nodes) and compared with the eval stage's episodes field by field (wall time aside); mismatches are listed in the document, not hidden | `check/<split>_<setting>.jsonl`, `check/report.json` |
 | doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`) |
 
 Each stage writes `stamps/<stage>.json` with the hash of its inputs (its config, the hashes of the stages
@@ -68,7 +69,8 @@ sys.path.insert(0, str(ROOT / 'scripts'))
 from baselines import BASELINES as TABLE2_BASELINES  # noqa: E402  (the one place of Table II's rows 1-4)
 from dialfred_performer.cli import arg, parse  # noqa: E402
 
-STAGES = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'doc')
+STAGES = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'check', 'doc')
+EVAL_PATHS = ('local', 'graph', 'in-process')
 SPLITS = ('valid_seen', 'valid_unseen')
 QUESTION_TYPES = ('location', 'appearance', 'direction')
 PERTURB_PROBABILITY = 0.5
@@ -161,7 +163,11 @@ class ReproduceConfig:
     doc: str = arg('', "also write the document here (e.g. docs/results.md); '' = only <out>/results.md")
     force: str = arg('', 'rerun this stage and every stage after it, stamps or not')
     until: str = arg('', "stop after this stage ('' = run to the end)")
-    in_process: bool = arg(False, 'evaluations in this process (eval --agent et) instead of through the ROS graph')
+    eval_path: str = arg('local', "how the tables' episodes are played: local (worker processes without ROS, "
+                                  'the same episodes as the graph; fastest), graph (performer nodes), in-process '
+                                  '(the agent in this process, simulator and oracle nodes)')
+    check_tasks: int = arg(20, 'the check stage plays the first N tasks of every setting through the ROS graph and '
+                               'compares them with the tables\' episodes (0: no check)')
     workers: int = arg(2, 'processes / simulator nodes of every stage')
     seed: int = arg(0, 'the seed of every stage')
     resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
@@ -175,6 +181,10 @@ class ReproduceConfig:
             raise ValueError('--quick and --shipped do not go together')
         if self.workers < 1:
             raise ValueError('--workers must be at least 1')
+        if self.eval_path not in EVAL_PATHS:
+            raise ValueError(f'--eval-path takes one of {", ".join(EVAL_PATHS)}, got {self.eval_path!r}')
+        if self.check_tasks < 0:
+            raise ValueError('--check-tasks must be 0 or more')
 
     @property
     def run_dir(self) -> Path:
@@ -202,7 +212,9 @@ class Plan:
         self.pretrain_dir = self.run / 'questioner' / 'pretrain'
         self.eval_dir = self.run / 'eval'
         self.eval_limit = 8 if q else 0
-        self.in_process = cfg.in_process or q
+        self.eval_path = cfg.eval_path
+        self.check_dir = self.run / 'check'
+        self.check_tasks = min(cfg.check_tasks, 2) if q else cfg.check_tasks
 
     # each stage's config, as plain JSON (part of its stamp)
     def demos_config(self) -> dict:
@@ -260,16 +272,31 @@ class Plan:
             return self.pretrain_dir / 'best.pt'
         return self.run / 'questioner' / run / 'final.pt'
 
-    def eval_config(self, s: Setting):
+    def eval_config(self, s: Setting, check: bool = False):
+        """The evaluation of setting `s` for the tables, or with `check` its first check_tasks tasks
+        through the graph (performer nodes)."""
         from dialfred_eval import EvalConfig
         questioner = s.questioner
         if questioner.startswith('rl:'):
             questioner = f'learned:{self.questioner_checkpoint(questioner[3:])}'
-        return EvalConfig(split=s.split, agent='et', performer='' if self.in_process else 'et',
+        path = 'graph' if check else self.eval_path
+        limit = self.check_tasks if check else self.eval_limit or None
+        if check and self.eval_limit:
+            limit = min(limit, self.eval_limit)
+        return EvalConfig(split=s.split, agent='et', performer='et' if path == 'graph' else '', local=path == 'local',
                           questioner=questioner, perturb_type=s.perturb_type,
-                          perturb_probability=PERTURB_PROBABILITY, limit=self.eval_limit or None,
-                          workers=self.cfg.workers, out=self.eval_dir / f'{s.split}_{s.key}.jsonl',
+                          perturb_probability=PERTURB_PROBABILITY, limit=limit,
+                          workers=self.cfg.workers,
+                          out=(self.check_dir if check else self.eval_dir) / f'{s.split}_{s.key}.jsonl',
                           seed=self.cfg.seed, resolution=RESOLUTION, checkpoint=self.performer_checkpoint)
+
+    def check_settings(self) -> list:
+        """The settings the check stage plays through the graph: all of them (quick: the first with a learned
+        questioner and the first with a perturbed oracle)."""
+        chosen = [s for s in settings() if self.available(s)]
+        if self.cfg.quick:
+            chosen = [s for s in chosen if s.questioner.startswith('rl:')][:1] + [s for s in chosen if s.perturb_type][:1]
+        return chosen if self.check_tasks else []
 
     def available(self, s: Setting) -> bool:
         """Whether the setting's questioner checkpoint exists (only shipped ones can be missing)."""
@@ -313,13 +340,14 @@ CODE = {
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
-    'eval': ('dialfred_eval.py', f'{QUES}/baselines.py', f'{QUES}/policy.py', f'{PERF}/agent.py',
+    'eval': ('dialfred_eval.py', 'dialfred_local.py', f'{QUES}/baselines.py', f'{QUES}/policy.py', f'{PERF}/agent.py',
              f'{SIM}/metrics.py'),
+    'check': ('dialfred_eval.py', 'dialfred_local.py', 'scripts/reproduce.py'),
     'doc': ('scripts/reproduce.py', 'scripts/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
 }
 UPSTREAM = {
     'demos': (), 'performer': ('demos',), 'dialogues': (), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
-    'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'doc': ('eval',),
+    'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
 }
 TRAINING = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
 
@@ -342,10 +370,12 @@ class Runner:
             'frames': p.frames_config, 'pretrain': p.pretrain_config,
             'rl': lambda: {name: p.rl_config(name) for name in RL_RUNS},
             'eval': lambda: {'settings': [dataclasses.asdict(s) for s in settings() if p.available(s)],
-                             'in_process': p.in_process, 'limit': p.eval_limit, 'seed': self.cfg.seed,
+                             'eval_path': p.eval_path, 'limit': p.eval_limit, 'seed': self.cfg.seed,
                              'performer': str(p.performer_checkpoint),
                              'questioners': {r: str(p.questioner_checkpoint(r)) for r in (*RL_RUNS, 'pretrained')},
                              'shipped': self.shipped_hashes() if self.cfg.shipped else None},
+            'check': lambda: {'settings': [dataclasses.asdict(s) for s in p.check_settings()],
+                              'tasks': p.check_tasks, 'seed': self.cfg.seed},
             'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit},
         }[stage]()
         return {'stage': stage, 'config': config, 'code': code_hash(CODE[stage]),
@@ -505,6 +535,33 @@ class Runner:
             self.log(f'eval: {s.split} {s.key} in {out[f"{s.split}/{s.key}"]:.1f} s')
         return {'seconds': out}
 
+    def check(self, resume: bool) -> dict:
+        """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
+        from baselines import run_baseline
+
+        from dialfred_eval import resumable_results
+        from dialfred_sim.metrics import write_text_atomically
+        from dialfred_sim.tasks import load_split
+        p = self.plan
+        p.check_dir.mkdir(parents=True, exist_ok=True)
+        report = {'tasks': p.check_tasks, 'eval_path': p.eval_path, 'settings': {}}
+        for s in p.check_settings():
+            config = p.eval_config(s, check=True)
+            t0 = time.monotonic()
+            run_baseline(config, self.cfg.progress)
+            ids = [t.task_id for t in load_split(s.split)[:config.limit]]
+            graph = resumable_results(config, ids)
+            tables = resumable_results(p.eval_config(s), ids)
+            differing = [i for i in ids if i not in tables or
+                         dataclasses.replace(graph[i], wall_s=0.0) != dataclasses.replace(tables[i], wall_s=0.0)]
+            report['settings'][f'{s.split}/{s.key}'] = {'episodes': len(ids), 'differing': differing,
+                                                        'seconds': round(time.monotonic() - t0, 1)}
+            self.log(f'check: {s.split} {s.key}: {len(ids) - len(differing)} of {len(ids)} episodes the same '
+                     'through the graph')
+        write_text_atomically(p.check_dir / 'report.json', json.dumps(report, indent=1) + '\n')
+        return {'episodes': sum(r['episodes'] for r in report['settings'].values()),
+                'differing': sum(len(r['differing']) for r in report['settings'].values())}
+
     def doc(self, resume: bool) -> dict:
         report = build_report(self.plan, self.cfg.resamples)
         paths = write_outputs(self.plan, report)
@@ -515,7 +572,7 @@ class Runner:
         return {
             'demos': [], 'dialogues': [], 'frames': [],          # caches: rewritten in place (same bytes)
             'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
-            'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir],
+            'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir], 'check': [p.check_dir],
             'doc': [p.run / 'results.md', p.run / 'sr_nq.png'],
         }[stage]
 
@@ -772,13 +829,32 @@ def _relative(path: Path) -> str:
         return str(path)
 
 
+def check_line(plan: Plan) -> str:
+    """What the check stage found: the settings' first tasks through the graph against the tables' episodes."""
+    path = plan.check_dir / 'report.json'
+    if not plan.check_tasks or not path.exists():
+        return '- check through the ROS graph: not run (`--check-tasks 0`)'
+    report = json.loads(path.read_text())
+    rows = report['settings']
+    episodes = sum(r['episodes'] for r in rows.values())
+    bad = {k: r['differing'] for k, r in rows.items() if r['differing']}
+    head = (f'- check through the ROS graph (performer, questioner, oracle and simulator nodes): the first '
+            f'{report["tasks"]} tasks of {len(rows)} settings, {episodes} episodes: ')
+    if not bad:
+        return head + 'every one the same as the tables\' episodes (steps, success, questions, dialogue, end)'
+    return head + f'**{sum(map(len, bad.values()))} differ** ' + '; '.join(
+        f'{k}: {", ".join(v[:5])}' for k, v in sorted(bad.items()))
+
+
 def render(plan: Plan, report: dict, plot_name: str) -> str:
     from dialfred_sim.agents import Question
     from dialfred_sim.messages import question_text
     rows, cfg = report['rows'], plan.cfg
     mode = '--quick' if cfg.quick else '--shipped' if cfg.shipped else ''
     command = './dialfred reproduce' + (f' {mode}' if mode else '')
-    through = 'in process' if plan.in_process else 'through the ROS graph (performer nodes)'
+    through = {'local': 'in local worker processes without ROS (`dialfred_local`, the graph\'s episodes)',
+               'graph': 'through the ROS graph (performer nodes)',
+               'in-process': 'by the agent in the launcher\'s process with simulator and oracle nodes'}[plan.eval_path]
     out = [
         '# Results: the paper\'s Tables II, III and IV reproduced',
         '',
@@ -800,6 +876,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
             f'- evaluation: `et` performer at {RESOLUTION} px, played {through}, seed {cfg.seed}, '
             + (f'the first {plan.eval_limit} tasks of each split' if plan.eval_limit else 'every task of each split')
             + f'; perturbed oracle: one type\'s answers withheld with probability {PERTURB_PROBABILITY}',
+            check_line(plan),
             f'- intervals: 95% percentile bootstrap over episodes, {cfg.resamples} resamples '
             '(`dialfred_sim.metrics.intervals`); SR and PWSR in percent, NQ questions per episode', '']
     # Table II

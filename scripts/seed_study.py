@@ -65,7 +65,7 @@ def evaluate(name: str, questioner: str, split: str, seed: int, limit, workers: 
     """One evaluation (resumable); its overall row."""
     from dialfred_eval import EvalConfig, run_eval
     from dialfred_sim.metrics import summarize
-    config = EvalConfig(split=split, agent='et', performer='', questioner=questioner, limit=limit,
+    config = EvalConfig(split=split, agent='et', local=True, questioner=questioner, limit=limit,
                         workers=workers, out=out / 'eval' / f'{split}_{name}.jsonl', seed=seed,
                         resolution=RESOLUTION, perturb_probability=PERTURB_PROBABILITY)
     t0 = time.monotonic()

@@ -1,8 +1,9 @@
 """`./dialfred reproduce --quick` (scripts/reproduce.py): the whole pipeline on tiny slices, in a
 temporary run folder (about 4 minutes on 2 cores).
 
-Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, doc) and writes its
-stamp; the document has Tables II, III and IV with every row, what holds, and the SR-NQ plot next to
+Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, check, doc) and writes
+its stamp; the check stage plays a learned and a perturbed setting through the ROS graph and finds the
+eval stage's (local) episodes; the document has Tables II, III and IV with every row, what holds, and the SR-NQ plot next to
 it; the results record each episode's dialogue (question types); a rerun skips every stage (stamps
 match); rerunning the doc stage alone writes the same bytes; the quick caches stay in the run folder;
 a second run from nothing, in another folder with the same seed, gives the same tables and the same
@@ -55,6 +56,19 @@ def test_every_stage_runs_and_stamps(first):
     assert (out / 'cache' / 'demonstrations' / 'train_64' / 'meta.json').exists()
     for name in reproduce.RL_RUNS:
         assert (out / 'questioner' / name / 'final.pt').exists()
+
+
+def test_the_check_stage_replays_a_learned_and_a_perturbed_setting_through_the_graph(first):
+    out, summary = first
+    report = json.loads((out / 'check' / 'report.json').read_text())
+    assert report['eval_path'] == 'local' and report['tasks'] == 2
+    assert set(report['settings']) == {'valid_seen/rl_begin', 'valid_unseen/rl_anytime_withhold_location'}
+    assert all(r['episodes'] == 2 and r['differing'] == [] for r in report['settings'].values())
+    assert summary['stages']['check']['report'] == {'episodes': 4, 'differing': 0}
+    for name in ('valid_seen_rl_begin', 'valid_unseen_rl_anytime_withhold_location'):
+        graph = (out / 'check' / f'{name}.summary.json').read_text()
+        assert '"through": "performer node"' in graph
+    assert '4 episodes: every one the same' in (out / 'results.md').read_text()
 
 
 def test_the_doc_has_every_table_row_and_the_plot(first):
@@ -120,6 +134,10 @@ def test_bad_settings_are_refused():
         reproduce.ReproduceConfig(force='nope')
     with pytest.raises(ValueError):
         reproduce.ReproduceConfig(quick=True, shipped=True)
+    with pytest.raises(ValueError, match='eval-path'):
+        reproduce.ReproduceConfig(eval_path='ros')
+    with pytest.raises(ValueError, match='check-tasks'):
+        reproduce.ReproduceConfig(check_tasks=-1)
 
 
 def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatch):
