@@ -13,9 +13,9 @@ the questioner's samples):
 - for each `--runs` setting (reproduce's RL_RUNS, the same config as `./dialfred reproduce`) and each
   `--seeds` seed: `dialfred_questioner.finetune` with that seed -> `<out>/<run>_s<seed>/final.pt`
   (resumes from last.pt; a finished run is skipped);
-- each checkpoint is evaluated on `--split` with evaluation seed 0 (the tables' seed), the performer in
-  this process (the same episodes as through the graph: tests/test_eval*.py) -> `<out>/eval/...jsonl`
-  (resumable episode by episode);
+- each checkpoint is evaluated on `--split` with evaluation seed 0 (the tables' seed), locally (no ROS;
+  the same episodes as through the graph: tests/test_eval_local.py) -> `<out>/eval/...jsonl` (resumable
+  episode by episode);
 - the shipped checkpoint of the setting is evaluated the same way, as one more draw ("shipped", trained
   with seed 0 on another machine);
 - Random QA is evaluated with each `--random-seeds` evaluation seed (its only randomness), to compare
