@@ -185,3 +185,10 @@ def test_closeup_cache_times_both_passes_and_finds_the_same_output(tmp_path):
         assert report[name]['same_output'] is True
         searches = report[name]['closeup_searches']
         assert searches['cache'] <= searches['no_cache']
+
+
+def test_eval_local_times_every_path_and_finds_the_same_episodes():
+    report = run_bench('eval_local', '--limit', '3', '--questioner', 'all')
+    assert report['same_episodes'] is True and report['NQ'] > 0
+    assert set(report['wall_s_best']) == {'local', 'in-process', 'graph'}
+    assert set(report['speedup_of_local']) == {'in-process', 'graph'}
