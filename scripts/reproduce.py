@@ -43,8 +43,9 @@ and first frames are byte-identical across runs, and evaluating the same checkpo
 episodes. Performer training usually repeats bit for bit, but not always: in session 9, one process
 in two of the same command differed by a rounding in its first updates and trained a different
 model, and the tables moved by up to 4.3 SR points (docs/benchmarks.md; `./dialfred bench
-training_determinism` looks for the cause). The run times, listed apart from the tables, always
-differ.
+training_determinism` looks for the cause). On the AMD EPYC of sessions 11-12 no process of 28 left the
+common stream, but that stream differs from the old CPU's from the first updates on, so a run on
+another CPU retrains other models. The run times, listed apart from the tables, always differ.
 """
 
 from __future__ import annotations
