@@ -836,17 +836,21 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in selected if t.task_id not in done]
     ran, startup_s, restarts = 0, 0.0, 0
+
+    def recorder(bar):
+        """on_result of either path: the result line written at once (resumable), counted, shown."""
+        def record(result) -> None:
+            nonlocal ran
+            append_result(config.results_path, result)
+            done[result.task_id] = result
+            ran += 1
+            bar.update(1)
+        return record
+
     if jobs and config.local:
         from dialfred_local import play_local
         with progress_bar(len(tasks), len(done), progress) as bar:
-            def record_local(result) -> None:
-                nonlocal ran
-                append_result(config.results_path, result)
-                done[result.task_id] = result
-                ran += 1
-                bar.update(1)
-
-            play_local(config, jobs, record_local)
+            play_local(config, jobs, recorder(bar))
     elif jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
@@ -871,14 +875,7 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
             workers = supervisor.start(namespaces) if supervisor else [make_worker(ns) for ns in namespaces]
             startup_s = time.monotonic() - t0
             with progress_bar(len(tasks), len(done), progress) as bar:
-                def record(result) -> None:
-                    nonlocal ran
-                    append_result(config.results_path, result)
-                    done[result.task_id] = result
-                    ran += 1
-                    bar.update(1)
-
-                play_episodes(graph, workers, jobs, record, supervisor)
+                play_episodes(graph, workers, jobs, recorder(bar), supervisor)
             restarts = supervisor.restarts if supervisor else 0
             if traces is not None:
                 if config.performer:

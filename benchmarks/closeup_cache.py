@@ -21,7 +21,6 @@ interleaved, and checks that both give the same lines and rows:
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import sys
 import time
@@ -29,15 +28,10 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / 'benchmarks'))
 
+from annotation_pass import load_script  # noqa: E402  (scripts/annotate_dialogues.py as a module)
 from dialfred_sim.machine import cpu_model  # noqa: E402
-
-
-def load_script():
-    spec = importlib.util.spec_from_file_location('annotate_dialogues', REPO / 'scripts' / 'annotate_dialogues.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def main() -> None:
