@@ -13,7 +13,7 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | stage | what | output (under the run folder, `--out`) |
 |---|---|---|
 | demos | the performer's demonstrations of train (`dialfred_performer.prepare`) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
-| performer | performer training (`dialfred_performer.train`, the shipped command: 2 epochs, 24,000 updates) | `performer/best.pt` |
+| performer | performer training (`dialfred_performer.train`: one epoch, 15,776 updates; the shipped checkpoint is the best of a 2-epoch run, which was also at the end of its epoch 1) | `performer/best.pt` |
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train`) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
@@ -224,7 +224,7 @@ class Plan:
 
     def performer_config(self) -> dict:
         base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
-                    progress=self.cfg.progress, epochs=2, max_updates=24000, validation='', val_fraction=0.05)
+                    progress=self.cfg.progress, epochs=1, max_updates=0, validation='', val_fraction=0.05)
         if self.cfg.quick:
             base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
                         checkpoint_every=30, val_fraction=0.2,
