@@ -23,7 +23,7 @@ pybullet = pytest.importorskip('pybullet')
 from pybullet_utils.bullet_client import BulletClient  # noqa: E402
 
 from dialfred_sim.world.bodies import (ShapeCache, articulation_joint, build_body,  # noqa: E402
-                                       set_articulation, triangle_count)
+                                       link_arguments, set_articulation, triangle_count)
 
 CATALOG = ROOT / 'src' / 'dialfred_sim' / 'dialfred_sim' / 'data' / 'object_types.csv'
 with open(CATALOG, newline='') as _f:
@@ -165,6 +165,37 @@ def test_cache_shares_visual_shapes_between_bodies(client):
     assert len(cache._ids) > n
     cache.clear()
     assert not cache._ids
+
+
+def body_state(client, body: int) -> tuple:
+    """What pybullet holds of a built body: its visual shapes (geometry, pose, colour) and joints."""
+    visuals = tuple(tuple(v[1:]) for v in client.getVisualShapeData(body))
+    joints = tuple(tuple(client.getJointInfo(body, j)[2:]) for j in range(client.getNumJoints(body)))
+    return visuals, joints, client.getBasePositionAndOrientation(body)
+
+
+def test_cached_link_arguments_build_the_same_bodies(client):
+    """build_body takes a (spec, colour)'s link lists from the cache after its first body; the bodies
+    are those built from lists worked out afresh, for every catalogue type (and an articulated one
+    again after others were built)."""
+    cache = ShapeCache(client)
+    for name in sorted(ROWS) + ['Fridge', 'Drawer', 'Mug']:
+        spec = spec_of(name)
+        fresh = link_arguments(spec, 'green', cache)
+        assert fresh == link_arguments(spec, 'green', cache)        # a pure function of spec and colour
+        a = build_body(client, spec, 'green', (0.5, -0.2, 0.1), 0.7, cache)
+        b = build_body(client, spec, 'green', (0.5, -0.2, 0.1), 0.7, cache)       # cached lists
+        c = client.createMultiBody(baseMass=0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                                   basePosition=[0.5, -0.2, 0.1],
+                                   baseOrientation=client.getQuaternionFromEuler((0.0, 0.0, 0.7)), **fresh)
+        assert cache.links(spec, 'green') == fresh
+        assert body_state(client, a) == body_state(client, b), name
+        assert body_state(client, a)[:2] == body_state(client, c)[:2], name
+        for body in (c, b, a):
+            client.removeBody(body)
+    assert cache.links(spec_of('Mug'), 'red') != cache.links(spec_of('Mug'), 'green')
+    cache.clear()
+    assert not cache._links and not cache._ids
 
 
 def test_set_articulation_drives_the_joint(client):

@@ -118,6 +118,18 @@ class ShapeCache:
     def __init__(self, client: Any):
         self.client = client
         self._ids: dict[tuple, int] = {}
+        # createMultiBody's link arguments per (spec, colour): they depend on nothing else, and
+        # working them out part by part took about 40% of a body's build (session 13)
+        self._links: dict[tuple, dict] = {}
+
+    def links(self, spec: ShapeSpec, colour: str) -> dict:
+        """The link keyword arguments of createMultiBody for a body of `spec` in `colour` (computed
+        once per client; the same lists are passed to every body of that kind)."""
+        key = (spec, colour)
+        links = self._links.get(key)
+        if links is None:
+            links = self._links[key] = link_arguments(spec, colour, self)
+        return links
 
     def visual(self, shape: str, half_extents: Vec3, rgba: Sequence[float]) -> int:
         """Id of a visual shape centred on its frame (cylinder axis along local z)."""
@@ -143,6 +155,7 @@ class ShapeCache:
     def clear(self) -> None:
         """Forget every id (call after client.resetSimulation())."""
         self._ids.clear()
+        self._links.clear()
 
 
 def _quat(rpy: Sequence[float]) -> list[float]:
@@ -154,14 +167,10 @@ def _quat(rpy: Sequence[float]) -> list[float]:
             cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy]
 
 
-def build_body(client: Any, spec: ShapeSpec, colour: str, position: Sequence[float], yaw: float,
-               cache: ShapeCache | None = None) -> int:
-    """Create the static, visual-only multibody of `spec` painted with palette colour `colour`.
-
-    position: world position of the object-frame origin (bottom centre); yaw: turn about +z.
-    Returns the body's unique id. The body is built closed (joint value 0).
-    """
-    cache = cache if cache is not None else ShapeCache(client)
+def link_arguments(spec: ShapeSpec, colour: str, cache: ShapeCache) -> dict:
+    """createMultiBody's link keyword arguments for `spec` painted with palette colour `colour`: every
+    rigid part a fixed link of the base, then (if the spec has moving parts) the articulated joint and
+    the moving parts fixed to it (see the module's docstring)."""
     rigid = [p for p in spec.parts if not p.moving]
     moving = [p for p in spec.parts if p.moving]
     visuals, positions, orientations, parents, joint_types, axes = [], [], [], [], [], []
@@ -191,14 +200,24 @@ def build_body(client: Any, spec: ShapeSpec, colour: str, position: Sequence[flo
         for part in moving:
             add(part, hinge, art.origin)
     n = len(visuals)
+    return dict(linkMasses=[0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=visuals,
+                linkPositions=positions, linkOrientations=orientations,
+                linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,
+                linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+                linkParentIndices=parents, linkJointTypes=joint_types, linkJointAxis=axes)
+
+
+def build_body(client: Any, spec: ShapeSpec, colour: str, position: Sequence[float], yaw: float,
+               cache: ShapeCache | None = None) -> int:
+    """Create the static, visual-only multibody of `spec` painted with palette colour `colour`.
+
+    position: world position of the object-frame origin (bottom centre); yaw: turn about +z.
+    Returns the body's unique id. The body is built closed (joint value 0).
+    """
+    cache = cache if cache is not None else ShapeCache(client)
     return client.createMultiBody(
         baseMass=0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
-        basePosition=list(position), baseOrientation=_quat((0.0, 0.0, yaw)),
-        linkMasses=[0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=visuals,
-        linkPositions=positions, linkOrientations=orientations,
-        linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,
-        linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
-        linkParentIndices=parents, linkJointTypes=joint_types, linkJointAxis=axes)
+        basePosition=list(position), baseOrientation=_quat((0.0, 0.0, yaw)), **cache.links(spec, colour))
 
 
 def articulation_joint(spec: ShapeSpec) -> int | None:
