@@ -22,7 +22,7 @@ import torch
 from PIL import Image
 
 from dialfred_performer.cli import parse, to_argv
-from dialfred_performer.data import DIALOGUES_FILE, generate_dialogues
+from dialfred_performer.data import DIALOGUES_FILE, OracleProbe, generate_dialogues
 from dialfred_performer.model import PerformerConfig, load_checkpoint
 from dialfred_performer.prepare import (VOCABULARY_FILE, PrepareConfig, _dialogue_worker, _part_path, prepare,
                                         write_dialogues)
@@ -138,6 +138,43 @@ def test_prepared_dialogues_are_those_of_generate_dialogues_whatever_the_shardin
     part.write_text(reference.decode().splitlines()[1][:40])   # ... shard 1 cut off inside its first line
     assert write_dialogues(tmp_path, workers=1, progress=False).read_bytes() == reference
     assert not list(tmp_path.glob('dialogues-*.part'))
+
+
+def test_the_oracle_probe_asks_what_a_replay_asks_and_leaves_the_frames_alone(tmp_path, monkeypatch):
+    """prepare asks the dialogues' QAs while rendering (OracleProbe): the same dialogues.jsonl as
+    replaying every task afterwards (generate_dialogues), the same frames and records as a build
+    without a probe, with two workers; a task whose probe gives nothing is replayed."""
+    from dialfred_sim.tasks.demonstrations import build_demonstrations, probe_values
+    probed = tmp_path / 'probed'
+    prepare(PrepareConfig(split='train', resolution=64, workers=2, limit=12, out=str(probed), progress=False))
+    plain = tmp_path / 'plain'
+    build_demonstrations('train', 64, plain, workers=1, limit=12, progress=False)
+    for name in ('frames.npy', 'tasks.jsonl'):
+        assert (probed / name).read_bytes() == (plain / name).read_bytes(), name
+    assert len(probe_values(probed)) == 12 and not probe_values(plain)
+    reference = generate_dialogues(plain, out=tmp_path / 'reference.jsonl').read_bytes()
+    assert (probed / DIALOGUES_FILE).read_bytes() == reference
+    assert not list(probed.glob('dialogues-*.part'))
+
+    end = OracleProbe.end
+    skipped = {json.loads(line)['task_id'] for line in reference.decode().splitlines()[::3]}
+    monkeypatch.setattr(OracleProbe, 'end', lambda self, record: None if record['task_id'] in skipped
+                        else end(self, record))
+    partly = tmp_path / 'partly'
+    prepare(PrepareConfig(split='train', resolution=64, workers=1, limit=12, out=str(partly), progress=False))
+    assert set(probe_values(partly)) == {json.loads(l)['task_id'] for l in reference.decode().splitlines()} - skipped
+    assert (partly / DIALOGUES_FILE).read_bytes() == reference
+
+
+def test_the_oracle_probe_gives_nothing_when_the_episode_stopped_before_its_middle():
+    class Task:
+        object_nouns = ('apple',)
+        expert_actions = ('a',) * 4
+    probe = OracleProbe()
+    probe.begin(Task())
+    assert probe.middle == 2
+    assert probe.end({'actions': [0, 1, 2]}) is None          # the goal held after 3 of 4: middle 1, not 2
+    assert probe.end({'actions': [0, 1, 2, 3]}) == []
 
 
 def test_the_vocabulary_knows_every_word_the_oracle_says(folder):

@@ -16,7 +16,7 @@ import json
 import pytest
 import torch
 
-from dialfred_questioner.finetune import FinetuneConfig, episode_plan, finetune
+from dialfred_questioner.finetune import FinetuneConfig, episode_plan, finetune, rollout_chunks
 from dialfred_questioner.frames import build_first_frames
 from dialfred_questioner.model import QuestionerConfig
 from dialfred_questioner.policy import LearnedQuestioner
@@ -123,3 +123,15 @@ def test_the_episode_plan_visits_every_task_once_per_pass():
 def test_bad_settings_are_refused(changes, match):
     with pytest.raises(ValueError, match=match):
         FinetuneConfig(**changes)
+
+
+def test_rollout_chunks_cover_every_episode_once_in_order():
+    jobs = list(range(64))
+    for workers in (1, 2, 3, 8):
+        chunks = rollout_chunks(jobs, workers)
+        assert [j for c in chunks for j in c] == jobs
+        assert all(chunks)
+        assert len(chunks) == (1 if workers == 1 else min(64, -(-64 // -(-64 // (8 * workers)))))
+    assert [len(c) for c in rollout_chunks(jobs, 2)] == [4] * 16
+    assert rollout_chunks(list(range(5)), 2) == [[0], [1], [2], [3], [4]]
+    assert rollout_chunks([], 2) == [] and rollout_chunks([], 1) == []

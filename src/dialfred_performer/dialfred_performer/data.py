@@ -193,3 +193,26 @@ def task_dialogue(env, task: dict, at_start: Optional[Callable] = None) -> list[
 def dialogue_line(task: dict, qas: Sequence[AskedQA]) -> str:
     """One line of dialogues.jsonl (with its newline)."""
     return json.dumps({'task_id': task['task_id'], 'qas': [qa_to_dict(a) for a in qas]}) + '\n'
+
+
+class OracleProbe:
+    """`task_dialogue`'s QAs asked while the demonstrations are rendered (a probe of
+    `build_demonstrations`), which saves replaying every task a second time: the oracle at step 0 and
+    at the middle step n // 2 of the expert's n recorded actions. The middle is known only when the
+    episode ends; it is taken to be len(expert actions) // 2, and a task that stopped early with
+    another middle gets None (prepare replays it with `task_dialogue`). `end` returns the line's
+    `qas` (qa_to_dict's form)."""
+
+    def begin(self, task) -> None:
+        self.nouns = list(task.object_nouns)
+        self.middle = len(task.expert_actions) // 2
+        self.qas: list[AskedQA] = []
+
+    def __call__(self, env, step: int) -> None:
+        if step in (0, self.middle):
+            self.qas += oracle_qas(env, self.nouns, step)
+
+    def end(self, record: dict) -> Optional[list[dict]]:
+        if len(record['actions']) // 2 != self.middle:
+            return None
+        return [qa_to_dict(a) for a in self.qas]

@@ -3,11 +3,14 @@
     ./dialfred prepare-performer --split train --resolution 64 --workers 2
 
 1. the expert demonstrations (`dialfred_sim.tasks.demonstrations`: frames.npy, tasks.jsonl, meta.json);
-2. `dialogues.jsonl`: the real oracle's answers at step 0 and at the middle of each expert episode
-   (`data.task_dialogue`, replaying the expert in DialfredEnv). Workers each take every n-th task
-   and append a line per task to `dialogues-<worker>.part` as it is produced, so an interrupted run
+2. `dialogues.jsonl`: the real oracle's answers at step 0 and at the middle of each expert episode.
+   They are asked while stage 1 plays each task (`data.OracleProbe`, a probe of the build), which
+   saves a second reset and replay of every task. The few tasks it cannot answer (the goal held
+   early, so the middle step moved; about 0.3% of train), or all tasks of a build made without the
+   probe, are replayed (`data.task_dialogue` in DialfredEnv): workers each take every n-th task and
+   append a line per task to `dialogues-<worker>.part` as it is produced, so an interrupted run
    resumes where it stopped; the parts are merged in task order at the end (same bytes with any
-   number of workers);
+   number of workers, and with or without the probe: tests/test_performer_train.py);
 3. `vocabulary.json`: every token of the instructions, nouns and QAs of the folder, plus every word
    the oracle can say (templates, object nouns, colours, materials), so that no answer heard at
    evaluation is <unk>.
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations
+from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations, probe_values
 from dialfred_sim.tasks.splits import SPLIT_SIZES
 
 from .cli import arg, ensure_malloc_settings, parse
@@ -35,6 +38,7 @@ from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
 from .preprocess import Vocabulary
 
 VOCABULARY_FILE = 'vocabulary.json'
+ORACLE_PROBE = 'dialfred_performer.data:OracleProbe'    # the dialogues' QAs asked while rendering
 SYNC_EVERY = 10          # tasks between fsyncs of a worker's part file
 
 
@@ -84,7 +88,7 @@ def build_vocabulary(folder: Path) -> Vocabulary:
 
 # ---------------------------------------------------------------------- dialogues
 
-def _part_path(folder: Path, shard: int) -> Path:
+def _part_path(folder: Path, shard) -> Path:
     return folder / f'dialogues-{shard}.part'
 
 
@@ -122,7 +126,9 @@ def _dialogue_worker(folder: str, shard: int, shards: int) -> None:
 
 
 def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Path:
-    """dialogues.jsonl for every task of the demonstrations `folder` (resumable; see the module doc)."""
+    """dialogues.jsonl for every task of the demonstrations `folder` (resumable; see the module doc).
+    The QAs the build's OracleProbe asked while rendering are taken as they are; only the other
+    tasks are replayed."""
     from tqdm import tqdm
     folder = Path(folder)
     demo = load_demonstrations(folder)
@@ -130,7 +136,15 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     total = len(demo.tasks)
     if out.exists() and sum(1 for _ in out.open()) == total:
         return out
-    workers = max(1, min(workers, total))
+    probed = probe_values(folder)
+    if probed:
+        done = _finished_lines(folder)
+        lines = [json.dumps({'task_id': t['task_id'], 'qas': probed[t['task_id']]}) + '\n' for t in demo.tasks
+                 if t['task_id'] in probed and t['task_id'] not in done]
+        with open(_part_path(folder, 'probe'), 'a') as part:
+            part.writelines(lines)
+    todo = total - len(_finished_lines(folder))
+    workers = max(1, min(workers, todo))
     args = [(str(folder), k, workers) for k in range(workers)]
 
     def count() -> int:
@@ -138,7 +152,9 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
 
     with tqdm(total=total, initial=min(count(), total), unit='task', desc='dialogues', file=sys.stderr,
               disable=not progress, dynamic_ncols=True) as bar:
-        if workers == 1:
+        if not todo:
+            pass
+        elif workers == 1:
             _dialogue_worker(*args[0])
         else:
             with multiprocessing.get_context('spawn').Pool(workers) as pool:
@@ -176,7 +192,7 @@ def prepare(config: PrepareConfig) -> dict:
               'folder': str(folder)}
     c0 = _clock()
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
-                                limit=config.limit or None, progress=config.progress)
+                                limit=config.limit or None, progress=config.progress, probe=ORACLE_PROBE)
     c1 = _clock()
     write_dialogues(folder, config.workers, config.progress)
     c2 = _clock()

@@ -185,6 +185,17 @@ def _play_chunk(args: tuple[dict, list[tuple[int, int, int, int]]]) -> list[tupl
     return out
 
 
+def rollout_chunks(jobs: list, workers: int, per_worker: int = 8) -> list[list]:
+    """`jobs` cut into about `per_worker` chunks per worker, handed out as workers free up: episodes'
+    lengths vary, and one fixed share per worker left the others idle while the longest share was
+    still playing (session 13). An episode's outcome depends only on its job and the weights, so
+    the chunks change no result (tests/test_questioner_finetune.py: one worker or two, the same weights)."""
+    if workers <= 1:
+        return [jobs] if jobs else []
+    size = max(1, -(-len(jobs) // (workers * per_worker)))
+    return [jobs[i:i + size] for i in range(0, len(jobs), size)]
+
+
 # ---------------------------------------------------------------------- the update
 
 def update_step(model: Questioner, opt, episodes: list[dict], cfg: FinetuneConfig) -> dict:
@@ -304,9 +315,9 @@ def finetune(cfg: FinetuneConfig) -> dict:
             plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed, cfg.samples_per_task)
             jobs = [(update * cfg.episodes_per_update + k, t, s, z) for k, (t, s, z) in enumerate(plan)]
             state = {k: v.detach().clone() for k, v in model.state_dict().items()}
-            chunks = [jobs[w::cfg.workers] for w in range(cfg.workers)]
-            played = sorted((x for part in pool.map(_play_chunk, [(state, c) for c in chunks if c]) for x in part),
-                            key=lambda x: x[0])
+            played = sorted((x for part in pool.imap_unordered(_play_chunk, [(state, c) for c in
+                                                                             rollout_chunks(jobs, cfg.workers)])
+                             for x in part), key=lambda x: x[0])
             episodes = [dict(ep, group=(number - update * cfg.episodes_per_update) // cfg.samples_per_task)
                         for number, ep in played]
             t_play = time.monotonic()

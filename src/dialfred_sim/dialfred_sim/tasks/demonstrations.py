@@ -33,7 +33,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -72,13 +72,16 @@ def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) ->
     return int(xs[k]), int(ys[k])
 
 
-def play_demonstration(env, task, frames: np.ndarray) -> dict:
+def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable] = None) -> dict:
     """Replay `task`'s expert in `env`, writing its len(actions) + 1 frames into `frames` (a view of that
-    many rows); the task's record for tasks.jsonl."""
+    many rows); the task's record for tasks.jsonl. `observe(env, k)`, if given, is called at every step
+    k with the env as frame k shows it (before action k; k = len(actions) after the last)."""
     obs, _ = env.reset(options={'task': task})
     actions, failed, success = [], 0, False
     for k, a in enumerate(task.expert_actions):
         frames[k] = obs['rgb']
+        if observe is not None:
+            observe(env, k)
         x, y = expert_pixel(env, a, task.resolution, obs['segmentation'])
         target = env.world.objects[a.target].type_name if a.target in env.world.objects else ''
         actions.append([a.action, x, y, target])
@@ -88,30 +91,56 @@ def play_demonstration(env, task, frames: np.ndarray) -> dict:
         if terminated or truncated:     # the goal held early (the rows left over stay zero)
             break
     frames[len(actions)] = obs['rgb']
+    if observe is not None:
+        observe(env, len(actions))
     return {'task_id': task.task_id, 'task_type': task.task_type, 'instruction': task.instruction,
             'step_instructions': list(task.step_instructions), 'object_nouns': list(task.object_nouns),
             'actions': actions, 'success': success, 'failed_actions': failed}
 
 
-def _done_records(out: Path) -> dict[int, dict]:
-    """{task index: record} from every done-*.txt; a line cut off by an interruption is skipped."""
+def _done_rows(out: Path) -> dict[int, dict]:
+    """{task index: row} from every done-*.txt; a line cut off by an interruption is skipped."""
     done = {}
     for path in sorted(out.glob('done-*.txt')):
         for line in path.read_text().splitlines():
             try:
                 row = json.loads(line)
-                done[int(row['index'])] = row['record']
+                if isinstance(row['record'], dict):
+                    done[int(row['index'])] = row
             except (ValueError, KeyError, TypeError):
                 continue
     return done
 
 
-def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int) -> None:
+def _done_records(out: Path) -> dict[int, dict]:
+    """{task index: record} from every done-*.txt; a line cut off by an interruption is skipped."""
+    return {k: row['record'] for k, row in _done_rows(out).items()}
+
+
+def probe_values(out: Path) -> dict[str, object]:
+    """{task_id: value} of what the build's probe (see build_demonstrations) returned for each task it
+    played with one; tasks played without a probe, or whose probe returned None, are absent."""
+    return {row['record']['task_id']: row['probe'] for row in _done_rows(Path(out)).values()
+            if row.get('probe') is not None}
+
+
+def load_probe(name: str):
+    """The probe class named 'package.module:Class' (see build_demonstrations)."""
+    import importlib
+    module, _, attr = name.partition(':')
+    if not module or not attr:
+        raise ValueError(f"a probe is named 'package.module:Class', got {name!r}")
+    return getattr(importlib.import_module(module), attr)
+
+
+def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int,
+            probe: str = '') -> None:
     from ..env import DialfredEnv
     out = Path(out)
     tasks = load_split(split)[:limit]
     offsets = frame_offsets(tasks)
     done = _done_records(out)
+    watcher = load_probe(probe)() if probe else None
     frames = np.load(out / 'frames.npy', mmap_mode='r+')
     env = DialfredEnv(resolution=resolution)
     pending = []
@@ -130,8 +159,13 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
         for k in range(shard, len(tasks), shards):
             if k in done:
                 continue
-            record = play_demonstration(env, tasks[k], frames[offsets[k]:offsets[k + 1]])
-            pending.append({'index': k, 'record': record})
+            if watcher is None:
+                record = play_demonstration(env, tasks[k], frames[offsets[k]:offsets[k + 1]])
+                pending.append({'index': k, 'record': record})
+            else:
+                watcher.begin(tasks[k])
+                record = play_demonstration(env, tasks[k], frames[offsets[k]:offsets[k + 1]], watcher)
+                pending.append({'index': k, 'record': record, 'probe': watcher.end(record)})
             if len(pending) >= SYNC_EVERY:
                 sync()
         sync()
@@ -139,9 +173,16 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
 
 
 def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] = None, workers: int = 1,
-                         limit: Optional[int] = None, progress: bool = True) -> dict:
+                         limit: Optional[int] = None, progress: bool = True, probe: str = '') -> dict:
     """Render the expert demonstrations of `split` (its first `limit` tasks) into `out`; resumes a build
-    that was interrupted. Returns the contents of meta.json."""
+    that was interrupted. Returns the contents of meta.json.
+
+    `probe` ('package.module:Class') lets another package look at every task while it is played,
+    instead of replaying it later: each worker makes one `Class()`, calls `begin(task)` before a
+    task, `probe(env, k)` at each of its steps (play_demonstration's `observe`) and `end(record)`
+    after it, and keeps what `end` returns (JSON, or None for nothing) beside the task's record;
+    `probe_values(out)` reads them back. A probe must leave the env as it found it: the frames and
+    records are the same with or without one."""
     t0 = time.monotonic()
     if resolution < 16:
         raise ValueError(f'resolution must be at least 16, got {resolution}')
@@ -161,7 +202,7 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     elif (out / 'meta.json').exists():
         return json.loads((out / 'meta.json').read_text())       # already complete
     workers = max(1, min(workers, len(tasks)))
-    args = [(split, resolution, str(out), limit, k, workers) for k in range(workers)]
+    args = [(split, resolution, str(out), limit, k, workers, probe) for k in range(workers)]
     if workers == 1:
         _run_with_progress(None, args, out, len(tasks), progress)
     else:
