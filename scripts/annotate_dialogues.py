@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annotator_rng: this script's names too)
-    ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL, LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, QUESTION_TEMPLATES,
+    ANNOTATION_RESOLUTION, ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL, LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, QUESTION_TEMPLATES,
     QUESTION_TYPES, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics, evidence,
     expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
 from dialfred_sim.tasks import SPLIT_SIZES
@@ -51,7 +51,7 @@ _SPLIT = ''
 def _init_worker(split: str) -> None:
     global _ENV, _SPLIT
     from dialfred_sim.env import DialfredEnv
-    _ENV, _SPLIT = DialfredEnv(), split
+    _ENV, _SPLIT = DialfredEnv(resolution=ANNOTATION_RESOLUTION), split
 
 
 def _situation_and_snapshot(task):
@@ -96,6 +96,26 @@ def run_split(split: str, job, workers: int, limit: int = 0) -> list[dict]:
                   file=sys.stderr, flush=True)
     print(file=sys.stderr)
     return out
+
+
+def probed_rows(split: str, demonstrations: Path, workers: int, limit: int = 0) -> list[dict]:
+    """The rows of `split` (its first `limit` tasks if > 0) in task order: those an AnnotatingProbe made
+    while `demonstrations` was rendered (`prepare --annotate`), the others annotated here as usual."""
+    from dialfred_performer.data import probed_annotations
+    from dialfred_sim.tasks import load_split
+    tasks = load_split(split)[:limit or None]
+    probed = probed_annotations(demonstrations)
+    missing = [k for k, t in enumerate(tasks) if t.task_id not in probed]
+    if len(missing) == len(tasks):
+        raise SystemExit(f'{demonstrations} holds no annotator rows: build it with prepare --annotate')
+    made = {}
+    if missing:
+        print(f'{split}: {len(missing)} tasks without a probed row, annotated here', file=sys.stderr)
+        _init_worker(split)
+        for k in missing:
+            made[k] = _annotate_chunk((k, k + 1))[0]
+    print(f'{split}: {len(tasks) - len(missing)} rows made while rendering {demonstrations}', file=sys.stderr)
+    return [made[k] if k in made else probed[t.task_id] for k, t in enumerate(tasks)]
 
 
 def valid_situations(split: str, workers: int) -> list[Situation]:
@@ -308,6 +328,9 @@ def main(argv=None) -> int:
     ap.add_argument('--fit', action='store_true', help='fit the choice model on the valid splits and print it')
     ap.add_argument('--doc-only', action='store_true', help='only rewrite docs/dialogue_data.md')
     ap.add_argument('--doc', default=str(DOC), help='markdown file to write')
+    ap.add_argument('--from-demonstrations', default='', metavar='DIR',
+                    help='train only: take the rows an AnnotatingProbe made while DIR (prepare --annotate) was '
+                         'rendered, and annotate only the tasks it has no row for (the same rows either way)')
     ap.add_argument('--limit', type=int, default=0,
                     help='only the first N tasks of each split (0: all); set DIALFRED_DIALOGUE_DIR and --doc '
                          'so that a slice does not replace the full files')
@@ -326,9 +349,15 @@ def main(argv=None) -> int:
         if args.limit and set(args.splits) - {'train'}:
             ap.error('--limit is for train only: the valid splits\' dialogues are shipped in the package')
         present, _ = available_splits(args.splits)
+        if args.from_demonstrations and args.splits != ['train']:
+            ap.error('--from-demonstrations is for --splits train only')
         for split in present:
             t0 = time.monotonic()
-            rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
+            if args.from_demonstrations:
+                rows = [TaskDialogues.from_json(d) for d in probed_rows(split, Path(args.from_demonstrations),
+                                                                         args.workers, args.limit)]
+            else:
+                rows = [TaskDialogues.from_json(d) for d in run_split(split, _annotate_chunk, args.workers, args.limit)]
             path = dialogue_path(split)
             write_dialogues(path, rows)
             timings[split] = round(time.monotonic() - t0, 1)

@@ -12,9 +12,9 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 
 | stage | what | output (under the run folder, `--out`) |
 |---|---|---|
-| demos | the performer's demonstrations of train (`dialfred_performer.prepare`) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
+| demos | the performer's demonstrations of train (`dialfred_performer.prepare --annotate`): the expert's frames, and while each task is played the oracle's QAs at its start and middle and the synthetic annotators' row at its start (no second or third replay of train) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
 | performer | performer training (`dialfred_performer.train`: one epoch, 15,776 updates; the shipped checkpoint is the best of a 2-epoch run, which was also at the end of its epoch 1) | `performer/best.pt` |
-| dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train`) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
+| dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
 | rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
@@ -220,7 +220,7 @@ class Plan:
     # each stage's config, as plain JSON (part of its stamp)
     def demos_config(self) -> dict:
         return dict(split='train', resolution=RESOLUTION, workers=self.cfg.workers, limit=self.train_limit,
-                    out=str(self.demos), progress=self.cfg.progress)
+                    out=str(self.demos), progress=self.cfg.progress, annotate=True)
 
     def performer_config(self) -> dict:
         base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
@@ -233,7 +233,7 @@ class Plan:
 
     def dialogues_config(self) -> dict:
         return dict(splits=['train'], workers=self.cfg.workers, limit=self.train_limit,
-                    dialogue_dir=str(self.dialogue_dir) if self.dialogue_dir else '')
+                    dialogue_dir=str(self.dialogue_dir) if self.dialogue_dir else '', demonstrations=str(self.demos))
 
     def frames_config(self) -> dict:
         return dict(split='train', resolution=RESOLUTION, out=str(self.frames), demonstrations=str(self.demos),
@@ -335,7 +335,8 @@ def code_hash(paths: tuple[str, ...]) -> str:
 PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_questioner/dialfred_questioner', \
     'src/dialfred_sim/dialfred_sim'
 CODE = {
-    'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py'),
+    'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
+              'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'performer': (f'{PERF}/train.py', f'{PERF}/model.py', f'{PERF}/data.py', f'{PERF}/preprocess.py'),
     'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'frames': (f'{QUES}/frames.py',),
@@ -347,7 +348,7 @@ CODE = {
     'doc': ('scripts/reproduce.py', 'scripts/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
 }
 UPSTREAM = {
-    'demos': (), 'performer': ('demos',), 'dialogues': (), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
+    'demos': (), 'performer': ('demos',), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
     'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
 }
 TRAINING = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
@@ -466,7 +467,7 @@ class Runner:
             env['DIALFRED_DIALOGUE_DIR'] = c['dialogue_dir']
         cmd = [sys.executable, str(ROOT / 'scripts' / 'annotate_dialogues.py'), '--splits', *c['splits'],
                '--workers', str(c['workers']), '--limit', str(c['limit']),
-               '--doc', str(self.cfg.run_dir / 'dialogue_data.md')]
+               '--from-demonstrations', c['demonstrations'], '--doc', str(self.cfg.run_dir / 'dialogue_data.md')]
         done = subprocess.run(cmd, env=env, cwd=ROOT, stdout=subprocess.PIPE, text=True)
         if done.returncode:
             raise RuntimeError(f'{shlex.join(cmd)} exited with {done.returncode}')

@@ -347,3 +347,39 @@ def test_location_answers_in_the_simulator_name_the_receptacle_of_the_task_objec
             a = annotate(task, snap, np.random.default_rng(3), 0, model=forced('location'),
                          situation=replace(Situation.of(task, snap), main_noun=noun, nouns=(noun,)))
             assert f.parent_noun in a.answer.lower(), (task.task_id, noun, a)
+
+
+def test_rows_made_while_rendering_are_the_scripts_own(tmp_path):
+    """prepare --annotate makes each train task's annotator row while rendering its demonstration
+    (AnnotatingProbe, the task's start seen at 128 px through DialfredEnv.viewed_at); the script's
+    --from-demonstrations writes them: the same train.jsonl.gz bytes as the script's own pass (first
+    16 train tasks), and a task without a probed row is annotated as usual."""
+    import gzip
+    import json
+
+    from dialfred_performer.prepare import PrepareConfig, prepare
+    from dialfred_sim.tasks.demonstrations import _done_rows
+    import os
+    import subprocess
+    import sys
+
+    def run(name: str, *extra: str) -> bytes:
+        env = {**os.environ, 'DIALFRED_DIALOGUE_DIR': str(tmp_path / name)}
+        subprocess.run([sys.executable, str(ROOT / 'scripts' / 'annotate_dialogues.py'), '--splits', 'train',
+                        '--limit', '16', '--doc', str(tmp_path / f'{name}.md'), *extra], env=env, check=True,
+                       capture_output=True)
+        return (tmp_path / name / 'train.jsonl.gz').read_bytes()
+
+    demos = tmp_path / 'demos'
+    prepare(PrepareConfig(split='train', resolution=64, workers=2, limit=16, out=str(demos), progress=False,
+                          annotate=True))
+    own = run('own', '--workers', '1')
+    assert run('probed', '--from-demonstrations', str(demos)) == own
+    assert len(gzip.decompress(own).splitlines()) == 16
+    # a task the probe gave no row for (a build resumed from one made without --annotate)
+    path = sorted(demos.glob('done-*.txt'))[0]
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    del rows[0]['probe']['annotation']
+    path.write_text(''.join(json.dumps(r) + '\n' for r in rows))
+    assert rows[0]['index'] in _done_rows(demos)
+    assert run('mixed', '--from-demonstrations', str(demos)) == own

@@ -156,11 +156,27 @@ def test_dialogue_pass_stops_at_the_middle_and_annotation_pass_compares_rows(tmp
     # the shortened pass gives the whole-episode pass's lines, and the lines prepare wrote
     assert report['same_lines'] is True and report['same_as_folder_file'] is True
     assert report['seconds_best']['to_the_middle'] > 0 and report['speedup'] > 0
-    report = run_bench('annotation_pass', '--demonstrations', str(folder), '--limit', '3', '--rounds', '1')
-    # annotating inside the oracle pass leaves its lines alone; the rows are compared with the script's
-    assert report['tasks'] == 3 and report['same_dialogue_lines'] is True
-    assert report['same_annotator_rows'] is (report['annotator_rows_differing'] == 0)
-    assert report['seconds_best']['one_pass'] > 0 and report['cpu']
+    report = run_bench('annotation_pass', '--limit', '3', '--rounds', '1')
+    # annotating while rendering leaves the files alone and gives the script's own rows
+    assert report['tasks'] == 3 and report['same_files'] is True
+    assert report['annotator_rows_differing'] == 0 and report['situations_differing'] == 0
+    assert len(report['ms_per_task']) == 2 and report['cpu']
+
+
+def test_oracle_probe_times_both_ways_and_finds_the_same_files():
+    report = run_bench('oracle_probe', '--limit', '3', '--rounds', '1')
+    assert report['tasks'] == 3 and report['same_files'] is True and len(report['ms_per_task_best_round']) == 2
+
+
+def test_body_links_times_both_ways_and_finds_the_same_bodies_and_frames():
+    report = run_bench('body_links', '--tasks', '4', '--rounds', '1')
+    assert report['tasks'] == 4 and report['same_bodies_poses_frames'] is True
+    assert set(report['ms_per_reset_best_round']) == {'every body', 'cached'}
+
+
+def test_rl_chunks_times_both_ways_and_ends_with_the_same_weights():
+    report = run_bench('rl_chunks', '--updates', '1', '--episodes', '4', '--rounds', '1')
+    assert report['same_weights'] is True and set(report['seconds_best_round']) == {'one share per worker', 'chunks'}
 
 
 def test_training_determinism_rejects_a_malformed_env():

@@ -1125,3 +1125,34 @@ def test_colour_variants_same_type_different_colours(env):
             if len(colours) >= 2:
                 found.append((scene, type_name, colours))
     assert found, 'no scene holds two instances of one type'
+
+
+def test_viewed_at_shows_the_state_as_an_env_of_that_resolution_would_and_restores_everything():
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+    task = load_split('valid_unseen')[7]
+    small, large = DialfredEnv(resolution=64), DialfredEnv(resolution=128)
+    try:
+        with pytest.raises(RuntimeError, match='before reset'):
+            with small.viewed_at(128):
+                pass
+        small.reset(options={'task': task})
+        obs_large, _ = large.reset(options={'task': task})
+        before = small._frame
+        with pytest.raises(ValueError, match='resolution'):
+            with small.viewed_at(8):
+                pass
+        assert small._frame is before
+        with small.viewed_at(128) as seen:
+            assert seen is small and small.resolution == 128 and small.world.width == 128
+            for mine, theirs in zip(small._frame, large._frame):
+                assert np.array_equal(mine, theirs)
+        assert small._frame is before and small.resolution == 64 and (small.world.width, small.world.height) == (64, 64)
+        obs, *_ = small.step({'action': 'RotateLeft'})
+        obs_large, *_ = large.step({'action': 'RotateLeft'})
+        assert obs['rgb'].shape == (64, 64, 3)
+        with small.viewed_at(128):
+            assert np.array_equal(small._frame[0], obs_large['rgb'])
+    finally:
+        small.close()
+        large.close()

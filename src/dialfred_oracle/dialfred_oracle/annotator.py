@@ -522,6 +522,7 @@ class TaskDialogues:
 
 ANNOTATION_SEED = 20220226     # the dialogue data's root seed
 ANNOTATORS = (0, 1)            # two annotators per task, as in the paper
+ANNOTATION_RESOLUTION = 128    # the frame the annotators see (the simulator's default, DialfredEnv())
 
 
 def annotator_rng(task_id: str, annotator_id: int) -> np.random.Generator:

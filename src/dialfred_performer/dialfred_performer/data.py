@@ -200,10 +200,11 @@ class OracleProbe:
     `build_demonstrations`), which saves replaying every task a second time: the oracle at step 0 and
     at the middle step n // 2 of the expert's n recorded actions. The middle is known only when the
     episode ends; it is taken to be len(expert actions) // 2, and a task that stopped early with
-    another middle gets None (prepare replays it with `task_dialogue`). `end` returns the line's
-    `qas` (qa_to_dict's form)."""
+    another middle gets no QAs (prepare replays it with `task_dialogue`). `end` returns
+    {'qas': the line's qas (qa_to_dict's form) or None}."""
 
     def begin(self, task) -> None:
+        self.task = task
         self.nouns = list(task.object_nouns)
         self.middle = len(task.expert_actions) // 2
         self.qas: list[AskedQA] = []
@@ -212,7 +213,31 @@ class OracleProbe:
         if step in (0, self.middle):
             self.qas += oracle_qas(env, self.nouns, step)
 
-    def end(self, record: dict) -> Optional[list[dict]]:
+    def end(self, record: dict) -> dict:
         if len(record['actions']) // 2 != self.middle:
-            return None
-        return [qa_to_dict(a) for a in self.qas]
+            return {'qas': None}
+        return {'qas': [qa_to_dict(a) for a in self.qas]}
+
+
+class AnnotatingProbe(OracleProbe):
+    """OracleProbe, and at step 0 the synthetic annotators' row of the task as
+    `scripts/annotate_dialogues.py` makes it (`annotator.annotate_task` on the task's start, seen at
+    the annotators' resolution through `DialfredEnv.viewed_at`), which saves that script's own reset
+    of every train task. `end` adds {'annotation': the row's JSON}."""
+
+    def __call__(self, env, step: int) -> None:
+        if step == 0:
+            from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task
+            with env.viewed_at(ANNOTATION_RESOLUTION):
+                self.annotation = annotate_task(env, self.task).to_json()
+        super().__call__(env, step)
+
+    def end(self, record: dict) -> dict:
+        return {**super().end(record), 'annotation': self.annotation}
+
+
+def probed_annotations(demonstrations_dir: Path) -> dict[str, dict]:
+    """{task_id: annotator row JSON} that an AnnotatingProbe made while `demonstrations_dir` was built."""
+    from dialfred_sim.tasks.demonstrations import probe_values
+    return {tid: v['annotation'] for tid, v in probe_values(demonstrations_dir).items()
+            if isinstance(v, dict) and v.get('annotation') is not None}

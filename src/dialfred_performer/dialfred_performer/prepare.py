@@ -39,6 +39,7 @@ from .preprocess import Vocabulary
 
 VOCABULARY_FILE = 'vocabulary.json'
 ORACLE_PROBE = 'dialfred_performer.data:OracleProbe'    # the dialogues' QAs asked while rendering
+ANNOTATING_PROBE = 'dialfred_performer.data:AnnotatingProbe'   # ... and the synthetic annotators' rows
 SYNC_EVERY = 10          # tasks between fsyncs of a worker's part file
 
 
@@ -52,6 +53,8 @@ class PrepareConfig:
     limit: int = arg(0, 'only the first N tasks of the split (0: all); use with --out')
     out: str = arg('', 'the demonstrations folder (default: ~/.cache/dialfred/demonstrations/<split>_<resolution>)')
     progress: bool = arg(True, 'progress bars on stderr')
+    annotate: bool = arg(False, 'also make the synthetic annotators\' rows of every task while rendering '
+                                '(scripts/annotate_dialogues.py --from-demonstrations then writes them)')
 
     def __post_init__(self):
         if self.split not in SPLIT_SIZES:
@@ -136,7 +139,7 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     total = len(demo.tasks)
     if out.exists() and sum(1 for _ in out.open()) == total:
         return out
-    probed = probe_values(folder)
+    probed = {tid: v['qas'] for tid, v in probe_values(folder).items() if isinstance(v, dict) and v.get('qas') is not None}
     if probed:
         done = _finished_lines(folder)
         lines = [json.dumps({'task_id': t['task_id'], 'qas': probed[t['task_id']]}) + '\n' for t in demo.tasks
@@ -192,7 +195,8 @@ def prepare(config: PrepareConfig) -> dict:
               'folder': str(folder)}
     c0 = _clock()
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
-                                limit=config.limit or None, progress=config.progress, probe=ORACLE_PROBE)
+                                limit=config.limit or None, progress=config.progress,
+                                probe=ANNOTATING_PROBE if config.annotate else ORACLE_PROBE)
     c1 = _clock()
     write_dialogues(folder, config.workers, config.progress)
     c2 = _clock()

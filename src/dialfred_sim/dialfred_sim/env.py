@@ -38,7 +38,7 @@ with _quiet_stdout():
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
 from .world.rooms import all_scenes, room_layout, scene_number
-from .world.scene import FAR, HORIZON_MAX, HORIZON_MIN, World
+from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World
 
 DEFAULT_RESOLUTION = 128   # see docs/benchmarks.md: 4x the frame rate of 300x300 on this CPU
 # pybullet 3.2.7 keeps about 0.5 KB for every body made and removed (0.14 MB per reset here) and
@@ -208,6 +208,28 @@ class DialfredEnv(gym.Env):
         self.world.update_held_pose()
         self._frame = self.world.render()
         return self._observation()
+
+    @contextlib.contextmanager
+    def viewed_at(self, resolution: int):
+        """For the `with` block, the env as a DialfredEnv of `resolution` would be in this same state:
+        its frame (colour, depth, segmentation), `resolution` and the world's image size are those of
+        that resolution; all restored after the block. Nothing in the world moves. For a tool that wants
+        one look at another resolution without a second reset (the synthetic annotators see 128 px
+        while the demonstrations are rendered at 64: dialfred_performer.data.AnnotatingProbe).
+        Close-ups (ground_truth.closeup_pixels) are rendered at a fixed size, so their cache holds."""
+        if self._frame is None:
+            raise RuntimeError('viewed_at() before reset()')
+        if not _is_integer(resolution) or not 16 <= resolution <= 1024:
+            raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')
+        world = self.world
+        saved = (self.resolution, world.width, world.height, world._projection, self._frame)
+        try:
+            self.resolution = world.width = world.height = int(resolution)
+            world._projection = self.client.computeProjectionMatrixFOV(FOV_DEG, 1.0, NEAR, FAR)
+            self._frame = world.render()
+            yield self
+        finally:
+            self.resolution, world.width, world.height, world._projection, self._frame = saved
 
     def pixel_of(self, object_id: str):
         """A pixel (x, y) of `object_id` in the current frame (the one nearest its mask's centre), or None."""
