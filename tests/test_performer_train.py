@@ -152,17 +152,19 @@ def test_the_oracle_probe_asks_what_a_replay_asks_and_leaves_the_frames_alone(tm
     for name in ('frames.npy', 'tasks.jsonl'):
         assert (probed / name).read_bytes() == (plain / name).read_bytes(), name
     assert len(probe_values(probed)) == 12 and not probe_values(plain)
+    assert all(set(v) == {'qas'} for v in probe_values(probed).values())     # no annotator rows unless asked
     reference = generate_dialogues(plain, out=tmp_path / 'reference.jsonl').read_bytes()
     assert (probed / DIALOGUES_FILE).read_bytes() == reference
     assert not list(probed.glob('dialogues-*.part'))
 
     end = OracleProbe.end
     skipped = {json.loads(line)['task_id'] for line in reference.decode().splitlines()[::3]}
-    monkeypatch.setattr(OracleProbe, 'end', lambda self, record: None if record['task_id'] in skipped
+    monkeypatch.setattr(OracleProbe, 'end', lambda self, record: {'qas': None} if record['task_id'] in skipped
                         else end(self, record))
     partly = tmp_path / 'partly'
     prepare(PrepareConfig(split='train', resolution=64, workers=1, limit=12, out=str(partly), progress=False))
-    assert set(probe_values(partly)) == {json.loads(l)['task_id'] for l in reference.decode().splitlines()} - skipped
+    answered = {tid for tid, v in probe_values(partly).items() if v['qas'] is not None}
+    assert answered == {json.loads(l)['task_id'] for l in reference.decode().splitlines()} - skipped
     assert (partly / DIALOGUES_FILE).read_bytes() == reference
 
 
@@ -173,8 +175,8 @@ def test_the_oracle_probe_gives_nothing_when_the_episode_stopped_before_its_midd
     probe = OracleProbe()
     probe.begin(Task())
     assert probe.middle == 2
-    assert probe.end({'actions': [0, 1, 2]}) is None          # the goal held after 3 of 4: middle 1, not 2
-    assert probe.end({'actions': [0, 1, 2, 3]}) == []
+    assert probe.end({'actions': [0, 1, 2]}) == {'qas': None}    # the goal held after 3 of 4: middle 1, not 2
+    assert probe.end({'actions': [0, 1, 2, 3]}) == {'qas': []}
 
 
 def test_the_vocabulary_knows_every_word_the_oracle_says(folder):
