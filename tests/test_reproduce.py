@@ -7,7 +7,7 @@ eval stage's (local) episodes; the document has Tables II, III and IV with every
 it; the results record each episode's dialogue (question types); a rerun skips every stage (stamps
 match); rerunning the doc stage alone writes the same bytes; the quick caches stay in the run folder;
 a second run from nothing, in another folder with the same seed, gives the same tables and the same
-weights of every model it trains.
+weights of every model it trains, the same episodes and the same caches (`scripts/compare_runs.py`).
 """
 
 from __future__ import annotations
@@ -111,22 +111,18 @@ def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first
 
 
 def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first, tmp_path):
-    import torch
+    import compare_runs
     out, _ = first
     other = tmp_path / 'again'
     run(other)
-    # From Table II to the run times: the settings above name the checkpoints' file hashes, which
-    # differ with the run folder written into each checkpoint's command; their weights are compared below.
-    tables = lambda path: (path / 'results.md').read_text().split('## Table II')[1].split('## Run times')[0]  # noqa: E731
-    mine, theirs = tables(out), tables(other)
-    assert mine.replace(str(out), '') == theirs.replace(str(other), '')
-    a = torch.load(out / 'performer' / 'best.pt', weights_only=False)
-    b = torch.load(other / 'performer' / 'best.pt', weights_only=False)
-    assert all(torch.equal(a['state_dict'][k], b['state_dict'][k]) for k in a['state_dict'])
-    for name in reproduce.RL_RUNS:
-        a = torch.load(out / 'questioner' / name / 'final.pt', weights_only=False)['state_dict']
-        b = torch.load(other / 'questioner' / name / 'final.pt', weights_only=False)['state_dict']
-        assert all(torch.equal(a[k], b[k]) for k in a), name
+    # scripts/compare_runs.py: the tables (Table II to the run times, run folders taken out), every
+    # episode of eval/ and check/ (wall time and the agent's checkpoint-file name aside), the weights of
+    # every model trained, and the caches (the quick run keeps its own, in its folder)
+    report = compare_runs.compare(out, other, caches=True)
+    assert report['same'], json.dumps(report, indent=1)[:3000]
+    assert set(report['weights']['models']) == {'performer', 'pretrain', *reproduce.RL_RUNS}
+    assert report['episodes']['episodes'] > 0 and report['tables']['lines'] > 20
+    assert all(c['same'] for c in report['caches']['caches'].values())
 
 
 def test_bad_settings_are_refused():
