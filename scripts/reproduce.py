@@ -748,6 +748,84 @@ def what_holds(rows: dict) -> list[str]:
     return lines
 
 
+def sampled_mix(run_dir: Path, last: int = 8) -> Optional[dict]:
+    """The question-type mix an RL run sampled over its last `last` updates (its metrics.jsonl), weighting
+    each update by its questions; None when the run's training log is not there (shipped checkpoints)."""
+    path = run_dir / 'metrics.jsonl'
+    try:
+        records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    except (OSError, ValueError):
+        return None
+    records = [r for r in records if r.get('mix')][-last:]
+    weights = [r.get('nq', 0.0) * r.get('episodes', 0) for r in records]
+    if not records or not sum(weights):
+        return None
+    return {t: sum(w * r['mix'].get(t, 0.0) for w, r in zip(weights, records)) / sum(weights) for t in QUESTION_TYPES}
+
+
+def why_lines(plan: Plan, rows: dict) -> list[str]:
+    """What the numbers say about why the paper's findings hold or not here: the worth of a question
+    against the rewards' price, greedy against sampled question mixes, what RL does when answers are
+    withheld. Every figure is computed from the rows or the RL runs' training logs."""
+    from dialfred_questioner.rl import Rewards
+    rewards, lines = Rewards(), []
+    price = -rewards.question / rewards.success * 100           # SR points a question must buy to pay for itself
+
+    def row(split, key):
+        return rows.get((split, key), {})
+
+    for split in SPLITS:
+        alone, allq, pre = row(split, 'instruction_only'), row(split, 'all_qas'), row(split, 'pretrained')
+        if not (alone.get('n') and allq.get('n') and allq['NQ']):
+            continue
+        worth = (allq['SR'] - alone['SR']) / allq['NQ']
+        p_alone, p_all = PAPER_T2['instruction_only'], PAPER_T2['all_qas']
+        paper_worth = (p_all['SR'][split] - p_alone['SR'][split]) / p_all['NQ']
+        text = (f'The worth of a question on {split}: All QAs\' answers raise SR by {worth:.1f} points per question over '
+                f'instruction only ({allq["SR"]:.1f} vs {alone["SR"]:.1f} with {allq["NQ"]:.2f} questions; the paper\'s '
+                f'performer: {paper_worth:.1f}). Under the paper\'s rewards a question pays for itself only if it buys '
+                f'more than {price:.1f} SR points (its {rewards.question:+.2f} against success {rewards.success:+.0f}; '
+                f'steps aside), so asking everything {"loses" if worth < price else "earns"} return here '
+                f'(All QAs {allq["return"]:+.4f} vs instruction only {alone["return"]:+.4f})')
+        if pre.get('n') and pre['NQ']:
+            text += (f'; the pre-trained questioner\'s questions at the start buy {(pre["SR"] - alone["SR"]) / pre["NQ"]:.1f} '
+                     f'points each ({pre["NQ"]:.2f} per episode)')
+        lines.append(text + ('. RL maximises that return, so with answers worth less than their price it learns to ask '
+                             'few questions, and its SR stays near those few questions\' SR rather than All QAs\'.'
+                             if worth < price else '. Here answers are worth their price, so RL has reason to ask.'))
+    mixes = {}
+    for key in ('rl_anytime', *(f'rl_anytime_withhold_{t}' for t in QUESTION_TYPES)):
+        if not plan.cfg.shipped:
+            mix = sampled_mix(plan.run / 'questioner' / key)
+            if mix is not None:
+                mixes[key] = mix
+    greedy = row('valid_unseen', 'rl_anytime').get('shares')
+    if greedy:
+        fmt = lambda m: ' / '.join(f'{m[t]:.2f}' for t in QUESTION_TYPES)  # noqa: E731
+        text = (f'Question mix: the evaluation plays each questioner greedily, asking the type its policy ranks first; '
+                f'RL anytime\'s greedy shares on valid_unseen are {fmt(greedy)} (location / appearance / direction)')
+        if 'rl_anytime' in mixes:
+            text += f', while sampling in training (its last 8 updates) it asked {fmt(mixes["rl_anytime"])}'
+            moved = [f'{t} withheld: {fmt(mixes[f"rl_anytime_withhold_{t}"])} (its {t} share '
+                     f'{mixes[f"rl_anytime_withhold_{t}"][t] - mixes["rl_anytime"][t]:+.2f})'
+                     for t in QUESTION_TYPES if f'rl_anytime_withhold_{t}' in mixes]
+            if moved:
+                text += '; sampled mixes of the runs trained with one type withheld: ' + '; '.join(moved)
+        else:
+            text += ' (the RL runs\' training logs are not in this run folder: no sampled mixes)'
+        lines.append(text + '. A shift of the sampled mix that leaves the first-ranked type in place does not show '
+                     'in the greedy shares of Table III.')
+    base, loc = row('valid_unseen', 'rl_anytime'), row('valid_unseen', 'rl_anytime_withhold_location')
+    if base.get('n') and loc.get('n'):
+        lines.append(f'With location answers withheld half the time, RL trained that way asks {loc["NQ"]:.2f} questions '
+                     f'per episode against {base["NQ"]:.2f} unperturbed, and {loc["repeats"]:.3f} of its questions '
+                     f'repeat one already asked (unperturbed {base["repeats"]:.3f}): '
+                     + ('it asks the withheld type again until it is answered rather than switching type.'
+                        if loc['NQ'] > base['NQ'] and loc['repeats'] > base['repeats'] else
+                        'it does not ask the withheld type again more often.'))
+    return lines
+
+
 def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
     """95% bootstrap interval of the mean paired difference of the paper's return, a - b (results of the
     same tasks, in the same order)."""
@@ -948,6 +1026,12 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     # what holds
     out += ['## What holds', '', 'Computed from the tables above; the paper\'s numbers in brackets.', '']
     out += [f'- {line}' for line in what_holds(rows)] or ['- not enough results yet']
+    why = why_lines(plan, rows)
+    if why:
+        out += ['', '## Why, as far as the numbers say', '',
+                'Computed from the tables above and, for the sampled mixes, the RL runs\' training logs '
+                '(`questioner/<run>/metrics.jsonl`).', '']
+        out += [f'- {line}' for line in why]
     # questions
     out += ['', '## The questions RL anytime asks most (both splits)', '']
     asked = most_asked(rows)

@@ -168,3 +168,36 @@ def test_the_frontier_plot_fits_its_legend_however_long_the_labels(tmp_path):
     assert edge.min() == 255                                 # nothing drawn in the last 16 px: no cut-off text
     legend_marks = np.asarray(image.convert('RGB'))[:, -int(image.size[0] - 520) - 1:, :]
     assert legend_marks.shape[1] > 300                       # the legend area grew with the longest label
+
+
+def test_why_lines_price_a_question_and_read_the_sampled_mixes(tmp_path):
+    """Synthetic rows and training logs: the worth of a question against the rewards' price of 5 SR points,
+    the sampled mix of the last updates beside the greedy shares, and repeats under withheld answers."""
+    def row(sr, nq, ret=0.0, shares=None, repeats=0.0):
+        return {'n': 100, 'SR': sr, 'NQ': nq, 'return': ret, 'shares': shares, 'repeats': repeats}
+    rows = {}
+    for split in reproduce.SPLITS:
+        rows[(split, 'instruction_only')] = row(20.0, 0.0, 0.1)
+        rows[(split, 'all_qas')] = row(28.0, 4.0, 0.0)          # 2 points per question: below the price of 5
+        rows[(split, 'pretrained')] = row(26.0, 0.5, 0.15)      # 12 points per question
+    rows[('valid_unseen', 'rl_anytime')] = row(24.0, 0.3, shares={'location': 1.0, 'appearance': 0.0, 'direction': 0.0},
+                                               repeats=0.01)
+    rows[('valid_unseen', 'rl_anytime_withhold_location')] = row(22.0, 0.6, repeats=0.2)
+    run = tmp_path / 'run'
+    for name, mixes in (('rl_anytime', [(0.9, 0.1, 0.0)] * 10), ('rl_anytime_withhold_location', [(0.6, 0.3, 0.1)] * 10)):
+        (run / 'questioner' / name).mkdir(parents=True)
+        (run / 'questioner' / name / 'metrics.jsonl').write_text(''.join(
+            json.dumps({'update': i, 'episodes': 64, 'nq': 1.0, 'mix': dict(zip(reproduce.QUESTION_TYPES, m))}) + '\n'
+            for i, m in enumerate(mixes)))
+    plan = reproduce.Plan(reproduce.ReproduceConfig(out=str(run)))
+    lines = reproduce.why_lines(plan, rows)
+    assert len(lines) == 4, lines
+    assert '2.0 points per question' in lines[0] and 'more than 5.0 SR points' in lines[0] and 'loses return' in lines[0]
+    assert 'buy 12.0 points each' in lines[0] and 'learns to ask few questions' in lines[0]
+    assert 'greedy shares on valid_unseen are 1.00 / 0.00 / 0.00' in lines[2]
+    assert 'it asked 0.90 / 0.10 / 0.00' in lines[2] and 'location withheld: 0.60 / 0.30 / 0.10 (its location share -0.30)' in lines[2]
+    assert 'asks 0.60 questions per episode against 0.30' in lines[3] and 'until it is answered' in lines[3]
+    rows[('valid_seen', 'all_qas')] = row(60.0, 4.0)            # 10 points per question: asking pays
+    assert 'worth their price' in reproduce.why_lines(plan, rows)[0]
+    shipped = reproduce.Plan(reproduce.ReproduceConfig(shipped=True))
+    assert 'no sampled mixes' in reproduce.why_lines(shipped, rows)[2]
