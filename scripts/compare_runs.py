@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compare two `./dialfred reproduce` runs: the same tables, episodes, weights and caches?
 
-    ./dialfred env python scripts/compare_runs.py out/reproduce out/reproduce_b [--caches] [--show 5]
+    ./dialfred env python scripts/compare_runs.py out/reproduce out/reproduce_b [--parts tables,episodes,weights,caches]
 
 A second run that is independent of the first needs its own caches; point them into its run folder:
 
@@ -21,11 +21,13 @@ What is compared (each part says `same` true/false, with the first differences):
 - `weights`: the performer (`performer/best.pt`), the pre-trained questioner and every RL questioner:
   each tensor of the state dict (and the questioner's frozen visual encoder), the config and the
   vocabularies.
-- `caches` (with `--caches`): the files of the demonstrations, dialogues and first-frames caches that
+- `caches` (asked for with `--parts ...,caches`): the files of the demonstrations, dialogues and first-frames caches that
   the stamps name, by sha256 (the demonstrations are about 3 GB: some seconds).
 
+`--parts` picks what to compare (default tables,episodes,weights): a run still under way can be
+compared on what it has made so far, e.g. `--parts caches,weights` after its training stages.
 Prints one JSON object; exit status 0 when every part compared is the same, 1 when something differs,
-2 when a run folder or a part of it is missing.
+2 when a run folder or a part that was asked for is missing.
 """
 
 from __future__ import annotations
@@ -120,11 +122,11 @@ def compare_episodes(a: Path, b: Path, show: int) -> dict:
 
 
 def checkpoints(run: Path) -> dict:
-    """{name: path} of the models a run trains."""
+    """{name: path} of the models a run has trained so far."""
     out = {'performer': run / 'performer' / 'best.pt', 'pretrain': run / 'questioner' / 'pretrain' / 'best.pt'}
     for p in sorted((run / 'questioner').glob('*/final.pt')):
         out[p.parent.name] = p
-    return out
+    return {name: p for name, p in out.items() if p.is_file()}
 
 
 def same_value(x, y) -> bool:
@@ -201,15 +203,22 @@ def compare_caches(a: Path, b: Path, show: int) -> dict:
     return {'same': all(c['same'] is not False for c in out.values()), 'caches': out}
 
 
-def compare(a: Path, b: Path, caches: bool = False, show: int = 5) -> dict:
+PARTS = {'tables': compare_tables, 'episodes': compare_episodes, 'weights': compare_weights, 'caches': compare_caches}
+DEFAULT_PARTS = ('tables', 'episodes', 'weights')
+
+
+def compare(a: Path, b: Path, parts=DEFAULT_PARTS, show: int = 5) -> dict:
+    unknown = [p for p in parts if p not in PARTS]
+    if unknown or not parts:
+        raise ValueError(f'parts are some of {", ".join(PARTS)}, got {", ".join(parts) or "none"}')
     for run in (a, b):
         if not run.is_dir():
             raise MissingPart(f'{run} is not a run folder')
-    report = {'a': str(a), 'b': str(b), 'tables': compare_tables(a, b, show),
-              'episodes': compare_episodes(a, b, show), 'weights': compare_weights(a, b, show)}
-    if caches:
-        report['caches'] = compare_caches(a, b, show)
-    report['same'] = all(report[k]['same'] for k in ('tables', 'episodes', 'weights', 'caches') if k in report)
+    report = {'a': str(a), 'b': str(b)}
+    for part in PARTS:
+        if part in parts:
+            report[part] = PARTS[part](a, b, show)
+    report['same'] = all(report[p]['same'] for p in PARTS if p in report)
     return report
 
 
@@ -217,12 +226,13 @@ def main(argv: Optional[list[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog='scripts/compare_runs.py', description=__doc__.split('\n')[0])
     ap.add_argument('a', type=Path, help='a run folder of ./dialfred reproduce')
     ap.add_argument('b', type=Path, help='another run folder')
-    ap.add_argument('--caches', action='store_true', help='also compare the caches the stamps name, by sha256')
+    ap.add_argument('--parts', default=','.join(DEFAULT_PARTS),
+                    help=f'what to compare, comma-separated: some of {", ".join(PARTS)} (default %(default)s)')
     ap.add_argument('--show', type=int, default=5, help='how many differences of each kind to list')
     args = ap.parse_args(argv)
     try:
-        report = compare(args.a, args.b, args.caches, args.show)
-    except MissingPart as exc:
+        report = compare(args.a, args.b, tuple(p for p in args.parts.split(',') if p), args.show)
+    except (MissingPart, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     print(json.dumps(report, indent=1))

@@ -63,7 +63,7 @@ def runs(tmp_path):
 
 def test_two_runs_with_the_same_outputs_are_the_same(runs):
     a, b = runs
-    report = compare_runs.compare(a, b, caches=True)
+    report = compare_runs.compare(a, b, parts=compare_runs.PARTS)
     assert report['same'], report
     assert report['episodes'] == {'same': True, 'files': 1, 'episodes': 2, 'differing': 0, 'only_in_one': [],
                                   'differing_files': {}}
@@ -119,7 +119,7 @@ def test_a_changed_table_line_is_shown(runs):
 def test_a_changed_cache_file_is_named(runs, tmp_path):
     a, b = runs
     (tmp_path / 'cache_b' / 'demos' / 'frames.npy').write_bytes(b'other')
-    report = compare_runs.compare(a, b, caches=True)
+    report = compare_runs.compare(a, b, parts=compare_runs.PARTS)
     assert report['caches']['caches']['demonstrations'] == {'same': False, 'files': 1, 'differing': ['frames.npy']}
     assert report['caches']['caches']['dialogues']['same'] and not report['same']
 
@@ -131,3 +131,6 @@ def test_missing_folders_and_unfinished_runs_are_clear_errors(runs, tmp_path, ca
     (b / 'results.md').write_text('# Results\n\n## Table II\n')
     assert compare_runs.main([str(a), str(b)]) == 2
     assert 'an unfinished run?' in capsys.readouterr().err
+    assert compare_runs.main([str(a), str(b), '--parts', 'weights,caches']) == 0     # what an unfinished run has
+    assert compare_runs.main([str(a), str(b), '--parts', 'weights,nope']) == 2
+    assert 'parts are some of' in capsys.readouterr().err

@@ -118,7 +118,7 @@ def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first
     # scripts/compare_runs.py: the tables (Table II to the run times, run folders taken out), every
     # episode of eval/ and check/ (wall time and the agent's checkpoint-file name aside), the weights of
     # every model trained, and the caches (the quick run keeps its own, in its folder)
-    report = compare_runs.compare(out, other, caches=True)
+    report = compare_runs.compare(out, other, parts=compare_runs.PARTS)
     assert report['same'], json.dumps(report, indent=1)[:3000]
     assert set(report['weights']['models']) == {'performer', 'pretrain', *reproduce.RL_RUNS}
     assert report['episodes']['episodes'] > 0 and report['tables']['lines'] > 20
