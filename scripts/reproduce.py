@@ -20,7 +20,7 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
 | eval | every setting of the tables (`dialfred_eval.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
 | check | the first `--check-tasks` tasks of every setting played again through the ROS graph (performer, questioner, oracle and simulator nodes) and compared with the eval stage's episodes field by field (wall time aside); mismatches are listed in the document, not hidden | `check/<split>_<setting>.jsonl`, `check/report.json` |
-| doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`) |
+| doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`, its plot beside it: `sr_nq.png`, or `<stem>_sr_nq.png` for a doc of another name) |
 
 Each stage writes `stamps/<stage>.json` with the hash of its inputs (its config, the hashes of the stages
 it depends on, and the source files that make it). A stage whose stamp matches is skipped
@@ -592,8 +592,7 @@ class Runner:
         if self.cfg.doc and 'doc' in self.summary:
             target = Path(self.cfg.doc) if Path(self.cfg.doc).is_absolute() else ROOT / self.cfg.doc
             target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(self.plan.run / 'results.md', target)
-            shutil.copyfile(self.plan.run / 'sr_nq.png', target.with_name('sr_nq.png'))   # the doc's link
+            copy_doc(self.plan.run, target)
         return {'run': str(self.cfg.run_dir), 'quick': self.cfg.quick, 'shipped': self.cfg.shipped,
                 'stages': self.summary, 'seconds': round(time.monotonic() - t0, 1),
                 'doc': str(self.plan.run / 'results.md'), 'copied_to': self.cfg.doc or None}
@@ -1090,6 +1089,17 @@ def write_outputs(plan: Plan, report: dict) -> tuple[Path, Path]:
     doc = plan.run / 'results.md'
     doc.write_text(render(plan, report, plot.name))
     return doc, plot
+
+
+def copy_doc(run: Path, target: Path) -> None:
+    """Copy the run's results.md to `target` with its plot beside it: sr_nq.png next to a results.md,
+    <stem>_sr_nq.png (the link rewritten) next to a doc of another name, so that two documents (a full
+    run's and the shipped checkpoints') can share a folder."""
+    text = (run / 'results.md').read_text()
+    plot = 'sr_nq.png' if target.name == 'results.md' else f'{target.stem}_sr_nq.png'
+    text = text.replace('](sr_nq.png)', f']({plot})')
+    shutil.copyfile(run / 'sr_nq.png', target.with_name(plot))
+    target.write_text(text)
 
 
 def main(argv: Optional[list[str]] = None) -> int:

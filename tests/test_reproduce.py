@@ -201,3 +201,16 @@ def test_why_lines_price_a_question_and_read_the_sampled_mixes(tmp_path):
     assert 'worth their price' in reproduce.why_lines(plan, rows)[0]
     shipped = reproduce.Plan(reproduce.ReproduceConfig(shipped=True))
     assert 'no sampled mixes' in reproduce.why_lines(shipped, rows)[2]
+
+
+def test_a_doc_of_another_name_gets_its_own_plot(tmp_path):
+    run, docs = tmp_path / 'run', tmp_path / 'docs'
+    run.mkdir()
+    docs.mkdir()
+    (run / 'results.md').write_text('# Results\n\n![SR against NQ](sr_nq.png)\n')
+    (run / 'sr_nq.png').write_bytes(b'png')
+    reproduce.copy_doc(run, docs / 'results.md')
+    reproduce.copy_doc(run, docs / 'results_shipped.md')
+    assert (docs / 'results.md').read_text() == (run / 'results.md').read_text()
+    assert '![SR against NQ](results_shipped_sr_nq.png)' in (docs / 'results_shipped.md').read_text()
+    assert (docs / 'sr_nq.png').read_bytes() == (docs / 'results_shipped_sr_nq.png').read_bytes() == b'png'
