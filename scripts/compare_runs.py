@@ -22,7 +22,8 @@ What is compared (each part says `same` true/false, with the first differences):
   each tensor of the state dict (and the questioner's frozen visual encoder), the config and the
   vocabularies.
 - `caches` (asked for with `--parts ...,caches`): the files of the demonstrations, dialogues and first-frames caches that
-  the stamps name, by sha256 (the demonstrations are about 3 GB: some seconds).
+  the stamps name, by sha256 (the demonstrations are about 3 GB: some seconds); a JSON file (the
+  demonstrations' meta.json) without its top-level 'seconds...' timings.
 
 `--parts` picks what to compare (default tables,episodes,weights): a run still under way can be
 compared on what it has made so far, e.g. `--parts caches,weights` after its training stages.
@@ -182,11 +183,25 @@ def cache_paths(run: Path) -> dict:
             'frames': Path(stamp('frames')['report']['path'])}
 
 
+def digest(path: Path) -> str:
+    """A file's sha256; of a JSON file (a cache's meta.json), of its content without the run's timings
+    (top-level keys starting with 'seconds')."""
+    if path.suffix == '.json':
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, ValueError):
+            return sha256_file(path)
+        if isinstance(data, dict):
+            data = {k: v for k, v in data.items() if not k.startswith('seconds')}
+        return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+    return sha256_file(path)
+
+
 def digests(path: Path) -> dict:
     if path.is_dir():
-        return {p.name: sha256_file(p) for p in sorted(path.iterdir()) if p.is_file()}
+        return {p.name: digest(p) for p in sorted(path.iterdir()) if p.is_file()}
     if path.is_file():
-        return {path.name: sha256_file(path)}
+        return {path.name: digest(path)}
     raise MissingPart(f'{path} is missing')
 
 

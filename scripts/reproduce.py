@@ -1,10 +1,9 @@
 #!/usr/bin/env python3
 """Reproduce the paper's Tables II, III and IV end to end: `./dialfred reproduce`.
 
-    ./dialfred reproduce                      # everything after set-up -> out/reproduce/ (resumable)
+    ./dialfred reproduce                      # everything after set-up -> out/reproduce/ (resumable), docs/results.md
     ./dialfred reproduce --quick              # the same pipeline on tiny slices, in minutes -> out/reproduce_quick/
-    ./dialfred reproduce --shipped --doc docs/results.md
-                                              # no training: evaluate the shipped checkpoints, write the doc
+    ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> docs/results_shipped.md
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
     ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
 
@@ -32,7 +31,9 @@ line per stage (name, skipped/ran, seconds) goes to stderr and one JSON summary 
 `--shipped` runs no training: the performer is the shipped `dialfred_performer/checkpoints/et.pt`
 and the questioners the shipped `dialfred_questioner/checkpoints/<setting>.pt` (a setting whose file
 is absent is left out of the tables, marked "no results"); its run folder is out/reproduce_shipped.
-The document goes to the run folder, and to docs/results.md only with `--doc docs/results.md`.
+The document goes to the run folder, and is copied to docs/results.md (a full run in out/reproduce),
+docs/results_shipped.md (`--shipped` in out/reproduce_shipped) or `--doc PATH`; a quick run or another
+`--out` copies it nowhere unless `--doc` says where, `--doc none` never.
 `--quick` runs the whole pipeline on slices (32 train tasks, a tiny performer and questioner, RL of
 2 updates x 8 episodes of at most 30 steps, evaluations of 8 tasks in this process); its numbers mean
 nothing, it checks the pipeline. Caches of the quick run stay in its run folder (DIALFRED_DIALOGUE_DIR
@@ -161,7 +162,9 @@ class ReproduceConfig:
                        "out/reproduce_shipped)")
     quick: bool = arg(False, 'tiny slices of every stage (minutes): checks the pipeline, the numbers mean nothing')
     shipped: bool = arg(False, 'no training stages: evaluate the shipped performer and questioner checkpoints')
-    doc: str = arg('', "also write the document here (e.g. docs/results.md); '' = only <out>/results.md")
+    doc: str = arg('', "also write the document here; '' = docs/results.md for a full run in out/reproduce, "
+                       "docs/results_shipped.md for --shipped in out/reproduce_shipped, nowhere else (--quick, "
+                       "another --out); 'none' = only <out>/results.md")
     force: str = arg('', 'rerun this stage and every stage after it, stamps or not')
     until: str = arg('', "stop after this stage ('' = run to the end)")
     eval_path: str = arg('local', "how the tables' episodes are played: local (worker processes without ROS, "
@@ -186,6 +189,17 @@ class ReproduceConfig:
             raise ValueError(f'--eval-path takes one of {", ".join(EVAL_PATHS)}, got {self.eval_path!r}')
         if self.check_tasks < 0:
             raise ValueError('--check-tasks must be 0 or more')
+
+    @property
+    def doc_target(self) -> Optional[Path]:
+        """Where the document is copied besides the run folder (None: nowhere)."""
+        if self.doc == 'none':
+            return None
+        if self.doc:
+            return Path(self.doc) if Path(self.doc).is_absolute() else ROOT / self.doc
+        if self.quick or self.out:
+            return None
+        return ROOT / 'docs' / ('results_shipped.md' if self.shipped else 'results.md')
 
     @property
     def run_dir(self) -> Path:
@@ -589,13 +603,13 @@ class Runner:
                 self.run_stage(stage, getattr(self, stage), self.outputs(stage))
             if stage == self.cfg.until:
                 break
-        if self.cfg.doc and 'doc' in self.summary:
-            target = Path(self.cfg.doc) if Path(self.cfg.doc).is_absolute() else ROOT / self.cfg.doc
+        target = self.cfg.doc_target if 'doc' in self.summary else None
+        if target is not None:
             target.parent.mkdir(parents=True, exist_ok=True)
             copy_doc(self.plan.run, target)
         return {'run': str(self.cfg.run_dir), 'quick': self.cfg.quick, 'shipped': self.cfg.shipped,
                 'stages': self.summary, 'seconds': round(time.monotonic() - t0, 1),
-                'doc': str(self.plan.run / 'results.md'), 'copied_to': self.cfg.doc or None}
+                'doc': str(self.plan.run / 'results.md'), 'copied_to': str(target) if target else None}
 
 
 # --------------------------------------------------------------------------------------------- the report

@@ -1,7 +1,7 @@
 """scripts/compare_runs.py on two small synthetic run folders (made here, not by a real run).
 
-Claims: two copies of a run differ nowhere, whatever their folders' names; a run whose wall times and
-checkpoint file names alone differ is the same; one changed episode field, one changed tensor, one
+Claims: two copies of a run differ nowhere, whatever their folders' names; a run whose wall times,
+timings in a cache's meta.json and checkpoint file names alone differ is the same; one changed episode field, one changed tensor, one
 changed table line or one changed cache file is found and named; a missing run folder or results.md
 is a clear error (exit status 2), a difference exit status 1.
 """
@@ -45,6 +45,7 @@ def make_run(run: Path, cache: Path) -> Path:
                    run / rel)
     (cache / 'demos').mkdir(parents=True)
     (cache / 'demos' / 'frames.npy').write_bytes(bytes(range(256)))
+    (cache / 'demos' / 'meta.json').write_text(json.dumps({'tasks': 2, 'seconds_this_run': len(str(run)) / 7}))
     (cache / 'dialogues.jsonl.gz').write_bytes(b'dialogues')
     (cache / 'first.npz').write_bytes(b'frames')
     stamps = {'demos': {'inputs': {'config': {'out': str(cache / 'demos')}}},
@@ -120,7 +121,10 @@ def test_a_changed_cache_file_is_named(runs, tmp_path):
     a, b = runs
     (tmp_path / 'cache_b' / 'demos' / 'frames.npy').write_bytes(b'other')
     report = compare_runs.compare(a, b, parts=compare_runs.PARTS)
-    assert report['caches']['caches']['demonstrations'] == {'same': False, 'files': 1, 'differing': ['frames.npy']}
+    assert report['caches']['caches']['demonstrations'] == {'same': False, 'files': 2, 'differing': ['frames.npy']}
+    (tmp_path / 'cache_b' / 'demos' / 'frames.npy').write_bytes(bytes(range(256)))
+    (tmp_path / 'cache_b' / 'demos' / 'meta.json').write_text(json.dumps({'tasks': 3, 'seconds_this_run': 1.0}))
+    assert compare_runs.compare(a, b, parts=('caches',))['caches']['caches']['demonstrations']['differing'] == ['meta.json']
     assert report['caches']['caches']['dialogues']['same'] and not report['same']
 
 

@@ -214,3 +214,13 @@ def test_a_doc_of_another_name_gets_its_own_plot(tmp_path):
     assert (docs / 'results.md').read_text() == (run / 'results.md').read_text()
     assert '![SR against NQ](results_shipped_sr_nq.png)' in (docs / 'results_shipped.md').read_text()
     assert (docs / 'sr_nq.png').read_bytes() == (docs / 'results_shipped_sr_nq.png').read_bytes() == b'png'
+
+
+def test_where_the_document_is_copied():
+    docs = ROOT / 'docs'
+    assert reproduce.ReproduceConfig().doc_target == docs / 'results.md'
+    assert reproduce.ReproduceConfig(shipped=True).doc_target == docs / 'results_shipped.md'
+    assert reproduce.ReproduceConfig(quick=True).doc_target is None
+    assert reproduce.ReproduceConfig(out='out/reproduce_b').doc_target is None           # a second run
+    assert reproduce.ReproduceConfig(out='out/reproduce_b', doc='x/r.md').doc_target == ROOT / 'x' / 'r.md'
+    assert reproduce.ReproduceConfig(doc='none').doc_target is None
