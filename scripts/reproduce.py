@@ -55,6 +55,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import pickle
 import shlex
 import shutil
 import subprocess
@@ -324,6 +325,23 @@ def sha256_of(data) -> str:
     if isinstance(data, (bytes, bytearray)):
         return hashlib.sha256(data).hexdigest()
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def weights_sha256(path: Path) -> str:
+    """A checkpoint's weights digest: sha256 over its state_dict's tensors (name, dtype, shape and bytes, in
+    name order). Two runs that train the same model get the same digest even though their files differ:
+    a checkpoint also records the command and git commit that made it."""
+    import torch
+    try:
+        state = torch.load(path, map_location='cpu', weights_only=False)['state_dict']
+    except (OSError, RuntimeError, EOFError, KeyError, TypeError, pickle.UnpicklingError) as exc:
+        raise ValueError(f'{path}: not a checkpoint with a state_dict ({exc})') from None
+    h = hashlib.sha256()
+    for name in sorted(state):
+        t = state[name].detach().contiguous().reshape(-1)
+        h.update(f'{name}\0{t.dtype}\0{tuple(state[name].shape)}\0'.encode())
+        h.update(t.view(torch.uint8).numpy().tobytes())
+    return h.hexdigest()
 
 
 def newest_mtime(paths) -> float:
@@ -961,7 +979,9 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
                 'updates of 8 episodes); these numbers check the pipeline and mean nothing.', '']
     perf = plan.performer_checkpoint
     out += ['## Settings', '',
-            f'- performer: `{_relative(perf)}` (sha256 `{sha256_of(perf.read_bytes())[:16]}`...)' if perf.exists()
+            f'- performer: `{_relative(perf)}` (weights sha256 `{weights_sha256(perf)[:16]}`...: a digest of its '
+            'tensors, the same wherever the same model is trained; the file itself also records its command and commit)'
+            if perf.exists()
             else f'- performer: `{_relative(perf)}` (absent)',
             '- questioners: ' + ('the shipped checkpoints in `' + _relative(SHIPPED_QUESTIONERS) + '/`' if cfg.shipped
                                  else f'fine-tuned by the rl stage in `{_relative(plan.run / "questioner")}/`') +

@@ -123,6 +123,29 @@ def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first
     assert set(report['weights']['models']) == {'performer', 'pretrain', *reproduce.RL_RUNS}
     assert report['episodes']['episodes'] > 0 and report['tables']['lines'] > 20
     assert all(c['same'] for c in report['caches']['caches'].values())
+    # the doc names the performer by its weights, so both docs name the same one
+    digest = [[l for l in (run_dir / 'results.md').read_text().splitlines() if 'weights sha256' in l][0].split('`')[3]
+              for run_dir in (out, other)]
+    assert digest[0] == digest[1] == reproduce.weights_sha256(out / 'performer' / 'best.pt')[:16]
+
+
+def test_the_weights_digest_reads_tensors_not_provenance(tmp_path):
+    import torch
+    state = {'b.weight': torch.arange(6, dtype=torch.float32).reshape(2, 3), 'a.bias': torch.ones(3, dtype=torch.bfloat16),
+             'steps': torch.tensor(7)}
+    torch.save({'state_dict': state, 'command': 'run A', 'git_commit': 'aaa'}, tmp_path / 'a.pt')
+    torch.save({'state_dict': dict(reversed(state.items())), 'command': 'run B', 'git_commit': 'bbb'}, tmp_path / 'b.pt')
+    assert reproduce.weights_sha256(tmp_path / 'a.pt') == reproduce.weights_sha256(tmp_path / 'b.pt')
+    changed = dict(state, **{'b.weight': state['b.weight'].clone()})
+    changed['b.weight'][1, 2] = torch.nextafter(changed['b.weight'][1, 2], torch.tensor(99.0))
+    torch.save({'state_dict': changed}, tmp_path / 'c.pt')
+    assert reproduce.weights_sha256(tmp_path / 'c.pt') != reproduce.weights_sha256(tmp_path / 'a.pt')
+    reshaped = dict(state, **{'b.weight': state['b.weight'].reshape(3, 2)})
+    torch.save({'state_dict': reshaped}, tmp_path / 'd.pt')
+    assert reproduce.weights_sha256(tmp_path / 'd.pt') != reproduce.weights_sha256(tmp_path / 'a.pt')
+    (tmp_path / 'e.pt').write_bytes(b'not a checkpoint')
+    with pytest.raises(ValueError, match='not a checkpoint'):
+        reproduce.weights_sha256(tmp_path / 'e.pt')
 
 
 def test_bad_settings_are_refused():
