@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""One evaluation played three ways: locally without ROS (`launch eval --local`, dialfred_local.py), with the
+"""One evaluation played three ways: locally without ROS (`launch eval --local`, dialfred_bringup/local.py), with the
 agent in the launcher's process and simulator / oracle nodes (`--agent et`), and through performer
 nodes (`--performer et`, the robotics user's graph). Prints JSON: wall time (start-up included, what a
 user waits), episodes per second, and whether every path played the same episodes (every result field
@@ -14,20 +14,18 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 PATHS = {'local': dict(local=True), 'in-process': dict(), 'graph': dict(performer='et')}
 
 
 def main() -> None:
-    from dialfred_eval import EvalConfig, run_eval
-    from dialfred_sim.machine import cpu_model
+    from dialfred_bringup.evaluation import EvalConfig, run_eval
+    from dialfred_bringup.machine import cpu_model
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
     ap.add_argument('--limit', type=int, default=200)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The expert replayed over a whole split through the simulator nodes, as `dialfred_launch.py eval`
+"""The expert replayed over a whole split through the simulator nodes, as `dialfred_bringup/launch.py eval`
 runs it (`--workers` nodes, asynchronous calls from one client), into a fresh results file.
 
 Prints JSON: wall time (start-up included), tasks, episodes/s, simulator steps/s, SR / PWSR / GC and
@@ -17,10 +17,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_eval import EvalConfig, run_eval  # noqa: E402
-
+from dialfred_bringup.evaluation import EvalConfig, run_eval
 GOAL_S = 300.0   # whole valid_unseen
 
 

@@ -26,15 +26,12 @@ import argparse
 import collections
 import json
 import math
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from dialfred_launch import Graph, oracle_node, sim_node, use_private_ros_domain  # noqa: E402
+from dialfred_bringup.graph import Graph, oracle_node, sim_node, use_private_ros_domain
+from dialfred_sim.world.palette import COLOUR_NAMES as COLOURS
 
 TYPES = ('location', 'appearance', 'direction')
 BINS = ('in front of you', 'to your front right', 'to your right', 'to your rear right', 'behind you',
@@ -179,8 +176,6 @@ def main() -> None:
     report['examples'] = examples[:12]
     print(json.dumps(report, indent=2))
 
-
-from dialfred_sim.world.palette import COLOUR_NAMES as COLOURS  # noqa: E402
 
 if __name__ == '__main__':
     main()

@@ -15,16 +15,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain  # noqa: E402
-
+from dialfred_bringup.graph import Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain
 TYPES = ('location', 'appearance', 'direction')
 
 

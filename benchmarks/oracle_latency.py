@@ -27,14 +27,11 @@ import argparse
 import json
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, oracle_node, sim_node, use_private_ros_domain  # noqa: E402
-
+from dialfred_bringup.graph import Graph, oracle_node, sim_node, use_private_ros_domain
 PATHS = {'fetch_every_question': False, 'cached': True}
 GOAL = {'location_direction_requests_per_s': 1000.0, 'location_direction_p99_ms': 5.0}
 

@@ -20,7 +20,7 @@ import torch
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import SHIPPED_CHECKPOINT, Performer, PerformerConfig, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question
 from dialfred_sim.tasks import PublicTask
 
 STEPS = (1, 20, 60, 200)

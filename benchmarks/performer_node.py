@@ -11,24 +11,22 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-from dialfred_launch import Graph, NodeProcess, sim_node, use_private_ros_domain  # noqa: E402
+from dialfred_bringup.graph import Graph, NodeProcess, sim_node, use_private_ros_domain
 
+REPO = Path(__file__).resolve().parents[1]
 TASK = 'valid_unseen/000000'
 
 
 def checkpoint(path: Path) -> Path:
     from dialfred_performer.model import Performer, PerformerConfig, save_checkpoint
     from dialfred_performer.preprocess import Vocabulary
-    from dialfred_sim.agents import ACTIONS
+    from dialfred_sim.protocol import ACTIONS
     from dialfred_sim.tasks import load_split
     vocab = Vocabulary.build([t.instruction for t in load_split('valid_unseen')[:200]])
     torch.manual_seed(0)

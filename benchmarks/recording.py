@@ -19,11 +19,10 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-from dialfred_eval import EvalConfig, run_eval  # noqa: E402
-from dialfred_launch import use_private_ros_domain  # noqa: E402
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.graph import use_private_ros_domain
 
+REPO = Path(__file__).resolve().parents[1]
 SETTINGS = ('off', 'raw', 'png', 'jpeg')
 
 

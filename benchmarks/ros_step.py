@@ -30,10 +30,8 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dialfred_launch import Graph, NodeProcess, sim_node, use_private_ros_domain  # noqa: E402
-
+from dialfred_bringup.graph import Graph, NodeProcess, sim_node, use_private_ros_domain
 PATTERN = ['MoveAhead', 'RotateLeft', 'LookDown', 'MoveAhead', 'RotateRight', 'LookUp', 'RotateRight',
            'MoveAhead', 'RotateLeft', 'RotateLeft', 'Pickup']
 

@@ -19,12 +19,10 @@ import sys
 import time
 from pathlib import Path
 
+
+from dialfred_bringup.graph import Graph, NodeProcess, sim_service, use_private_ros_domain
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from dialfred_launch import Graph, NodeProcess, sim_service, use_private_ros_domain  # noqa: E402
-
-
 class DefaultQosNode(NodeProcess):
     """The package's node run by this script with ROS's default service QoS (see --serve)."""
 

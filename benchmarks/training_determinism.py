@@ -29,11 +29,10 @@ import tempfile
 import time
 from pathlib import Path
 
+
+from dialfred_bringup.machine import cpu_model
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from dialfred_sim.machine import cpu_model  # noqa: E402
-
 TINY = ['--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '64', '--batch-size', '4', '--warmup-updates', '5']
 
 

@@ -22,7 +22,7 @@ it reaches the goal in 151 of the 163 Move tasks (92.6%). The random agent reach
 
 from __future__ import annotations
 
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question
 
 ADVICE = (('straight ahead', 'MoveAhead'), ('turn left', 'RotateLeft'), ('turn right', 'RotateRight'),
           ('turn around', 'RotateLeft'), ("don't need to move", 'Stop'))

@@ -25,12 +25,12 @@ from typing import Sequence
 
 import numpy as np
 
-from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annotator_rng: this script's names too)
-    ANNOTATION_RESOLUTION, ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL, LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, QUESTION_TEMPLATES,
-    QUESTION_TYPES, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics, evidence,
-    expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
+from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annotator_rng: the tests read them here)
+    ANNOTATION_RESOLUTION, ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL,
+    LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics,
+    evidence, expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
+from dialfred_sim.protocol import QUESTION_TEMPLATES, QUESTION_TYPES
 from dialfred_sim.tasks import SPLIT_SIZES
-from dialfred_sim.tasks.splits import SPLIT_CODES
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / 'docs' / 'dialogue_data.md'

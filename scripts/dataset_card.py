@@ -258,8 +258,8 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         './dialfred env python3 scripts/dataset_card.py                   # then this card',
         '```',
         '',
-        f'A sealed test split is not shipped: each user makes one from a seed of their own, in rooms no '
-        f'shipped split uses, with the same generator and checks, and evaluates on it:',
+        'A sealed test split is not shipped: each user makes one from a seed of their own, in rooms no '
+        'shipped split uses, with the same generator and checks, and evaluates on it:',
         '',
         '```bash',
         f'./dialfred env python3 -m dialfred_sim.tasks.splits {TEST_SPLIT} --seed S --size N --out PATH   '

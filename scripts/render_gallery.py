@@ -24,13 +24,12 @@ import pybullet
 from PIL import Image, ImageDraw
 from pybullet_utils.bullet_client import BulletClient
 
+
+from dialfred_sim.world import palette
+from dialfred_sim.world.bodies import ShapeCache, build_body, set_articulation, triangle_count
+from dialfred_sim.world.shapes import TYPES_WITH_SHAPES, shape_for
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / 'src' / 'dialfred_sim'))
-
-from dialfred_sim.world import palette  # noqa: E402
-from dialfred_sim.world.bodies import ShapeCache, build_body, set_articulation, triangle_count  # noqa: E402
-from dialfred_sim.world.shapes import TYPES_WITH_SHAPES, shape_for  # noqa: E402
-
 CATALOG = ROOT / 'src' / 'dialfred_sim' / 'dialfred_sim' / 'data' / 'object_types.csv'
 FOV = 50.0
 LABEL_H = 14
@@ -145,7 +144,7 @@ def bench(repeats: int = 20) -> dict:
     specs = [shape_for(n, parse_dims(catalog[n]['approx_size_m'])) for n in furniture + small]
     rng = np.random.default_rng(0)
     poses = []
-    for k, spec in enumerate(specs):
+    for k in range(len(specs)):
         if k < len(furniture):  # furniture around the walls of a 5 m x 4.4 m room, facing inwards
             a = 2 * math.pi * k / len(furniture)
             poses.append(((2.5 * math.cos(a), 2.2 * math.sin(a), 0.0), a + math.pi))

@@ -34,13 +34,10 @@ import sys
 import time
 from pathlib import Path
 
+
+from dialfred_bringup.reproduce import PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / 'scripts'))
-
-from reproduce import PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS  # noqa: E402
-
-
 def log(msg: str) -> None:
     print(f'[seed_study] {msg}', file=sys.stderr, flush=True)
 
@@ -64,7 +61,7 @@ def finetune_run(run: str, seed: int, out: Path, workers: int, progress: bool, *
 def evaluate(name: str, questioner: str, split: str, seed: int, limit, workers: int, out: Path,
              progress: bool) -> dict:
     """One evaluation (resumable); its overall row."""
-    from dialfred_eval import EvalConfig, run_eval
+    from dialfred_bringup.evaluation import EvalConfig, run_eval
     from dialfred_sim.metrics import summarize
     config = EvalConfig(split=split, agent='et', local=True, questioner=questioner, limit=limit,
                         workers=workers, out=out / 'eval' / f'{split}_{name}.jsonl', seed=seed,

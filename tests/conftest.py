@@ -12,7 +12,6 @@ it through os.environ.
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import pytest
@@ -47,8 +46,6 @@ os.environ.pop('ROS_STATIC_PEERS', None)
 os.environ.pop('ROS_LOCALHOST_ONLY', None)   # deprecated in Jazzy; would warn next to the above
 
 TESTS = Path(__file__).resolve().parent
-if str(TESTS) not in sys.path:     # `import helpers` from any test module
-    sys.path.insert(0, str(TESTS))
 
 SMALL_RESOLUTION = 64
 

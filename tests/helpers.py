@@ -190,7 +190,7 @@ def tiny_checkpoint(path: Path, favour: str = '', resolution: int = 64) -> Path:
 
     from dialfred_performer.model import Performer, PerformerConfig, save_checkpoint
     from dialfred_performer.preprocess import Vocabulary
-    from dialfred_sim.agents import ACTIONS
+    from dialfred_sim.protocol import ACTIONS
     from dialfred_sim.tasks import load_split
     vocab = Vocabulary.build([t.instruction for t in load_split('valid_unseen')[:40]]
                              + ['the apple is to your left in the fridge', 'you should turn around'])

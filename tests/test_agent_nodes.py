@@ -10,20 +10,17 @@ node keeps serving.
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
-import pytest
 import torch
 
+
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.graph import Graph, NodeProcess, sim_node
+from helpers import tiny_checkpoint
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from dialfred_eval import EvalConfig, run_eval  # noqa: E402
-from dialfred_launch import Graph, NodeProcess, sim_node  # noqa: E402
-from helpers import tiny_checkpoint  # noqa: E402
-
 RES = 64
 
 
@@ -36,8 +33,9 @@ def test_the_node_path_and_the_in_process_path_play_identical_episodes(checkpoin
     b = run_eval(EvalConfig(performer='et', out=tmp_path / 'b.jsonl', **common), progress=False,
                  traces=through_nodes)
     assert a.to_json()['through'] == 'in-process agent' and b.to_json()['through'] == 'performer node'
-    key = lambda r: (r.task_id, r.success, r.steps, r.goal_conditions_met, r.goal_conditions_total, r.questions,
-                     r.invalid_questions, r.failed_actions, r.end_reason, r.error, r.agent, r.dialogue)
+    def key(r):
+        return (r.task_id, r.success, r.steps, r.goal_conditions_met, r.goal_conditions_total, r.questions,
+                r.invalid_questions, r.failed_actions, r.end_reason, r.error, r.agent, r.dialogue)
     assert [key(r) for r in a.results] == [key(r) for r in b.results]      # the dialogues too (dialogue/qa)
     assert all(len(r.dialogue) == r.questions for r in b.results)
     assert in_process == through_nodes and len(in_process) == 3

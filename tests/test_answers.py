@@ -56,7 +56,7 @@ def scene(*facts: ObjectFact, agent=(0.0, 0.0, 0.0, 30.0), expert_end=None, task
 def test_questions_read_as_in_the_paper():
     assert question_text('location', 'apple') == 'Where is the apple?'
     assert question_text('appearance', 'apple') == 'What does the apple look like?'
-    assert question_text('direction', '') == 'Which direction should I go?'
+    assert question_text('direction', '') == 'Which direction should I turn to?'   # the paper's template
     with pytest.raises(ValueError):
         question_text('colour', 'apple')
 

@@ -1,4 +1,4 @@
-"""scripts/baselines.py: the paper's baselines 1-4 with a performer checkpoint, as JSON and docs/results.md.
+"""dialfred_bringup/baselines.py: the paper's baselines 1-4 with a performer checkpoint, as JSON and docs/results.md.
 
 Claims: on 3 valid_unseen tasks with a small (untrained) checkpoint, in process, every baseline gets a
 results file and a JSON row (n, SR/PWSR/GC/NQ inside their 95% intervals, the distractor and
@@ -8,27 +8,17 @@ stored command and has every section; a rerun plays no new episode; --results-on
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
+import dialfred_bringup.baselines as baselines
 from helpers import tiny_checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def load_script():
-    spec = importlib.util.spec_from_file_location('baselines_script', ROOT / 'scripts' / 'baselines.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module          # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
-baselines = load_script()
 
 
 @pytest.fixture(scope='module')

@@ -76,19 +76,6 @@ def test_expert_replay_succeeds_on_the_first_tasks(workers):
     assert report['tasks'] == 4 and report['success_rate'] == 100.0 and report['failures'] == []
 
 
-def test_cache_decay_times_every_wait():
-    report = run_bench('cache_decay', '--reps', '2', '--working-set-mb', '0.25')
-    rows = report['reread_after_wait']
-    assert set(rows) == {'0ms', '1ms', '3ms', '10ms', '30ms', '100ms'}
-    assert all(r['busy_wait_us'] > 0 and r['sleep_us'] > 0 for r in rows.values())
-
-
-def test_cache_decay_rejects_a_bad_budget():
-    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'cache_decay.py'), '--reps', '0'],
-                          capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 2 and '--reps must be >= 1' in proc.stderr
-
-
 def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks():
     report = run_bench('expert_gc', '--limit', '12')
     assert report['tasks'] == 12 and report['expert_failures'] == []
@@ -147,60 +134,10 @@ def test_training_determinism_compares_fresh_processes_update_by_update(tmp_path
     assert report['identical'] and other['first_different_update'] is None and other['max_relative_difference'] == 0
 
 
-def test_dialogue_pass_stops_at_the_middle_and_annotation_pass_compares_rows(tmp_path):
-    from dialfred_performer.prepare import PrepareConfig, prepare
-    folder = tmp_path / 'valid_unseen_64'
-    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=3, out=str(folder), progress=False))
-    report = run_bench('dialogue_pass', '--demonstrations', str(folder), '--limit', '3', '--rounds', '1')
-    assert report['tasks'] == 3 and report['steps_per_task'] > 1
-    # the shortened pass gives the whole-episode pass's lines, and the lines prepare wrote
-    assert report['same_lines'] is True and report['same_as_folder_file'] is True
-    assert report['seconds_best']['to_the_middle'] > 0 and report['speedup'] > 0
-    report = run_bench('annotation_pass', '--limit', '3', '--rounds', '1')
-    # annotating while rendering leaves the files alone and gives the script's own rows
-    assert report['tasks'] == 3 and report['same_files'] is True
-    assert report['annotator_rows_differing'] == 0 and report['situations_differing'] == 0
-    assert len(report['ms_per_task']) == 2 and report['cpu']
-
-
-def test_oracle_probe_times_both_ways_and_finds_the_same_files():
-    report = run_bench('oracle_probe', '--limit', '3', '--rounds', '1')
-    assert report['tasks'] == 3 and report['same_files'] is True and len(report['ms_per_task_best_round']) == 2
-
-
-def test_body_links_times_both_ways_and_finds_the_same_bodies_and_frames():
-    report = run_bench('body_links', '--tasks', '4', '--rounds', '1')
-    assert report['tasks'] == 4 and report['same_bodies_poses_frames'] is True
-    assert set(report['ms_per_reset_best_round']) == {'every body', 'cached'}
-
-
-def test_rl_chunks_times_both_ways_and_ends_with_the_same_weights():
-    report = run_bench('rl_chunks', '--updates', '1', '--episodes', '4', '--rounds', '1')
-    assert report['same_weights'] is True and set(report['seconds_best_round']) == {'one share per worker', 'chunks'}
-
-
 def test_training_determinism_rejects_a_malformed_env():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'training_determinism.py'), '--env', 'NOEQUALS'],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and 'VAR=VALUE' in proc.stderr
-
-
-def test_free_spots_times_both_ways_and_finds_the_same_poses():
-    report = run_bench('free_spots', '--tasks', '4', '--rounds', '1')
-    assert report['tasks'] == 4 and report['same_poses'] is True
-    assert set(report['ms_per_reset_best_round']) == {'loop', 'numpy'}
-
-
-def test_closeup_cache_times_both_passes_and_finds_the_same_output(tmp_path):
-    demo = tmp_path / 'demo'
-    subprocess.run([sys.executable, '-m', 'dialfred_performer.prepare', '--split', 'train', '--resolution', '64',
-                    '--limit', '4', '--out', str(demo), '--workers', '1', '--no-progress'],
-                   cwd=REPO, check=True, capture_output=True, timeout=240)
-    report = run_bench('closeup_cache', '--demonstrations', str(demo), '--limit', '4', '--rounds', '1')
-    for name in ('oracle_pass', 'annotators_pass'):
-        assert report[name]['same_output'] is True
-        searches = report[name]['closeup_searches']
-        assert searches['cache'] <= searches['no_cache']
 
 
 def test_eval_local_times_every_path_and_finds_the_same_episodes():

@@ -1,4 +1,4 @@
-"""scripts/compare_runs.py on two small synthetic run folders (made here, not by a real run).
+"""dialfred_bringup/compare_runs.py on two small synthetic run folders (made here, not by a real run).
 
 Claims: two copies of a run differ nowhere, whatever their folders' names; a run whose wall times,
 timings in a cache's meta.json and checkpoint file names alone differ is the same; one changed episode field, one changed tensor, one
@@ -10,17 +10,15 @@ from __future__ import annotations
 
 import json
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
 import torch
 
+
+import dialfred_bringup.compare_runs as compare_runs
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / 'scripts'))
-
-import compare_runs  # noqa: E402
-
 EPISODE = {'task_id': 'valid_unseen/000001', 'success': True, 'steps': 12, 'questions': 1,
            'dialogue': [{'type': 'location', 'noun': 'apple', 'valid': True, 'answer': 'left'}]}
 

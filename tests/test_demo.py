@@ -13,17 +13,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
-pytest.importorskip('rclpy')
-
-from helpers import tiny_checkpoint  # noqa: E402
+from helpers import tiny_checkpoint
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def demo(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(REPO / 'dialfred_launch.py'), 'demo', *args], cwd=REPO,
+    return subprocess.run([sys.executable, '-m', 'dialfred_bringup.launch', 'demo', *args], cwd=REPO,
                           capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
 
 

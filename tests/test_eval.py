@@ -1,4 +1,4 @@
-"""The evaluation: the expert and random agents (no ROS), then `dialfred_launch.py eval` through real
+"""The evaluation: the expert and random agents (no ROS), then `dialfred_bringup/launch.py eval` through real
 simulator nodes, two workers in their own namespaces driven from one client.
 
 Claims: the expert succeeds on every task it is run on; a run is a pure function of split, agent and
@@ -23,16 +23,15 @@ from types import SimpleNamespace
 
 import pytest
 
-from dialfred_sim.agents import ACTIONS, ExpertAgent, RandomAgent, episode_seed, make_agent, scale_pixel
+from dialfred_sim.agents import ExpertAgent, RandomAgent, make_agent
+from dialfred_sim.protocol import ACTIONS, episode_seed, scale_pixel
 from dialfred_sim.metrics import EpisodeResult, append_result, load_results
 from dialfred_sim.tasks import ExpertAction
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_eval import EvalConfig, print_report, run_eval  # noqa: E402
-from dialfred_launch import Graph, NodeProcess, sim_service  # noqa: E402
+from dialfred_bringup.evaluation import EvalConfig, print_report, run_eval
+from dialfred_bringup.graph import Graph, NodeProcess, sim_service
 
+REPO = Path(__file__).resolve().parents[1]
 SPLIT = 'valid_unseen'
 
 
@@ -172,7 +171,7 @@ def test_a_longer_limit_resumes_without_redoing_or_losing_episodes(random_run, t
 
 def test_a_run_interrupted_by_ctrl_c_resumes_where_it_stopped(tmp_path):
     path = tmp_path / 'interrupted.jsonl'
-    cmd = [sys.executable, str(REPO / 'dialfred_launch.py'), 'eval', '--split', SPLIT, '--agent', 'expert',
+    cmd = [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', SPLIT, '--agent', 'expert',
            '--limit', '40', '--out', str(path), '--no-progress']
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
@@ -224,8 +223,8 @@ def test_a_results_file_of_another_agent_is_not_mixed_in(tmp_path, random_run):
 
 
 def test_the_eval_command_prints_the_table_and_the_experts_failures(expert_run, capsys):
-    import dialfred_launch
-    code = dialfred_launch.main(['eval', '--split', SPLIT, '--agent', 'expert', '--limit', '8',
+    import dialfred_bringup.launch
+    code = dialfred_bringup.launch.main(['eval', '--split', SPLIT, '--agent', 'expert', '--limit', '8',
                                  '--out', str(expert_run.config.results_path), '--no-progress'])
     out = capsys.readouterr().out
     assert code == 0
@@ -284,7 +283,7 @@ def test_the_default_results_file_names_the_questioner():
 
 
 def test_questioner_none_on_the_command_line_means_no_questions():
-    from dialfred_eval import add_eval_parser, eval_config
+    from dialfred_bringup.evaluation import add_eval_parser, eval_config
     import argparse
     parser = argparse.ArgumentParser()
     add_eval_parser(parser.add_subparsers())
@@ -295,9 +294,9 @@ def test_questioner_none_on_the_command_line_means_no_questions():
 
 
 def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, monkeypatch):
-    import dialfred_eval
+    import dialfred_bringup.evaluation
     from dialfred_questioner import baselines
-    from dialfred_sim.agents import Question
+    from dialfred_sim.protocol import Question
 
     class Chatty(baselines.AllQuestioner):
         name = 'chatty'
@@ -308,8 +307,8 @@ def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, mon
     monkeypatch.setitem(baselines.QUESTIONERS, 'chatty', Chatty)
     report = evaluate(tmp_path / 'chatty.jsonl', agent='expert', questioner='chatty', limit=2, workers=1)
     for r in report.results:
-        assert (r.end_reason, r.questions, r.steps) == ('error', dialfred_eval.MAX_QUESTIONS, 0)
-        assert f'more than {dialfred_eval.MAX_QUESTIONS} questions without acting' in r.error
+        assert (r.end_reason, r.questions, r.steps) == ('error', dialfred_bringup.evaluation.MAX_QUESTIONS, 0)
+        assert f'more than {dialfred_bringup.evaluation.MAX_QUESTIONS} questions without acting' in r.error
 
 
 def test_an_unknown_questioner_fails_before_any_node_starts(tmp_path):
@@ -319,7 +318,7 @@ def test_an_unknown_questioner_fails_before_any_node_starts(tmp_path):
 
 
 def test_each_run_has_a_namespace_of_its_own():
-    from dialfred_eval import run_namespace
+    from dialfred_bringup.evaluation import run_namespace
     assert run_namespace() == f'/eval_{os.getpid()}'
 
 
@@ -336,9 +335,8 @@ def _running(pid: int) -> bool:
 def test_a_node_does_not_outlive_a_launcher_that_is_killed(tmp_path):
     script = tmp_path / 'start_and_wait.py'
     script.write_text(
-        'import sys, time\n'
-        f'sys.path.insert(0, {str(REPO)!r})\n'
-        'from dialfred_launch import NodeProcess\n'
+        'import time\n'
+        'from dialfred_bringup.graph import NodeProcess\n'
         "node = NodeProcess('dialfred_sim', {'resolution': 16}, namespace='/orphan_test')\n"
         'node.start()\n'
         'print(node.proc.pid, flush=True)\n'
@@ -387,7 +385,7 @@ def test_a_perturbed_oracle_needs_a_questioner_and_a_known_type():
 # ---------------------------------------------------------------------------------------------- your own agent
 
 MY_AGENTS = '''
-from dialfred_sim.agents import Question
+from dialfred_sim.protocol import Question
 
 
 class WalkThenStop:
@@ -473,12 +471,12 @@ def test_the_example_agent_reaches_most_move_goals_by_following_the_oracles_dire
 def test_the_et_performer_is_evaluated_at_its_training_resolution_unless_told_otherwise(tmp_path):
     import argparse
 
-    from dialfred_eval import add_eval_parser, eval_config
+    from dialfred_bringup.evaluation import add_eval_parser, eval_config
     from helpers import tiny_checkpoint
     checkpoint = tiny_checkpoint(tmp_path / 'r48.pt', resolution=48)
     parser = argparse.ArgumentParser()
     add_eval_parser(parser.add_subparsers(dest='command'))
-    config = lambda *a: eval_config(parser.parse_args(['eval', *a]))  # noqa: E731
+    config = lambda *a: eval_config(parser.parse_args(['eval', *a]))
     assert config('--agent', 'et').resolution == 64                           # the shipped checkpoint's
     assert config('--performer', 'et', '--checkpoint', str(checkpoint)).resolution == 48
     assert config('--agent', 'et', '--resolution', '128').resolution == 128

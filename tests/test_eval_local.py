@@ -1,20 +1,17 @@
-"""`launch eval --local` (dialfred_local.py) plays the episodes the ROS graph plays: for every kind of
+"""`launch eval --local` (dialfred_bringup/local.py) plays the episodes the ROS graph plays: for every kind of
 questioner, a perturbed oracle and the random agent, the results of both paths are equal field by field
 (but for wall_s); and what cannot go without ROS is refused."""
 
 from __future__ import annotations
 
 import dataclasses
-import sys
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_eval import EvalConfig, run_eval  # noqa: E402
+from dialfred_bringup.evaluation import EvalConfig, run_eval
 
+REPO = Path(__file__).resolve().parents[1]
 CASES = {
     'random agent': dict(agent='random', resolution=64),
     'performer alone': dict(agent='et'),

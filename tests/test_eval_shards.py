@@ -22,13 +22,11 @@ from pathlib import Path
 import pytest
 
 from dialfred_sim.metrics import load_results
-from dialfred_sim.shards import main as merge
+from dialfred_bringup.shards import main as merge
+
+from dialfred_bringup.evaluation import EvalConfig, run_eval
 
 REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_eval import EvalConfig, run_eval  # noqa: E402
-
 SPLIT, LIMIT, RESOLUTION = 'valid_unseen', 6, 64
 # Starting simulator nodes is most of these tests' time; on a loaded machine it takes minutes.
 pytestmark = pytest.mark.timeout(1800)
@@ -71,8 +69,8 @@ def test_shards_played_one_after_the_other_merge_into_the_whole_run(whole_run, t
 def test_a_run_namespace_names_the_host_where_discovery_reaches_other_hosts(monkeypatch):
     from rclpy.validate_namespace import validate_namespace
 
-    from dialfred_eval import run_namespace
-    from dialfred_sim.graph import host_token
+    from dialfred_bringup.evaluation import run_namespace
+    from dialfred_bringup.graph import host_token
     monkeypatch.setattr('socket.gethostname', lambda: 'gpu-07.lab.example')
     assert host_token() == 'gpu_07_lab_example'
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -92,7 +90,7 @@ def test_a_run_namespace_names_the_host_where_discovery_reaches_other_hosts(monk
 def test_two_launchers_in_one_ros_domain_play_the_shards_side_by_side(whole_run, tmp_path):
     # one domain (conftest's) and static peers, as on hosts; discovery stays on this host (LOCALHOST)
     env = {**os.environ, 'ROS_DOMAIN_ID': os.environ['ROS_DOMAIN_ID'], 'ROS_STATIC_PEERS': '127.0.0.1'}
-    procs = [subprocess.Popen([sys.executable, str(REPO / 'dialfred_launch.py'), 'eval', '--split', SPLIT,
+    procs = [subprocess.Popen([sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', SPLIT,
                                '--agent', 'random', '--limit', str(LIMIT), '--workers', '1',
                                '--resolution', str(RESOLUTION), '--shard', f'{k}/2',
                                '--out', str(tmp_path / f'run_shard{k}of2.jsonl'), '--no-progress'],

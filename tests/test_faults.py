@@ -24,7 +24,6 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 
 RES, TASKS = 64, 8
@@ -33,7 +32,7 @@ KEY = ('task_id', 'success', 'steps', 'goal_conditions_met', 'goal_conditions_to
 
 
 def command(checkpoint: Path, out: Path, *extra: str) -> list[str]:
-    return [sys.executable, str(REPO / 'dialfred_launch.py'), 'eval', '--performer', 'et', '--checkpoint',
+    return [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--performer', 'et', '--checkpoint',
             str(checkpoint), '--questioner', 'random', '--split', 'valid_unseen', '--limit', str(TASKS),
             '--workers', '2', '--resolution', str(RES), '--seed', '4', '--out', str(out), '--no-progress', *extra]
 
@@ -153,8 +152,8 @@ def test_a_results_file_cut_mid_line_is_reported_and_its_episode_replayed(checkp
 
 
 def test_a_node_that_dies_at_every_start_is_given_up_on(tmp_path):
-    from dialfred_eval import Supervisor
-    from dialfred_sim.graph import Graph, NodeDied, NodeProcess
+    from dialfred_bringup.evaluation import Supervisor
+    from dialfred_bringup.graph import Graph, NodeDied, NodeProcess
     # a performer node with a bad parameter dies while it starts, every time
     nodes_of = {'/dying': [NodeProcess('dialfred_performer', {'record_format': 'gif'}, namespace='/dying')]}
     logged = []

@@ -262,7 +262,7 @@ def test_cached_close_ups_equal_fresh_renders_along_expert_episodes(make_env, va
     import dialfred_sim.ground_truth as gt
     env = make_env(resolution=valid_unseen[0].resolution)
     _counting_closeups(monkeypatch)
-    fresh = lambda w, o, m=gt.MIN_APPEARANCE_PIXELS: gt._search_closeup(w, o, m)  # noqa: E731
+    fresh = lambda w, o, m=gt.MIN_APPEARANCE_PIXELS: gt._search_closeup(w, o, m)
     compared = 0
     for task in valid_unseen[:8]:
         env.reset(options={'task': task})

@@ -19,17 +19,15 @@ import pytest
 from dialfred_sim.agents import ExpertAgent, RandomAgent, make_agent, public_view, task_view
 from dialfred_sim.tasks import PublicTask, get_task
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_eval import EvalConfig, run_eval  # noqa: E402
+from dialfred_bringup.evaluation import EvalConfig, run_eval
 
+REPO = Path(__file__).resolve().parents[1]
 SPLIT = 'valid_unseen'
 SOLUTION_FIELDS = {'task_type', 'episode', 'goal', 'expert_actions', 'expert_length', 'expert_end_pose',
                    'step_instructions', 'primitives', 'start', 'end', 'start_pose', 'resolution'}
 
 CHEATERS = '''
-from dialfred_sim.agents import ACTIONS
+from dialfred_sim.protocol import ACTIONS
 
 
 def find_plan(obj, depth=0, seen=None):
@@ -151,7 +149,7 @@ def test_a_users_class_cannot_make_itself_privileged(cheaters):
 
 
 def test_an_unanswered_reset_is_sent_again_but_a_step_never_is(monkeypatch):
-    import dialfred_eval
+    import dialfred_bringup.evaluation
 
     class Future:
         def done(self):
@@ -168,9 +166,9 @@ def test_an_unanswered_reset_is_sent_again_but_a_step_never_is(monkeypatch):
         def remove_pending_request(self, future):
             self.removed += 1
 
-    worker = dialfred_eval.SimWorker.__new__(dialfred_eval.SimWorker)
+    worker = dialfred_bringup.evaluation.SimWorker.__new__(dialfred_bringup.evaluation.SimWorker)
     cli = Client()
-    monkeypatch.setattr(dialfred_eval, 'RESEND_AFTER_S', 0.0)
+    monkeypatch.setattr(dialfred_bringup.evaluation, 'RESEND_AFTER_S', 0.0)
     for pending, resent in (('reset', True), ('question', True), ('step', False)):
         cli.sent.clear()
         worker._send(cli, pending, pending)

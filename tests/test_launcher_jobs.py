@@ -19,7 +19,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def launch(*args: str, timeout: float = 180) -> str:
-    proc = subprocess.run([sys.executable, str(REPO / 'dialfred_launch.py'), *args], cwd=REPO,
+    proc = subprocess.run([sys.executable, '-m', 'dialfred_bringup.launch', *args], cwd=REPO,
                           capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return proc.stdout

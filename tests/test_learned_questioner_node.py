@@ -18,7 +18,6 @@ questions at the chances of its anytime timing (gap 2).
 from __future__ import annotations
 
 import shutil
-import sys
 import time
 from pathlib import Path
 
@@ -32,13 +31,11 @@ from dialfred_questioner.policy import LearnedQuestioner, retimed
 from dialfred_questioner.questioners import make_questioner
 from dialfred_questioner.rollout import Timing
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-import dialfred_eval  # noqa: E402
-from dialfred_eval import EvalConfig, run_eval, worker_nodes  # noqa: E402
-from dialfred_launch import Graph, NodeProcess  # noqa: E402
+import dialfred_bringup.evaluation
+from dialfred_bringup.evaluation import EvalConfig, run_eval, worker_nodes
+from dialfred_bringup.graph import Graph, NodeProcess
 
+REPO = Path(__file__).resolve().parents[1]
 SPLIT, TASK_INDEX = 'valid_seen', 0        # 10 steps, direction and appearance questions (6 when withheld)
 TIMING = {'mode': 'anytime', 'gap': 2, 'epsilon': 0.5}
 CONFUSION = {'mode': 'confusion', 'gap': 5, 'epsilon': 0.8}     # on this task: chances before 5 of 6 actions
@@ -150,7 +147,7 @@ def test_the_eval_command_takes_a_shipped_name_and_refuses_a_missing_checkpoint_
         checkpoint, tmp_path, monkeypatch, capsys):
     import argparse
 
-    from dialfred_eval import add_eval_parser, eval_config, run_eval_command
+    from dialfred_bringup.evaluation import add_eval_parser, eval_config, run_eval_command
     parser = argparse.ArgumentParser()
     add_eval_parser(parser.add_subparsers())
     monkeypatch.setattr(policy, 'CHECKPOINTS', tmp_path)
@@ -178,7 +175,7 @@ def in_process_episode(checkpoint, perturbation=None):
     """The episode of rollout.play (as the RL fine-tuning plays it) of the eval's task and seed."""
     from dialfred_performer.agent import PerformerAgent
     from dialfred_questioner.rollout import play
-    from dialfred_sim.agents import episode_seed
+    from dialfred_sim.protocol import episode_seed
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
     questioner = LearnedQuestioner.from_checkpoint(checkpoint, greedy=True)
@@ -209,14 +206,14 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
         return report.results[-1], [(a.step, a.qa.question.question_type, a.qa.question.object_noun, a.qa.valid,
                                      a.qa.answer) for a in dialogue]
     counts, qas, decided = [], [], []
-    worker = dialfred_eval.PerformerWorker.__init__
+    worker = dialfred_bringup.evaluation.PerformerWorker.__init__
 
     def init(self, g, namespace, config, on_feedback=None):
         g.client_node.create_subscription(QAPair, f'{namespace}/dialogue/qa', qas.append, 100)
         g.client_node.create_subscription(QAPair, f'{namespace}/questioner/question', decided.append, 100)
         worker(self, g, namespace, config, on_feedback=lambda task, fb: counts.append(fb.questions))
 
-    monkeypatch.setattr(dialfred_eval.PerformerWorker, '__init__', init)
+    monkeypatch.setattr(dialfred_bringup.evaluation.PerformerWorker, '__init__', init)
     report = run_eval(config, progress=False, traces={})       # traces: wait for the last messages
     result = report.results[-1]
     assert result.end_reason != 'error', result.error

@@ -1,4 +1,4 @@
-"""The Foxglove live view (dialfred_sim.live), seen by a WebSocket client speaking the Foxglove
+"""The Foxglove live view (dialfred_bringup.live), seen by a WebSocket client speaking the Foxglove
 WebSocket protocol (the `websockets` package; the payloads decoded by a protobuf wire-format reader
 written here, not by the SDK that encoded them; subprotocol foxglove.sdk.v1, the one this server speaks).
 
@@ -14,19 +14,18 @@ import asyncio
 import json
 import socket
 import struct
-import sys
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
+
+from dialfred_bringup.live import LiveView, RoomMap
+from dialfred_sim.bag import EpisodeRecorder
+from dialfred_bringup.replay import replay_bag
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from dialfred_sim.live import LiveView, RoomMap  # noqa: E402
-from dialfred_sim.recording import EpisodeRecorder, replay_bag  # noqa: E402
-
 TOPICS = {'/w0/camera': 'foxglove.RawImage', '/w0/map': 'foxglove.RawImage', '/w0/pose': 'foxglove.PoseInFrame',
           '/w0/progress': None, '/dialogue': 'foxglove.Log', '/eval/progress': None}
 
@@ -169,7 +168,7 @@ def test_a_client_gets_every_topic_and_decodes_a_frame_the_map_a_qa_and_the_prog
     assert len(camera) == 3 and all(np.array_equal(a, b) for a, b in zip(camera, frames))
     maps = [raw_image(p) for _, p in client.messages['/w0/map']]
     assert len(maps) == 3 and maps[0].shape[0] > 100
-    red = lambda m: np.argwhere((m[..., 0] > 180) & (m[..., 1] < 90))   # noqa: E731  the agent's arrow
+    red = lambda m: np.argwhere((m[..., 0] > 180) & (m[..., 1] < 90))   # the agent's arrow
     assert len(red(maps[0])) and red(maps[2]).mean(0)[1] < red(maps[0]).mean(0)[1]    # it moved to -x: left
     logs = [log_text(p) for _, p in client.messages['/dialogue']]
     assert logs[0] == ('valid_unseen/000003: "Open the drawer."', 'w0')
@@ -183,13 +182,13 @@ def test_a_client_gets_every_topic_and_decodes_a_frame_the_map_a_qa_and_the_prog
 def test_the_room_map_draws_the_agent_where_it_stands():
     room = RoomMap('FloorPlan1')
     a, b = room.draw(1.0, 1.0, 0.0), room.draw(room.width - 1.0, room.depth - 1.0, 90.0)
-    red = lambda m: np.argwhere((m[..., 0] > 180) & (m[..., 1] < 90)).mean(0)   # noqa: E731
+    red = lambda m: np.argwhere((m[..., 0] > 180) & (m[..., 1] < 90)).mean(0)
     (ya, xa), (yb, xb) = red(a), red(b)
     assert xb > xa and yb < ya                  # to the right (+x) and up the picture (+y)
 
 
 def test_eval_through_the_graph_streams_the_camera_and_the_dialogue(tmp_path):
-    from dialfred_eval import EvalConfig, run_eval
+    from dialfred_bringup.evaluation import EvalConfig, run_eval
     from helpers import tiny_checkpoint
     port = free_port()
     client = Client(port, ['/w0/camera', '/dialogue'])

@@ -5,20 +5,14 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-rclpy = pytest.importorskip('rclpy')
-
-from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset  # noqa: E402
+from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset
+from dialfred_bringup.graph import Graph, NodeProcess, oracle_node, sim_node
 
 REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_launch import Graph, NodeProcess, oracle_node, sim_node  # noqa: E402
-
 TASK = 'valid_unseen/000003'
 # A reset may be sent again (as the launcher does): a reply sent before DDS matched our reply path is lost.
 RESEND_S = 5.0
@@ -169,7 +163,7 @@ def test_answers_with_the_cache_are_byte_identical_to_fetching_the_world_every_t
                 for qtype, noun in questions + questions[:3]:     # some asked twice in the same state
                     mine, theirs = ask(g, qtype, noun, new), ask(g, qtype, noun, old)
                     assert (mine.valid, mine.answer, mine.reason) == (theirs.valid, theirs.answer, theirs.reason), \
-                        (task_id, k, qtype, noun)
+                        (task_id, a, qtype, noun)
                     compared += 1
         assert compared >= 200
 

@@ -19,7 +19,7 @@ import torch
 from dialfred_performer.agent import PerformerAgent, observation_rgb
 from dialfred_performer.model import Performer, PerformerConfig
 from dialfred_performer.preprocess import Vocabulary
-from dialfred_sim.agents import ACTIONS, QA, Question
+from dialfred_sim.protocol import ACTIONS, QA, Question
 from dialfred_sim.env import DialfredEnv
 
 torch.set_num_threads(1)

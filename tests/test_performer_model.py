@@ -18,7 +18,7 @@ from dialfred_performer.model import (CheckpointError, Performer, PerformerConfi
                                       save_checkpoint)
 from dialfred_performer.nn.heads import cell_centre_pixel, pixel_cell
 from dialfred_performer.preprocess import Vocabulary
-from dialfred_sim.agents import ACTIONS
+from dialfred_sim.protocol import ACTIONS
 from dialfred_sim.tasks.demonstrations import build_demonstrations
 
 torch.set_num_threads(1)

@@ -20,7 +20,7 @@ from dialfred_performer.data import COMBINATIONS, DemonstrationDataset, collate,
 from dialfred_performer.model import Performer, PerformerConfig
 from dialfred_performer.preprocess import (SPECIAL_TOKENS, TYPE_INSTRUCTION, TYPE_OF_QUESTION, AskedQA, Vocabulary,
                                            encode_language, frame_tensor, qa_text, qa_tokens, tokenize)
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.demonstrations import build_demonstrations
 

@@ -17,7 +17,8 @@ import pytest
 
 from dialfred_questioner.baselines import AllQuestioner, QuestioningAgent, RandomQuestioner, task_nouns, with_questioner
 from dialfred_questioner.questioners import make_questioner
-from dialfred_sim.agents import QA, QUESTION_TYPES, DialogueAgent, ExpertAgent, Question
+from dialfred_sim.agents import ExpertAgent
+from dialfred_sim.protocol import QA, QUESTION_TYPES, DialogueAgent, Question
 from dialfred_sim.tasks import ExpertAction, load_split
 
 

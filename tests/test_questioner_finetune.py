@@ -72,7 +72,7 @@ def test_a_tiny_run_writes_its_curves_and_checkpoints_and_learns_something(setup
 
 
 def test_the_instruction_only_ablation_is_stored_and_read_without_the_dialogue(setup, tmp_path):
-    from dialfred_sim.agents import QA, Question
+    from dialfred_sim.protocol import QA, Question
     from dialfred_performer.preprocess import AskedQA
     finetune(config(setup, tmp_path / 'blind', updates=1, dialogue=False))
     q = LearnedQuestioner.from_checkpoint(tmp_path / 'blind' / 'final.pt')

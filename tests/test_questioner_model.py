@@ -12,7 +12,7 @@ import torch
 
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language
 from dialfred_questioner.model import TYPE_TOKENS, Questioner, QuestionerConfig, needs_object, output_tokens
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question
 
 torch.set_num_threads(1)
 NOUNS = ('apple', 'fridge', 'mug', 'cabinet')

@@ -10,7 +10,6 @@ uninterrupted run; a changed config is refused on resume.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

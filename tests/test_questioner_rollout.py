@@ -15,7 +15,7 @@ from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import SHIPPED_CHECKPOINT
 from dialfred_questioner.rl import Rewards
 from dialfred_questioner.rollout import Timing, play
-from dialfred_sim.agents import Question
+from dialfred_sim.protocol import Question
 from dialfred_sim.env import DialfredEnv
 
 torch.set_num_threads(1)

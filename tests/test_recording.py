@@ -1,4 +1,4 @@
-"""Episode bags (dialfred_sim.recording), without a graph: SYNTHETIC episodes (random frames, made-up
+"""Episode bags (dialfred_sim.bag), without a graph: SYNTHETIC episodes (random frames, made-up
 QAs) written as rosbag2/MCAP bags and read back.
 
 Claims: a bag read with an independent reader (the `mcap` library and mcap_ros2's decoder, not
@@ -17,8 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dialfred_sim.recording import (ACTION_NS, QA_NS, RESULT_NS, STEP_NS, TOPICS, BagError, EpisodeRecorder,
-                                    main as replay_main, read_episode, transcript, typestore)
+from dialfred_bringup.replay import main as replay_main
+from dialfred_bringup.replay import transcript
+from dialfred_sim.bag import (ACTION_NS, QA_NS, RESULT_NS, STEP_NS, TOPICS, BagError, EpisodeRecorder, read_episode,
+                              typestore)
 
 TASK = dict(task_id='valid_unseen/000007', scene='FloorPlan301', split='valid_unseen',
             instruction='Put the book on the bed.', object_nouns=['book', 'bed'])
@@ -68,7 +70,7 @@ def test_an_independent_reader_sees_every_message_with_its_type_and_sim_clock_ti
                       '/dialogue/qa': 3, '/performer/action': 3, '/performer/feedback': 3, '/episode/result': 1}
     times = [t for _, _, t, _ in rows]
     assert times == sorted(times)
-    by_topic = lambda topic: [(t, m) for tp, _, t, m in rows if tp == topic]  # noqa: E731
+    by_topic = lambda topic: [(t, m) for tp, _, t, m in rows if tp == topic]
     assert [t for t, _ in by_topic('/camera/image')] == [k * STEP_NS for k in range(4)]
     assert [t for t, _ in by_topic('/dialogue/qa')] == [QA_NS, 2 * QA_NS, 2 * STEP_NS + QA_NS]
     assert [t for t, _ in by_topic('/performer/action')] == [k * STEP_NS + ACTION_NS for k in range(3)]
@@ -109,7 +111,7 @@ def test_rclpy_decodes_every_message_and_type_hashes_are_rosidls(tmp_path):
                'dialfred_msgs/action/RunTask_Result': RunTask.Result}
     checked = set()
     with open(next(bag.glob('*.mcap')), 'rb') as f:
-        for schema, channel, message in make_reader(f).iter_messages():
+        for schema, _channel, message in make_reader(f).iter_messages():
             cls = classes.get(schema.name)
             if cls is None:
                 continue

@@ -1,4 +1,4 @@
-"""`./dialfred report RESULTS.jsonl`: one static HTML page of an evaluation (dialfred_sim.report).
+"""`./dialfred report RESULTS.jsonl`: one static HTML page of an evaluation (dialfred_bringup.report).
 
 Most tests use SYNTHETIC results (made-up episodes of made-up tasks, `synthetic/00000k`) and SYNTHETIC
 bags (random frames written with the EpisodeRecorder); one plays a real 3-task evaluation with
@@ -22,15 +22,14 @@ import json
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dialfred_sim.metrics import EpisodeResult, append_result, dialogue_entry, intervals, summarize
-from dialfred_sim.recording import EpisodeRecorder, bag_name
-from dialfred_sim.report import build_report, main as report_main
+from dialfred_sim.bag import EpisodeRecorder, bag_name
+from dialfred_bringup.report import build_report, main as report_main
 from headless_browser import Browser, blank_fraction, chromium_path, pixel_std, screenshot_cli
 
 REPO = Path(__file__).resolve().parents[1]
@@ -83,7 +82,7 @@ def write_bag(folder: Path, result: EpisodeResult, seed: int = 0) -> Path:
     """SYNTHETIC: a bag of `result`'s episode with 48x64 frames of random colour blocks (few colours, as a
     rendered room has: noise would make the GIF's palette the cost of the test), its actions and dialogue."""
     rng = np.random.default_rng(seed)
-    frame = lambda: rng.integers(0, 256, (4, 4, 3), dtype=np.uint8).repeat(12, axis=0).repeat(16, axis=1)  # noqa: E731
+    frame = lambda: rng.integers(0, 256, (4, 4, 3), dtype=np.uint8).repeat(12, axis=0).repeat(16, axis=1)
     rec = EpisodeRecorder(result.task_id, 'FloorPlan1', result.split, f'Do task {result.task_id}.', ['apple'])
     rec.observation(0, frame(), (0.0, 0.0, 0.0, 30.0), 1.5)
     for qa in result.dialogue:
@@ -306,8 +305,7 @@ def test_the_dialfred_entry_point_runs_the_report_in_the_callers_directory(run):
 # ------------------------------------------------------------------------------------------ a real run
 
 def test_a_recorded_evaluation_is_reported_with_its_gifs_and_instructions(tmp_path):
-    sys.path.insert(0, str(REPO))
-    from dialfred_eval import EvalConfig, run_eval
+    from dialfred_bringup.evaluation import EvalConfig, run_eval
     from dialfred_sim.tasks.split_files import get_task
     report = run_eval(EvalConfig(split='valid_unseen', agent='expert', questioner='all', limit=3, workers=1,
                                  resolution=64, out=tmp_path / 'eval.jsonl', record=tmp_path / 'bags'), progress=False)
@@ -381,7 +379,7 @@ def test_in_chromium_the_page_has_no_errors_its_gifs_load_and_its_filters_work(r
     png = page.screenshot()
     assert pixel_std(png) > 20 and blank_fraction(png) < 0.8
 
-    ids = lambda pick: [r.task_id.replace('/', '_') for r in results if pick(r)]  # noqa: E731
+    ids = lambda pick: [r.task_id.replace('/', '_') for r in results if pick(r)]
     shown = set_filter(page, 'filter-type', 'Move & Pick')
     assert shown['count'] == '3' and shown['ids'] == ids(lambda r: r.task_type == 'Move & Pick')
     assert shown['fragment'] == '#type=Move+%26+Pick'

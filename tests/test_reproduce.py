@@ -1,4 +1,4 @@
-"""`./dialfred reproduce --quick` (scripts/reproduce.py): the whole pipeline on tiny slices, in a
+"""`./dialfred reproduce --quick` (dialfred_bringup/reproduce.py): the whole pipeline on tiny slices, in a
 temporary run folder (about 4 minutes on 2 cores).
 
 Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, check, doc) and writes
@@ -7,7 +7,7 @@ eval stage's (local) episodes; the document has Tables II, III and IV with every
 it; the results record each episode's dialogue (question types); a rerun skips every stage (stamps
 match); rerunning the doc stage alone writes the same bytes; the quick caches stay in the run folder;
 a second run from nothing, in another folder with the same seed, gives the same tables and the same
-weights of every model it trains, the same episodes and the same caches (`scripts/compare_runs.py`).
+weights of every model it trains, the same episodes and the same caches (`dialfred_bringup/compare_runs.py`).
 """
 
 from __future__ import annotations
@@ -19,16 +19,15 @@ from pathlib import Path
 
 import pytest
 
+
+import dialfred_bringup.reproduce as reproduce
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / 'scripts'))
-
-import reproduce  # noqa: E402
-
 STAGES = reproduce.STAGES
 
 
 def run(out: Path, *more: str) -> dict:
-    done = subprocess.run([sys.executable, str(ROOT / 'scripts' / 'reproduce.py'), '--quick', '--out', str(out),
+    done = subprocess.run([sys.executable, '-m', 'dialfred_bringup.reproduce', '--quick', '--out', str(out),
                            *more], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                           timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -111,11 +110,11 @@ def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first
 
 
 def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first, tmp_path):
-    import compare_runs
+    import dialfred_bringup.compare_runs as compare_runs
     out, _ = first
     other = tmp_path / 'again'
     run(other)
-    # scripts/compare_runs.py: the tables (Table II to the run times, run folders taken out), every
+    # dialfred_bringup/compare_runs.py: the tables (Table II to the run times, run folders taken out), every
     # episode of eval/ and check/ (wall time and the agent's checkpoint-file name aside), the weights of
     # every model trained, and the caches (the quick run keeps its own, in its folder)
     report = compare_runs.compare(out, other, parts=compare_runs.PARTS)

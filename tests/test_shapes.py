@@ -4,26 +4,19 @@ from __future__ import annotations
 
 import csv
 import math
-import sys
 from pathlib import Path
 
+import pybullet
 import pytest
+from pybullet_utils.bullet_client import BulletClient
 
-ROOT = Path(__file__).resolve().parents[1]
-try:
-    from dialfred_sim.world import shapes
-except ImportError:  # running from a bare checkout, package not installed
-    sys.path.insert(0, str(ROOT / 'src' / 'dialfred_sim'))
-    from dialfred_sim.world import shapes
-
+from dialfred_sim.world import shapes
+from dialfred_sim.world.bodies import (ShapeCache, articulation_joint, build_body, link_arguments, set_articulation,
+                                       triangle_count)
 from dialfred_sim.world.geometry import Part, ShapeSpec
 from dialfred_sim.world.shapes import TYPES_WITH_SHAPES, shape_for, surface_offset
 
-pybullet = pytest.importorskip('pybullet')
-from pybullet_utils.bullet_client import BulletClient  # noqa: E402
-
-from dialfred_sim.world.bodies import (ShapeCache, articulation_joint, build_body,  # noqa: E402
-                                       link_arguments, set_articulation, triangle_count)
+ROOT = Path(__file__).resolve().parents[1]
 
 CATALOG = ROOT / 'src' / 'dialfred_sim' / 'dialfred_sim' / 'data' / 'object_types.csv'
 with open(CATALOG, newline='') as _f:

@@ -15,20 +15,17 @@ import argparse
 import dataclasses
 import json
 import re
-import sys
 from pathlib import Path
 
 import pytest
 
 from dialfred_sim.metrics import EpisodeResult, ResultsFileError, append_result, load_results, summarize
-from dialfred_sim.shards import default_out, main, merge_shards, parse_shard, shard_suffix, shard_tasks
+from dialfred_bringup.shards import default_out, main, merge_shards, parse_shard, shard_suffix, shard_tasks
 from dialfred_sim.tasks import load_split
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_eval import EvalConfig, EvalReport, add_eval_parser, eval_config, run_eval  # noqa: E402
+from dialfred_bringup.evaluation import EvalConfig, EvalReport, add_eval_parser, eval_config, run_eval
 
+REPO = Path(__file__).resolve().parents[1]
 SPLIT = 'valid_unseen'
 LIMIT = 7
 

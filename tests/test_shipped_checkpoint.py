@@ -8,21 +8,19 @@ real simulator with the instruction and a QA (greedy, so the same episode twice)
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import torch
 
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question
 from dialfred_sim.env import DialfredEnv
 
+
+from dialfred_bringup.evaluation import EvalConfig
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from dialfred_eval import EvalConfig  # noqa: E402
-
 MAX_BYTES = 25 * 1024 * 1024
 
 

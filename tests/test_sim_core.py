@@ -422,8 +422,8 @@ def test_pickup_fails_when_the_hand_is_full(env):
 @pytest.mark.parametrize('structure', ['Floor', 'Wall'])
 def test_pickup_fails_on_nothing_at_the_pixel(env, structure):
     reset(env, KITCHEN)
-    i, j, rot = free_ahead_pose(env)
-    for rot in (rot, (rot + 90) % 360, (rot + 180) % 360, (rot + 270) % 360):
+    i, j, start = free_ahead_pose(env)
+    for rot in (start, (start + 90) % 360, (start + 180) % 360, (start + 270) % 360):
         for hor in (60, 0):
             env.teleport(i, j, rot, hor)
             px = pixel_of_structure(env, structure)

@@ -1,5 +1,5 @@
 """The simulator as a ROS 2 node (integration): the real `dialfred_sim node` executable, started in
-its own process by the project launcher (`dialfred_launch.NodeProcess` inside a `Graph`), driven
+its own process by the project launcher (`dialfred_bringup.launch.NodeProcess` inside a `Graph`), driven
 through /sim/reset and /sim/step and watched on /sim/observation.
 
 conftest.py gives this pytest session its own ROS_DOMAIN_ID, so the node under test is the only
@@ -13,26 +13,20 @@ import contextlib
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-rclpy = pytest.importorskip('rclpy')
-
-from ament_index_python.packages import get_package_prefix  # noqa: E402
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-
-from dialfred_msgs.msg import Action, Observation  # noqa: E402
-from dialfred_msgs.srv import SimReset, SimStep  # noqa: E402
+from ament_index_python.packages import get_package_prefix
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from dialfred_msgs.msg import Action, Observation
+from dialfred_msgs.srv import SimReset, SimStep
+from dialfred_bringup.graph import Graph, NodeDied, NodeProcess, resolve_executable
+from dialfred_sim.protocol import image_array
 
 REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-from dialfred_launch import Graph, NodeDied, NodeProcess, image_array, resolve_executable  # noqa: E402
-
 RES = 64
 
 
@@ -369,7 +363,7 @@ def test_an_observation_is_published_after_a_step(sim):
             assert time.monotonic() < deadline, 'no publisher on /sim/observation'
             graph.executor.spin_once(timeout_sec=0.1)
         sim.reset('FloorPlan1', seed=0)
-        for attempt in range(5):        # the node publishes once it has matched this subscriber
+        for _attempt in range(5):        # the node publishes once it has matched this subscriber
             received.clear()
             reply = sim.step('RotateLeft')
             assert reply.ok
@@ -490,7 +484,7 @@ def test_a_task_reset_tells_only_the_public_task_and_the_expert_reaches_its_goal
     assert (key.task_type, list(key.step_instructions)) == (task.task_type, task.step_instructions)
     assert key.expert_length == task.expert_length and key.goal_conditions_total == len(task.goal)
     assert key.expert_end_pose.x == task.expert_end_pose[0] * 0.25
-    for k, a in enumerate(task.expert_actions):
+    for a in task.expert_actions:
         step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=a.x, y=a.y)))
         assert step.ok and step.observation.last_action_success, step.observation.last_action_error
         if step.terminated:

@@ -24,13 +24,11 @@ from dialfred_sim.tasks import get_task, load_split, split_scenes
 from dialfred_sim.tasks.splits import (TEST_SPLIT, TEST_UNSEEN_SCENES, read_tasks_file, resolve_task,
                                        write_split)
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-import dialfred_launch  # noqa: E402
-from dialfred_eval import EvalConfig, ResultsFileError, run_eval  # noqa: E402
-from dialfred_launch import Graph, NodeDied, NodeProcess  # noqa: E402
+import dialfred_bringup.launch
+from dialfred_bringup.evaluation import EvalConfig, ResultsFileError, run_eval
+from dialfred_bringup.graph import Graph, NodeDied, NodeProcess
 
+REPO = Path(__file__).resolve().parents[1]
 SIZE = 16          # tasks: about four episodes
 
 
@@ -166,7 +164,7 @@ def test_a_file_that_is_not_a_split_is_a_clear_error(tmp_path, test_split):
 @pytest.fixture(scope='module')
 def expert_on_test_split(test_split, tmp_path_factory):
     out = tmp_path_factory.mktemp('test_eval') / 'expert.jsonl'
-    code = dialfred_launch.main(['eval', '--tasks', str(test_split), '--agent', 'expert', '--workers', '2',
+    code = dialfred_bringup.launch.main(['eval', '--tasks', str(test_split), '--agent', 'expert', '--workers', '2',
                                  '--out', str(out), '--no-progress'])
     assert code == 0
     return out
@@ -208,9 +206,9 @@ def test_results_of_a_shipped_split_are_not_resumed_with_a_tasks_file(tmp_path, 
 
 def test_the_eval_command_takes_a_split_or_a_tasks_file_not_both(test_split, capsys):
     with pytest.raises(SystemExit) as exit_info:
-        dialfred_launch.main(['eval', '--split', 'valid_unseen', '--tasks', str(test_split)])
+        dialfred_bringup.launch.main(['eval', '--split', 'valid_unseen', '--tasks', str(test_split)])
     assert exit_info.value.code == 2 and 'not allowed with argument' in capsys.readouterr().err
-    assert dialfred_launch.main(['eval', '--tasks', str(test_split.with_name('missing.jsonl.gz'))]) == 2
+    assert dialfred_bringup.launch.main(['eval', '--tasks', str(test_split.with_name('missing.jsonl.gz'))]) == 2
     assert 'does not exist' in capsys.readouterr().err
 
 

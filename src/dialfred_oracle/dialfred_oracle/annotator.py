@@ -30,20 +30,17 @@ from typing import Callable, Iterable, Optional, Sequence
 
 import numpy as np
 
+from dialfred_sim.protocol import QUESTION_TYPES, question_text
 from dialfred_sim.tasks.instructions import tokenize
 from dialfred_sim.world.catalog import object_type
 
 from .answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT, Answer, direction_bin
 from .answers import answer as oracle_answer
 
-QUESTION_TYPES = ('location', 'appearance', 'direction')
 CATEGORIES = ('none',) + QUESTION_TYPES       # what the two annotators' agreement is measured on
 # The paper's human figures (Table of question types; Sec. "Hybrid data collection").
 PAPER_HUMAN = {'type_shares': {'location': 0.72, 'appearance': 0.22, 'direction': 0.06},
                'questions_per_task': 0.66, 'answer_words': 6.73, 'fleiss_kappa': 0.13}
-# The predefined questions of the paper's interface.
-QUESTION_TEMPLATES = {'location': 'Where is the {noun}?', 'appearance': 'What does the {noun} look like?',
-                      'direction': 'Which direction should I turn to?'}
 # "Behind the agent": the oracle's direction bins at the back (rear left, behind, rear right).
 REAR_BINS = tuple(b for b in DIRECTION_BINS if 'rear' in b or 'behind' in b)
 
@@ -494,7 +491,7 @@ def annotate(task, snapshot, rng: np.random.Generator, annotator_id: int, *,
     text = paraphrase(content, rng, distractor=noun in situation.distractor_nouns)
     lo, hi = NECESSARY_P[category]
     necessary = bool(rng.random() < (hi if _called_for(category, noun, situation) else lo))
-    return Annotation(annotator_id, category, noun, QUESTION_TEMPLATES[category].format(noun=noun), text,
+    return Annotation(annotator_id, category, noun, question_text(category, noun), text,
                       necessary, oracle.text, bool(oracle.valid))
 
 

@@ -24,7 +24,8 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.agents import QUESTION_TYPES
+from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import question_text as protocol_question_text
 from dialfred_sim.ground_truth import ObjectFact, Snapshot
 
 from .colours import colour_name
@@ -69,13 +70,9 @@ class Answer:
 def question_text(question_type: str, noun: str = '') -> str:
     """The question as a person would ask it: 'Where is the apple?'. ValueError for an unknown type."""
     qtype = parse_question_type(question_type)
-    if qtype == 'location':
-        return f'Where is the {noun}?'
-    if qtype == 'appearance':
-        return f'What does the {noun} look like?'
-    if qtype == 'direction':
-        return 'Which direction should I go?'
-    raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES}')
+    if qtype is None:
+        raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES}')
+    return protocol_question_text(qtype, noun)
 
 
 def parse_question_type(question_type) -> Optional[str]:

@@ -162,7 +162,7 @@ def _tables() -> tuple[dict, dict, dict, dict]:
             variants.setdefault(key(noun), set()).add(name)
             variants_singular.setdefault(singular_key(noun), set()).add(name)
     everyday: dict[str, tuple[str, ...]] = {}
-    for name, t in sorted(catalog.items()):
+    for _name, t in sorted(catalog.items()):
         if t.sliced_type and t.sliced_type in catalog:
             for noun in t.nouns:
                 for pattern in _SLICE_PATTERNS:
@@ -172,7 +172,7 @@ def _tables() -> tuple[dict, dict, dict, dict]:
     everyday_singular: dict[str, tuple[str, ...]] = {}
     for k, nouns in everyday.items():
         everyday_singular.setdefault(singular_key(k), nouns)
-    freeze = lambda d: {k: frozenset(v) for k, v in d.items()}   # noqa: E731
+    freeze = lambda d: {k: frozenset(v) for k, v in d.items()}
     return freeze(variants), freeze(variants_singular), everyday, everyday_singular
 
 

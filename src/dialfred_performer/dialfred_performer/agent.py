@@ -21,7 +21,7 @@ from typing import Any, Optional
 import numpy as np
 import torch
 
-from dialfred_sim.agents import ACTIONS, QA, Decision
+from dialfred_sim.protocol import ACTIONS, QA, Decision, image_array
 
 from .data import START
 from .model import INTERACTION_IDS, Performer, load_checkpoint
@@ -38,9 +38,9 @@ def observation_rgb(observation: Any) -> np.ndarray:
         raise ValueError(f'no RGB frame in the observation ({type(observation).__name__})')
     if isinstance(rgb, np.ndarray):
         return rgb
-    if getattr(rgb, 'encoding', None) != 'rgb8':      # dialfred_launch.image_array's semantics, rgb8 only
+    if getattr(rgb, 'encoding', None) != 'rgb8':
         raise ValueError(f'expected an rgb8 image, got encoding {getattr(rgb, "encoding", None)!r}')
-    return np.frombuffer(bytes(rgb.data), dtype=np.uint8).reshape(rgb.height, rgb.width, 3)
+    return image_array(rgb)
 
 
 class PerformerAgent:

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from dialfred_sim.agents import ACTIONS, QA, QUESTION_TYPES, Question
+from dialfred_sim.protocol import ACTIONS, QA, QUESTION_TYPES, Question
 from dialfred_sim.tasks.demonstrations import load_demonstrations
 
 from .nn.heads import pixel_cell

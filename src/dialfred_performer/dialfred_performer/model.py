@@ -21,7 +21,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dialfred_sim.agents import ACTIONS
+from dialfred_sim.protocol import ACTIONS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PointerHead, VisualEncoder
 from .preprocess import N_TOKEN_TYPES, Vocabulary

@@ -18,7 +18,7 @@ that got no reply is sent again, a step never is. A bad goal (unknown task, miss
 checkpoint, negative seed) ends aborted with end_reason 'error' and the reason; the node keeps serving.
 
 With the `record_dir` parameter set, each goal's episode is also written as a ROS 2 bag (rosbag2,
-MCAP storage; `dialfred_sim.recording`): `<record_dir>/<split>_<number>/`, from the messages this node
+MCAP storage; `dialfred_sim.bag`): `<record_dir>/<split>_<number>/`, from the messages this node
 sent and received (the task, every frame and pose, QA, action, its feedback and the result).
 """
 
@@ -40,11 +40,10 @@ from rclpy.node import Node
 from dialfred_msgs.action import RunTask
 from dialfred_msgs.msg import Action, QAPair
 from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
-from dialfred_questioner.baselines import top2_gap
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question, top2_gap
 from dialfred_sim.messages import public_task_from_msg, qa_msg, task_description_msg
 from dialfred_sim.metrics import end_reason
-from dialfred_sim.recording import IMAGE_FORMATS, EpisodeRecorder
+from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, refused_request, run_node
 
 from .agent import PerformerAgent
@@ -279,7 +278,7 @@ class PerformerNode(Node):
         while True:
             done = threading.Event()
             future = client.call_async(request)
-            future.add_done_callback(lambda _: done.set())
+            future.add_done_callback(lambda _, done=done: done.set())   # this request's own event
             wait = min(RESEND_AFTER_S, deadline - time.monotonic()) if resend else deadline - time.monotonic()
             if done.wait(max(0.0, wait)):
                 reply = future.result()

@@ -26,7 +26,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from dialfred_sim.agents import QA, QUESTION_TYPES, Question
+from dialfred_sim.protocol import QA, QUESTION_TYPES, Question
 
 PAD, UNK = '<pad>', '<unk>'
 QUESTION_MARK, ANSWER_MARK, INVALID_MARK = '<q>', '<a>', '<invalid>'

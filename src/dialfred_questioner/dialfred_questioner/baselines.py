@@ -16,37 +16,19 @@ the oracle's reply comes back through `hear(qa)`. The paper's baselines that nee
   question. This is the paper's "random MC" baseline; it needs a performer that exposes
   `action_probabilities(observation)`.
 
-`with_questioner(agent, questioner)` makes any performer agent a `dialfred_sim.agents.DialogueAgent`.
+`with_questioner(agent, questioner)` makes any performer agent a `dialfred_sim.protocol.DialogueAgent`.
 The learned questioner (LSTM seq2seq, actor-critic fine-tuning) is `policy.LearnedQuestioner`; every
 questioner by name, these and the learned ones, comes from `questioners.make_questioner`.
 """
 
 from __future__ import annotations
 
-from typing import Any, Optional, Protocol
+from typing import Any, Optional
 
 import numpy as np
 
-from dialfred_sim.agents import QA, QUESTION_TYPES, Agent, Decision, Question, public_view, task_view
-
-
-class Questioner(Protocol):
-    name: str
-
-    def reset(self, task: Any, seed: int) -> None:
-        """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
-
-    def ask(self, observation: Any, step: int) -> Optional[Question]:
-        """A question before the agent's action number `step` + 1, or None."""
-
-    def hear(self, qa: QA) -> None:
-        """The oracle's reply to the question just asked."""
-
-
-def top2_gap(probabilities) -> float:
-    """The gap between the two most likely actions' probabilities (0.0 with fewer than two)."""
-    p = np.sort(np.asarray(probabilities, dtype=float))[::-1]
-    return float(p[0] - p[1]) if len(p) >= 2 else 0.0
+from dialfred_sim.agents import public_view, task_view
+from dialfred_sim.protocol import QA, QUESTION_TYPES, Agent, Decision, Question, Questioner, top2_gap
 
 
 def task_nouns(task: Any) -> list[str]:

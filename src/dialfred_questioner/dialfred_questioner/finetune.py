@@ -32,7 +32,6 @@ import dataclasses
 import json
 import math
 import multiprocessing
-import os
 import random
 import sys
 import time
@@ -46,7 +45,7 @@ import torch
 from dialfred_performer.cli import arg, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit
 
-from dialfred_sim.agents import QUESTION_TYPES as QUESTION_TYPES_ASKED
+from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 
 from .model import Questioner
 from .rl import Rewards, actor_critic_loss, discounted_returns, group_baseline

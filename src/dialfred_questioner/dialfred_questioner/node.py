@@ -33,7 +33,7 @@ from rclpy.node import Node
 
 from dialfred_msgs.msg import Observation, QAPair
 from dialfred_msgs.srv import QuestionerAsk
-from dialfred_sim.agents import QA
+from dialfred_sim.protocol import QA
 from dialfred_sim.messages import public_task_from_msg, qa_from_msg, qa_msg
 from dialfred_sim.ros_util import SERVICE_QOS, error_reply, run_node
 

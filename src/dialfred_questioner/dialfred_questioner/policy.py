@@ -31,9 +31,8 @@ import torch
 
 from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question, top2_gap
 
-from .baselines import top2_gap
 from .data import pad_language
 from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
 from .rollout import Timing

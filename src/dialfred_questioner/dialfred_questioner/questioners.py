@@ -15,9 +15,9 @@ back; torch (with `policy`) is imported only for a name that is not a baseline's
 from __future__ import annotations
 
 from dialfred_sim.agents import load_class
+from dialfred_sim.protocol import Questioner
 
 from . import baselines
-from .baselines import Questioner
 
 
 def make_questioner(name: str) -> Questioner:

@@ -21,9 +21,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
 from dialfred_performer.preprocess import AskedQA
-from dialfred_sim.agents import QA, Question
+from dialfred_sim.protocol import QA, Question, top2_gap
 
-from .baselines import top2_gap
 from .rl import Rewards
 
 TIMINGS = ('begin', 'anytime', 'confusion')

@@ -13,6 +13,7 @@ from typing import Optional
 
 import numpy as np
 
+from .protocol import ACTIONS
 from .world.rooms import AGENT_RADIUS, GRID, footprint
 from .world.scene import COLD, HORIZON_MAX, HORIZON_MIN, HOT, SLICES_PER_OBJECT, DEFAULT_SLICES, World, WorldObject
 
@@ -20,29 +21,10 @@ REACH = 1.5            # metres from the camera to the point under the target pi
 LOOK_STEP = 15.0       # degrees per LookUp / LookDown
 
 
-class Action(enum.IntEnum):
-    """The 13 actions, in the order of the Gymnasium action space."""
-
-    MoveAhead = 0
-    RotateLeft = 1
-    RotateRight = 2
-    LookUp = 3
-    LookDown = 4
-    Pickup = 5
-    Put = 6
-    Open = 7
-    Close = 8
-    ToggleOn = 9
-    ToggleOff = 10
-    Slice = 11
-    Stop = 12
-
-    @property
-    def is_interaction(self) -> bool:
-        return Action.Pickup <= self <= Action.Slice
-
-
-ACTION_NAMES: tuple[str, ...] = tuple(a.name for a in Action)
+# The 13 actions, in the order of the Gymnasium action space: protocol.ACTIONS, numbered from 0.
+Action = enum.IntEnum('Action', [(name, k) for k, name in enumerate(ACTIONS)], module=__name__, qualname='Action')
+Action.is_interaction = property(lambda self: Action.Pickup <= self <= Action.Slice)
+ACTION_NAMES: tuple[str, ...] = ACTIONS
 NAVIGATION = (Action.MoveAhead, Action.RotateLeft, Action.RotateRight, Action.LookUp, Action.LookDown)
 
 

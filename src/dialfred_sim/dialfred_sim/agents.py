@@ -7,88 +7,24 @@ whatever the driver has (the launcher passes the dialfred_msgs/Observation messa
 here do not look at it. The task an agent is told is its public view (`tasks.PublicTask`: the
 instruction and the nouns it names, with the task's id, room and split); the expert's plan, the goal
 and the type stay with the simulator, the checker and the oracle. Only a built-in reference agent
-marked `privileged` (the expert) is given the whole `Task`, and its results say so. The performer of a later issue is an agent too: `make_agent` is where a new
-one gets its name, and any class of yours works as 'package.module:ClassName'.
+marked `privileged` (the expert) is given the whole `Task`, and its results say so. The performer is an
+agent too: `make_agent` is where an agent gets its name, and any class of yours works as
+'package.module:ClassName'.
 
-An agent that talks (`DialogueAgent`) also has `ask(observation) -> Question | None`, called before
-every `act`: a question goes to the oracle and its answer comes back through `hear(qa)`, then `ask`
-is called again, until it returns None and the agent acts. `dialfred_questioner` gives any agent a
-questioner this way.
+An agent that talks (`protocol.DialogueAgent`) also has `ask(observation) -> Question | None`, called
+before every `act`: a question goes to the oracle and its answer comes back through `hear(qa)`, then
+`ask` is called again, until it returns None and the agent acts. `dialfred_questioner` gives any agent
+a questioner this way. The protocol itself (actions, questions, the Agent protocols) is `protocol`.
 """
 
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
-from typing import Any, Optional, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 
-# ALFRED's 13 low-level actions, as in dialfred_msgs/msg/Action.msg.
-ACTIONS = ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown', 'Pickup', 'Put', 'Open', 'Close',
-           'ToggleOn', 'ToggleOff', 'Slice', 'Stop')
-
-Decision = tuple[str, int, int]
-
-# The oracle's question types (dialfred_msgs/srv/OracleAnswer), in the paper's order.
-QUESTION_TYPES = ('location', 'appearance', 'direction')
-
-
-@dataclass(frozen=True)
-class Question:
-    """A question for the oracle: its type and the object it is about (direction questions name none)."""
-
-    question_type: str
-    object_noun: str = ''
-
-
-@dataclass(frozen=True)
-class QA:
-    """A question and what the oracle said: `answer` if `valid`, else `reason` why it could not answer."""
-
-    question: Question
-    valid: bool
-    answer: str = ''
-    reason: str = ''
-
-
-class Agent(Protocol):
-    name: str
-
-    def reset(self, task: Any, seed: int) -> None:
-        """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
-
-    def act(self, observation: Any) -> Decision:
-        """The next action (name, x, y) given the latest observation."""
-
-
-@runtime_checkable
-class DialogueAgent(Agent, Protocol):
-    """An agent that may ask the oracle before it acts."""
-
-    def ask(self, observation: Any) -> Optional[Question]:
-        """A question to ask before the next action, or None to act now."""
-
-    def hear(self, qa: QA) -> None:
-        """The oracle's reply to the question just asked."""
-
-
-def episode_seed(run_seed: int, task_index: int) -> int:
-    """A seed for one episode from the run's seed and the task's index in its split, so that an
-    episode plays the same whichever worker runs it, in whatever order, and after a resume."""
-    return int(np.random.SeedSequence([run_seed, task_index]).generate_state(1)[0])
-
-
-def scale_pixel(x: int, y: int, from_resolution: int, to_resolution: int) -> tuple[int, int]:
-    """The pixel (x, y) of a `from_resolution` frame in a `to_resolution` frame (same camera):
-    the pixel whose centre is nearest the same point. Negative (no target) stays as it is."""
-    if x < 0 or y < 0 or from_resolution == to_resolution:
-        return x, y
-
-    def one(v: int) -> int:
-        return min(to_resolution - 1, int((v + 0.5) * to_resolution / from_resolution))
-
-    return one(x), one(y)
+from .protocol import ACTIONS, Agent, Decision, scale_pixel
 
 
 def public_view(task: Any) -> Any:

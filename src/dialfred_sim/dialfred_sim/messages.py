@@ -1,7 +1,7 @@
-"""Conversions between dialfred_msgs messages and the ROS-free protocol of `agents` (no rclpy).
+"""Conversions between dialfred_msgs messages and the ROS-free `protocol` (no rclpy).
 
 The nodes and the evaluation client use these, so that a QA or a task reads the same whichever
-process made it: `qa_msg`/`qa_from_msg` (agents.QA <-> QAPair), `public_task_from_msg`
+process made it: `qa_msg`/`qa_from_msg` (protocol.QA <-> QAPair, the question worded by `protocol.question_text`), `public_task_from_msg`
 (TaskDescription -> tasks.PublicTask: what an agent is told, never more).
 """
 
@@ -9,23 +9,14 @@ from __future__ import annotations
 
 from dialfred_msgs.msg import QAPair, TaskDescription
 
-from .agents import QA, Question
+from .protocol import QA, Question
 from .tasks.schema import PublicTask
-
-
-def question_text(question: Question) -> str:
-    """The question as a person would ask it (what QAPair.question carries)."""
-    if question.question_type == 'direction':
-        return 'Which way should I go?'
-    if question.question_type == 'appearance':
-        return f'What does the {question.object_noun} look like?'
-    return f'Where is the {question.object_noun}?'
 
 
 def qa_msg(qa: QA) -> QAPair:
     """The QAPair of `qa` (an invalid answer's reason is not carried: the answer is then empty)."""
     q = qa.question
-    return QAPair(question_type=q.question_type, object_noun=q.object_noun, question=question_text(q),
+    return QAPair(question_type=q.question_type, object_noun=q.object_noun, question=q.text,
                   answer=qa.answer if qa.valid else '', valid=bool(qa.valid))
 
 

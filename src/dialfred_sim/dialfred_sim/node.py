@@ -11,11 +11,9 @@ import array as pyarray
 import sys
 import time
 
-import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image
 
 from dialfred_msgs.msg import AgentPose, Appearance, ObjectFact, Observation, TaskAnswerKey, TaskDescription
 from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
@@ -25,39 +23,12 @@ from .ground_truth import GroundTruthCache
 from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
+from .protocol import fill_image, image_bytes
 from .ros_util import SERVICE_QOS, error_reply, run_node
 
 # Observations: every one matters to a recorder, only the newest to a controller.
 OBSERVATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                              depth=1, durability=DurabilityPolicy.VOLATILE)
-
-
-def fill_image(msg: Image, array: np.ndarray, encoding: str, header) -> None:
-    """Write `array` (HxW or HxWxC) into the sensor_msgs/Image `msg` without copying its pixels.
-
-    `data` is given the array's own buffer (`image_buffer`). The caller must not change `array` in
-    place while `msg` may still be sent; the simulator renders every frame into new arrays."""
-    msg.header = header
-    msg.height, msg.width = int(array.shape[0]), int(array.shape[1])
-    msg.encoding = encoding
-    msg.is_bigendian = 0
-    msg.step = int(array.strides[0])
-    # Past the property's setter, which would copy into an array.array: rclpy's C conversion reads
-    # any object with the buffer protocol (one memcpy), as test_sim_node checks byte for byte.
-    msg._data = image_buffer(array)
-
-
-def image_buffer(array: np.ndarray) -> memoryview:
-    """The bytes of C-contiguous `array` as a flat memoryview (no copy)."""
-    return memoryview(np.ascontiguousarray(array)).cast('B')
-
-
-def image_bytes(array: np.ndarray) -> pyarray.array:
-    """The bytes of `array` as array.array: about 7x faster for rclpy to take than bytes (which it
-    converts per element); frombytes reads the numpy buffer directly, one copy."""
-    data = pyarray.array('B')
-    data.frombytes(image_buffer(array))
-    return data
 
 
 def task_description(task) -> TaskDescription:

@@ -60,7 +60,7 @@ def frame_offsets(tasks) -> list[int]:
 def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) -> tuple[int, int]:
     """The pixel for the expert's interaction `action` in the current frame: its pixel scaled to the
     env's resolution, or the nearest pixel showing the action's target when the scaled one misses it."""
-    from ..agents import scale_pixel
+    from ..protocol import scale_pixel
     x, y = scale_pixel(action.x, action.y, task_resolution, env.resolution)
     target = env.world.objects.get(action.target) if action.target else None
     if x < 0 or target is None or segmentation[y, x] == target.body:

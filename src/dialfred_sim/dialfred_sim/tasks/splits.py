@@ -29,7 +29,7 @@ import numpy as np
 from .generator import cut_tasks, generate_episode
 # Reading the split files and looking tasks up live in split_files (the environment uses them, and
 # this module plays episodes in the environment); the names stay importable from here.
-from .split_files import (CACHE_ENV, SPLIT_CODES, SPLIT_SIZES, TEST_SPLIT, TEST_UNSEEN_SCENES,  # noqa: F401
+from .split_files import (CACHE_ENV, SPLIT_CODES, SPLIT_SIZES, TEST_SPLIT, TEST_UNSEEN_SCENES,  # noqa: F401  (re-exported)
                           VALID_UNSEEN_SCENES, TasksFile, episode_to_json, get_task, load_split, packaged_path,
                           read_tasks_file, resolve_task, split_path, split_scenes, task_index, tasks_from_json)
 

@@ -45,10 +45,10 @@ def moving_part_boxes(spec: ShapeSpec, position: Sequence[float], yaw: float,
     origin = np.asarray(art.origin, float)
     if art.kind == 'revolute':
         rot = _axis_rotation(art.axis, value)
-        joint = lambda pts: (pts - origin) @ rot.T + origin          # noqa: E731
+        joint = lambda pts: (pts - origin) @ rot.T + origin
     else:
         shift = np.asarray(art.axis, float) * value
-        joint = lambda pts: pts + shift                              # noqa: E731
+        joint = lambda pts: pts + shift
     c, s = math.cos(yaw), math.sin(yaw)
     to_world = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     at = np.asarray(position, float)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional, Sequence
 
-from .metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
+from dialfred_sim.metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
                       summarize, write_text_atomically)
 
 SHARD_NAME = re.compile(r'_shard(\d+)of(\d+)$')
@@ -83,7 +83,7 @@ def shard_tasks(tasks: Sequence, shard) -> list[tuple[int, object]]:
 
 # ---------------------------------------------------------------------------------------- one shard's files
 
-# What must be the same in every shard's .summary.json (EvalReport.to_json of dialfred_eval.py) for
+# What must be the same in every shard's .summary.json (EvalReport.to_json of dialfred_bringup/evaluation.py) for
 # their results to be one run's; `workers`, `this_run` and the file names may differ.
 SAME_RUN = ('split', 'tasks_file', 'agent', 'oracle', 'seed', 'resolution', 'through', 'checkpoint', 'limit',
             'shard_count')
@@ -179,11 +179,11 @@ class Merged:
 def split_tasks(settings: dict, run: dict, tasks_path: Optional[Path] = None) -> list:
     """Every task of the split the shards came from (before --limit): the shipped split's, or those of
     its tasks file (at `tasks_path`, else where the run read it), checked by sha256."""
-    from .tasks import load_split
+    from dialfred_sim.tasks import load_split
     if settings['tasks_file'] is None:
         tasks = load_split(settings['split'])
     else:
-        from .tasks.splits import read_tasks_file
+        from dialfred_sim.tasks.splits import read_tasks_file
         path = Path(tasks_path) if tasks_path else Path(run['tasks_file']['path'])
         try:
             source = read_tasks_file(path)

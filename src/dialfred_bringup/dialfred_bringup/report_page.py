@@ -12,7 +12,7 @@ from __future__ import annotations
 import html
 from typing import Sequence
 
-from .metrics import END_REASONS
+from dialfred_sim.metrics import END_REASONS
 
 OUTCOME_LABELS = {'stop': 'the agent stopped', 'max_steps': 'step limit', 'max_failures': 'too many failed actions',
                   'error': 'error'}
@@ -41,7 +41,7 @@ def sr_chart(rows: Sequence[tuple], title: str = 'SR per task type (%), with 95%
     A row with a filter value is clickable (the script filters the episodes by that task type)."""
     width = LABEL_W + PLOT_W + VALUE_W
     height = TOP + BAR_ROW * len(rows) + 24
-    x = lambda pct: LABEL_W + PLOT_W * max(0.0, min(100.0, pct)) / 100.0  # noqa: E731
+    x = lambda pct: LABEL_W + PLOT_W * max(0.0, min(100.0, pct)) / 100.0
     parts = [f'<svg class="chart" role="img" aria-label="{esc(title)}" viewBox="0 0 {width} {height}" '
              f'width="{width}" height="{height}" xmlns="http://www.w3.org/2000/svg">',
              f'<title>{esc(title)}</title>']

@@ -4,7 +4,7 @@ From the results file of `launch eval` (and its `.summary.json`, when there is o
 that opens from disk with no server and no network: the run's settings; SR, PWSR, GC and NQ with
 their 95% bootstrap intervals (`metrics.intervals`); SR per task type as bars; and every episode with
 its outcome, steps, dialogue and, when `--bags` holds its bag (`launch eval --record DIR`), a captioned
-GIF rendered from the bag alone (`recording.film` + `film.save_captioned_gif`). The episodes can be
+GIF rendered from the bag alone (`replay.film` + `film.save_captioned_gif`). The episodes can be
 filtered by task type and outcome.
 
     ./dialfred report out/eval/valid_unseen_expert.jsonl --bags out/bags
@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
-from .metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
+from dialfred_sim.metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
 from .report_page import OUTCOME_LABELS, render_page
 
 GIF_WIDTH = 256
@@ -175,7 +175,7 @@ def run_settings(results: list[EpisodeResult], run: Optional[dict]) -> tuple[lis
 def task_text(task_id: str) -> tuple[str, str]:
     """(instruction, scene) of a task of a shipped split, ('', '') if it cannot be found there."""
     try:
-        from .tasks.split_files import get_task
+        from dialfred_sim.tasks.split_files import get_task
         task = get_task(task_id)
     except Exception:  # noqa: BLE001 - a test split or a split not generated here: the page shows less
         return '', ''
@@ -188,7 +188,9 @@ def render_gif(bag: Path, gif: Path, width: int) -> dict:
     """Render one bag's captioned GIF (runs in a worker process). Returns {'ok', 'note', 'instruction',
     'scene', 'frames'}; a bag that cannot be read or has no frames gives ok False and why."""
     from .film import save_captioned_gif
-    from .recording import BagError, film, read_episode
+    from dialfred_sim.bag import BagError, read_episode
+
+    from .replay import film
     try:
         ep = read_episode(bag)
     except BagError as exc:
@@ -206,7 +208,7 @@ def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Pat
                 workers: int, say: Callable[[str], None]) -> dict:
     """Render the GIF of every episode whose bag `bags` holds into `media`, and set each view's gif or
     media_note. Returns counts {'gifs', 'missing', 'unreadable'}."""
-    from .recording import bag_name
+    from dialfred_sim.bag import bag_name
     todo = []
     counts = {'gifs': 0, 'missing': 0, 'unreadable': 0}
     for view in views:

@@ -1,7 +1,7 @@
 """Evaluation without ROS: the episodes `launch eval` plays through the graph, played in worker processes
 that each hold a simulator, the oracle's rules and the agent (`./dialfred launch eval --local`).
 
-Each worker plays an episode exactly as `dialfred_eval.SimWorker` drives the simulator and oracle
+Each worker plays an episode exactly as `dialfred_bringup.evaluation.SimWorker` drives the simulator and oracle
 nodes: the simulator resets to the task (`DialfredEnv.reset(options={'task': task})`, as the node's
 `/sim/reset` with a task id does), the agent is reset with the task's public view and the episode seed
 of its index in the split, then before every action the agent may ask questions, answered by
@@ -45,9 +45,9 @@ def _play_job(job: tuple):
 
 def play_episode(config, env, agent, perturbation, index: int, task):
     """One episode of `task` (at `index` in the split) in `env` with `agent`: its EpisodeResult."""
-    from dialfred_eval import MAX_QUESTIONS
     from dialfred_oracle.local import answer_now
-    from dialfred_sim.agents import QA, episode_seed, task_view
+    from dialfred_sim.agents import task_view
+    from dialfred_sim.protocol import MAX_QUESTIONS, QA, episode_seed
     from dialfred_sim.metrics import EpisodeResult, dialogue_entry, end_reason
     started = time.monotonic()
     met, total = 0, 0

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Evaluation through the node graph: an agent plays (a part of) a split on simulator nodes.
 
-`python dialfred_launch.py eval ...` runs `--workers` simulator nodes, each in its own namespace
+`python dialfred_bringup/launch.py eval ...` runs `--workers` simulator nodes, each in its own namespace
 (/eval_<pid>/w0/sim/step, /eval_<pid>/w1/sim/step, ...), drives them all from this process with
 asynchronous calls, appends each episode's result to the JSON-lines file as it ends (a rerun skips
 the tasks already there), and prints SR / PWSR / GC / NQ overall and per task type; the summary also
@@ -17,7 +17,7 @@ records the file's path and sha256: results of another file are refused, never m
 
 With `--shard K/N`, only the tasks whose index in the split is K modulo N are played (seeded by that
 index, as in a whole run) into <out>_shardKofN.jsonl; `./dialfred merge` joins the shards' files
-(dialfred_sim/shards.py, docs/scaling.md).
+(dialfred_bringup/shards.py, docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -34,11 +34,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service, use_project_environment  # noqa: F401
-from dialfred_sim.metrics import ResultsFileError  # noqa: F401  (the launcher and tests import it from here)
-from dialfred_sim.shards import check_shard, shard_suffix, shard_tasks
+from dialfred_sim.metrics import ResultsFileError
+from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES
 
-REPO = Path(__file__).resolve().parent
+from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service, use_project_environment
+from .paths import REPO
+from .shards import check_shard, shard_suffix, shard_tasks
+
 use_project_environment(REPO)
 
 @dataclass
@@ -62,13 +64,13 @@ class EvalConfig:
     checkpoint: Optional[Path] = None   # the `et` performer's checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)
     episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
     record: Optional[Path] = None       # write each episode as a rosbag2/MCAP bag into this folder
-    record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.recording)
-    foxglove: Optional[int] = None      # a port: stream the workers live to Foxglove (dialfred_sim.live)
+    record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.bag)
+    foxglove: Optional[int] = None      # a port: stream the workers live to Foxglove (dialfred_bringup.live)
     max_restarts: int = 3               # a worker whose node dies is restarted (its episode replayed) this many
                                         # times in a row at most; 0 = a dead node ends the run
-    shard: Optional[tuple] = None       # (K, N): only shard K of N of the selected tasks (see dialfred_sim.shards.shard_tasks)
+    shard: Optional[tuple] = None       # (K, N): only shard K of N of the selected tasks (see dialfred_bringup.shards.shard_tasks)
     local: bool = False                 # no ROS: worker processes with a simulator, the oracle's rules and the agent
-                                        # each (dialfred_local: the same episodes as through the graph, faster)
+                                        # each (dialfred_bringup.local: the same episodes as through the graph, faster)
 
     @functools.cached_property
     def tasks_source(self):
@@ -163,9 +165,8 @@ class EvalConfig:
 
     def check(self) -> None:
         """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
-        from dialfred_oracle.answers import QUESTION_TYPES
         check_shard(self.shard)
-        from dialfred_sim.recording import IMAGE_FORMATS
+        from dialfred_sim.bag import IMAGE_FORMATS
         if self.max_restarts < 0:
             raise ValueError(f'--max-restarts must be 0 or more, got {self.max_restarts}')
         if self.record_format not in IMAGE_FORMATS:
@@ -232,7 +233,6 @@ class EvalReport:
         }
 
 
-MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
 RESEND_AFTER_S = 10.0  # a reset or question unanswered this long is sent again (see SimWorker.resend_if_lost)
 
 
@@ -263,7 +263,7 @@ class SimWorker:
     def begin(self, index: int, task) -> None:
         from dialfred_msgs.srv import SimReset
 
-        from dialfred_sim.agents import episode_seed
+        from dialfred_sim.protocol import episode_seed
         self.job = (index, task)
         self.task, self.episode_seed = task, episode_seed(self.config.seed, index)
         self.started = time.monotonic()
@@ -299,7 +299,7 @@ class SimWorker:
                 return self._result('error', error=reply.error)
             self.goal_conditions = (0, reply.goal_conditions_total)
             if self.config.record is not None:
-                from dialfred_sim.recording import EpisodeRecorder
+                from dialfred_sim.bag import EpisodeRecorder
                 t = reply.task       # what the agent is told
                 self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
                                                 image_format=self.config.record_format)
@@ -350,7 +350,7 @@ class SimWorker:
         return None
 
     def _after_answer(self, reply):
-        from dialfred_sim.agents import QA
+        from dialfred_sim.protocol import QA
         from dialfred_sim.metrics import dialogue_entry
         self.questions += 1
         self.invalid_questions += not reply.valid
@@ -460,7 +460,7 @@ class PerformerWorker:
     def begin(self, index: int, task) -> None:
         from dialfred_msgs.action import RunTask
 
-        from dialfred_sim.agents import episode_seed
+        from dialfred_sim.protocol import episode_seed
         self.job = (index, task)
         self.task, self.started = task, time.monotonic()
         self.sent_at, self.cancel_future, self.goal_handle = self.started, None, None
@@ -692,7 +692,7 @@ def parse_shard(text: str) -> tuple:
     """--shard K/N -> (K, N); argparse's usage error unless 0 <= K < N."""
     import argparse
 
-    from dialfred_sim.shards import parse_shard as parse
+    from dialfred_bringup.shards import parse_shard as parse
     try:
         return parse(text)
     except ValueError as exc:
@@ -700,7 +700,7 @@ def parse_shard(text: str) -> tuple:
 
 
 class LiveHook:
-    """What one worker tells the Foxglove live view (dialfred_sim.live.LiveView) as its episodes go."""
+    """What one worker tells the Foxglove live view (dialfred_bringup.live.LiveView) as its episodes go."""
 
     def __init__(self, view, worker: str):
         self.view, self.worker = view, worker
@@ -724,8 +724,8 @@ def start_live_view(config: EvalConfig, graph: Graph, namespaces: list, total: i
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     from dialfred_msgs.msg import Observation, QAPair
-    from dialfred_sim.graph import image_array
-    from dialfred_sim.live import LiveView, describe
+    from dialfred_sim.protocol import image_array
+    from dialfred_bringup.live import LiveView, describe
     view = LiveView(len(namespaces), port=config.foxglove, total=total)
     print(describe(view), file=sys.stderr, flush=True)
     qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1)
@@ -749,7 +749,7 @@ def run_namespace() -> str:
     """The namespace of this run's nodes (/eval_<pid>): no other run, even in the same ROS domain,
     can reach them or be reached by this one. Where discovery reaches other hosts (a shard per host,
     docs/scaling.md), the host's name goes in too (/eval_<host>_<pid>): a pid is unique on one host only."""
-    from dialfred_sim.graph import discovery_spans_hosts, host_token
+    from dialfred_bringup.graph import discovery_spans_hosts, host_token
     return f'/eval_{host_token()}_{os.getpid()}' if discovery_spans_hosts() else f'/eval_{os.getpid()}'
 
 
@@ -848,7 +848,7 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
         return record
 
     if jobs and config.local:
-        from dialfred_local import play_local
+        from dialfred_bringup.local import play_local
         with progress_bar(len(tasks), len(done), progress) as bar:
             play_local(config, jobs, recorder(bar))
     elif jobs:
@@ -1013,7 +1013,7 @@ def add_eval_parser(sub) -> None:
     ev.add_argument('--local', action='store_true',
                     help='no ROS: each worker is a process with its own simulator, the oracle\'s rules and the agent '
                          '(the same episodes as through the graph, faster; not with --performer, --record, '
-                         '--foxglove; dialfred_local.py)')
+                         '--foxglove; dialfred_bringup/local.py)')
     ev.add_argument('--out', default=None,
                     help='results file (default out/eval/<split>_<agent>[+<questioner>].jsonl)')
     ev.add_argument('--seed', type=int, default=0)

@@ -17,7 +17,7 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
 | rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
-| eval | every setting of the tables (`dialfred_eval.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| eval | every setting of the tables (`dialfred_bringup.evaluation.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_bringup.local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
 | check | the first `--check-tasks` tasks of every setting played again through the ROS graph (performer, questioner, oracle and simulator nodes) and compared with the eval stage's episodes field by field (wall time aside); mismatches are listed in the document, not hidden | `check/<split>_<setting>.jsonl`, `check/report.json` |
 | doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`, its plot beside it: `sr_nq.png`, or `<stem>_sr_nq.png` for a doc of another name) |
 
@@ -65,19 +65,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / 'scripts'))
 
-from baselines import BASELINES as TABLE2_BASELINES  # noqa: E402  (the one place of Table II's rows 1-4)
-from dialfred_performer.cli import arg, parse  # noqa: E402
+from dialfred_performer.cli import arg, parse
+from dialfred_sim.protocol import QUESTION_TYPES
+
+from .baselines import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4
+from .paths import REPO
 
 STAGES = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'check', 'doc')
 EVAL_PATHS = ('local', 'graph', 'in-process')
 SPLITS = ('valid_seen', 'valid_unseen')
-QUESTION_TYPES = ('location', 'appearance', 'direction')
 PERTURB_PROBABILITY = 0.5
-SHIPPED_QUESTIONERS = ROOT / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
+SHIPPED_QUESTIONERS = REPO / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
 RESOLUTION = 64
 
 # The RL fine-tunings (FinetuneConfig fields beyond the shared ones).
@@ -101,7 +100,7 @@ EXTRA = {
     'rl_anytime_no_dialogue': 'RL anytime, instruction only (the original\'s input)',
 }
 
-# The paper's numbers. Table II rows 1-4 come from scripts/baselines.py; rows 5-6 here.
+# The paper's numbers. Table II rows 1-4 come from dialfred_bringup/baselines.py; rows 5-6 here.
 PAPER_T2 = {
     **{k: {'number': b.number, 'name': b.name, 'SR': b.paper_sr, 'PWSR': b.paper_pwsr, 'NQ': b.paper_nq}
        for k, b in TABLE2_BASELINES.items()},
@@ -197,16 +196,16 @@ class ReproduceConfig:
         if self.doc == 'none':
             return None
         if self.doc:
-            return Path(self.doc) if Path(self.doc).is_absolute() else ROOT / self.doc
+            return Path(self.doc) if Path(self.doc).is_absolute() else REPO / self.doc
         if self.quick or self.out:
             return None
-        return ROOT / 'docs' / ('results_shipped.md' if self.shipped else 'results.md')
+        return REPO / 'docs' / ('results_shipped.md' if self.shipped else 'results.md')
 
     @property
     def run_dir(self) -> Path:
         name = self.out or ('out/reproduce_quick' if self.quick else
                             'out/reproduce_shipped' if self.shipped else 'out/reproduce')
-        return Path(name) if Path(name).is_absolute() else ROOT / name
+        return Path(name) if Path(name).is_absolute() else REPO / name
 
 
 # --------------------------------------------------------------------------------------------- sizes
@@ -291,7 +290,7 @@ class Plan:
     def eval_config(self, s: Setting, check: bool = False):
         """The evaluation of setting `s` for the tables, or with `check` its first check_tasks tasks
         through the graph (performer nodes)."""
-        from dialfred_eval import EvalConfig
+        from dialfred_bringup.evaluation import EvalConfig
         questioner = s.questioner
         if questioner.startswith('rl:'):
             questioner = f'learned:{self.questioner_checkpoint(questioner[3:])}'
@@ -359,7 +358,7 @@ def newest_mtime(paths) -> float:
 def code_hash(paths: tuple[str, ...]) -> str:
     h = hashlib.sha256()
     for rel in paths:
-        p = ROOT / rel
+        p = REPO / rel
         h.update(rel.encode() + b'\0' + (p.read_bytes() if p.exists() else b'(absent)') + b'\0')
     return h.hexdigest()
 
@@ -374,10 +373,10 @@ CODE = {
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
-    'eval': ('dialfred_eval.py', 'dialfred_local.py', f'{QUES}/baselines.py', f'{QUES}/policy.py', f'{PERF}/agent.py',
+    'eval': ('dialfred_bringup/evaluation.py', 'dialfred_bringup/local.py', f'{QUES}/baselines.py', f'{QUES}/policy.py', f'{PERF}/agent.py',
              f'{SIM}/metrics.py'),
-    'check': ('dialfred_eval.py', 'dialfred_local.py', 'scripts/reproduce.py'),
-    'doc': ('scripts/reproduce.py', 'scripts/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
+    'check': ('dialfred_bringup/evaluation.py', 'dialfred_bringup/local.py', 'dialfred_bringup/reproduce.py'),
+    'doc': ('dialfred_bringup/reproduce.py', 'dialfred_bringup/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
 }
 UPSTREAM = {
     'demos': (), 'performer': ('demos',), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
@@ -431,7 +430,7 @@ class Runner:
     def write_stamp(self, stage: str, record: dict) -> None:
         self.stamps_dir.mkdir(parents=True, exist_ok=True)
         tmp = self.stamp_path(stage).with_suffix('.tmp')
-        from dialfred_sim.machine import machine
+        from dialfred_bringup.machine import machine
         record = {**record, 'machine': machine()}      # the seconds, and bit patterns, depend on it
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + '\n')
         tmp.replace(self.stamp_path(stage))
@@ -497,10 +496,10 @@ class Runner:
         env = dict(os.environ)
         if c['dialogue_dir']:
             env['DIALFRED_DIALOGUE_DIR'] = c['dialogue_dir']
-        cmd = [sys.executable, str(ROOT / 'scripts' / 'annotate_dialogues.py'), '--splits', *c['splits'],
+        cmd = [sys.executable, str(REPO / 'scripts' / 'annotate_dialogues.py'), '--splits', *c['splits'],
                '--workers', str(c['workers']), '--limit', str(c['limit']),
                '--from-demonstrations', c['demonstrations'], '--doc', str(self.cfg.run_dir / 'dialogue_data.md')]
-        done = subprocess.run(cmd, env=env, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+        done = subprocess.run(cmd, env=env, cwd=REPO, stdout=subprocess.PIPE, text=True)
         if done.returncode:
             raise RuntimeError(f'{shlex.join(cmd)} exited with {done.returncode}')
         first = json.loads(done.stdout.splitlines()[0])
@@ -555,7 +554,7 @@ class Runner:
         return out
 
     def eval(self, resume: bool) -> dict:
-        from baselines import run_baseline
+        from dialfred_bringup.baselines import run_baseline
         self.plan.eval_dir.mkdir(parents=True, exist_ok=True)
         out = {}
         for s in settings():
@@ -571,9 +570,9 @@ class Runner:
 
     def check(self, resume: bool) -> dict:
         """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
-        from baselines import run_baseline
+        from dialfred_bringup.baselines import run_baseline
 
-        from dialfred_eval import resumable_results
+        from dialfred_bringup.evaluation import resumable_results
         from dialfred_sim.metrics import write_text_atomically
         from dialfred_sim.tasks import load_split
         p = self.plan
@@ -634,7 +633,7 @@ class Runner:
 
 def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
     """The numbers of one setting from its results file (n = 0 when it has none)."""
-    from dialfred_eval import resumable_results
+    from dialfred_bringup.evaluation import resumable_results
     from dialfred_sim.metrics import intervals, summarize
     from dialfred_sim.tasks import load_split
     if not plan.available(s) or not (plan.eval_dir / f'{s.split}_{s.key}.jsonl').exists():
@@ -717,7 +716,7 @@ def turned_around(rows: dict, count: int = 5) -> list[tuple]:
 
 
 def what_holds(rows: dict) -> list[str]:
-    u = lambda key: rows[('valid_unseen', key)]  # noqa: E731
+    u = lambda key: rows[('valid_unseen', key)]
     lines = []
 
     def have(*keys):
@@ -832,7 +831,7 @@ def why_lines(plan: Plan, rows: dict) -> list[str]:
                 mixes[key] = mix
     greedy = row('valid_unseen', 'rl_anytime').get('shares')
     if greedy:
-        fmt = lambda m: ' / '.join(f'{m[t]:.2f}' for t in QUESTION_TYPES)  # noqa: E731
+        fmt = lambda m: ' / '.join(f'{m[t]:.2f}' for t in QUESTION_TYPES)
         text = (f'Question mix: the evaluation plays each questioner greedily, asking the type its policy ranks first; '
                 f'RL anytime\'s greedy shares on valid_unseen are {fmt(greedy)} (location / appearance / direction)')
         if 'rl_anytime' in mixes:
@@ -863,7 +862,7 @@ def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0) -> t
     import numpy as np
 
     from dialfred_questioner.rl import Rewards
-    ret = lambda r: Rewards().of_episode(r.success, r.steps, r.questions, r.invalid_questions)  # noqa: E731
+    ret = lambda r: Rewards().of_episode(r.success, r.steps, r.questions, r.invalid_questions)
     d = np.array([ret(x) - ret(y) for x, y in zip(a, b)])
     rng = np.random.default_rng(seed)
     means = d[rng.integers(0, len(d), size=(resamples, len(d)))].mean(axis=1)
@@ -904,7 +903,7 @@ def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Pat
     palette = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
                (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
     frontier, best = [], -1.0
-    for label, sr, nq in sorted(points, key=lambda p: (p[2], -p[1])):
+    for _label, sr, nq in sorted(points, key=lambda p: (p[2], -p[1])):
         if sr > best:
             frontier.append(at(nq, sr))
             best = sr
@@ -922,7 +921,7 @@ def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Pat
         else:
             draw.polygon([(x, y - 5), (x + 5, y), (x, y + 5), (x - 5, y)], fill=colour)
 
-    for k, (label, sr, nq) in enumerate(points):
+    for k, (_label, sr, nq) in enumerate(points):
         colour, shape = palette[k % len(palette)], (k // len(palette)) % 4
         mark(shape, *at(nq, sr), colour)
         y = top + 14 * k
@@ -935,7 +934,7 @@ def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Pat
 
 def _relative(path: Path) -> str:
     try:
-        return str(Path(path).resolve().relative_to(ROOT))
+        return str(Path(path).resolve().relative_to(REPO))
     except ValueError:
         return str(path)
 
@@ -958,19 +957,18 @@ def check_line(plan: Plan) -> str:
 
 
 def render(plan: Plan, report: dict, plot_name: str) -> str:
-    from dialfred_sim.agents import Question
-    from dialfred_sim.messages import question_text
+    from dialfred_sim.protocol import question_text
     rows, cfg = report['rows'], plan.cfg
     mode = '--quick' if cfg.quick else '--shipped' if cfg.shipped else ''
     command = './dialfred reproduce' + (f' {mode}' if mode else '')
-    through = {'local': 'in local worker processes without ROS (`dialfred_local`, the graph\'s episodes)',
+    through = {'local': 'in local worker processes without ROS (`dialfred_bringup.local`, the graph\'s episodes)',
                'graph': 'through the ROS graph (performer nodes)',
                'in-process': 'by the agent in the launcher\'s process with simulator and oracle nodes'}[plan.eval_path]
     out = [
         '# Results: the paper\'s Tables II, III and IV reproduced',
         '',
-        f'<!-- Generated file: written by `{command}` (scripts/reproduce.py). Do not edit by hand; rerun it. -->',
-        f'Generated by `{command}` (`scripts/reproduce.py`) from the results files in `{_relative(plan.eval_dir)}/`; '
+        f'<!-- Generated file: written by `{command}` (dialfred_bringup/reproduce.py). Do not edit by hand; rerun it. -->',
+        f'Generated by `{command}` (`dialfred_bringup/reproduce.py`) from the results files in `{_relative(plan.eval_dir)}/`; '
         'every number here is computed from them.',
         '',
     ]
@@ -1072,7 +1070,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
         out += ['| question | times |', '|---|---|']
         for q, k in asked:
             kind, _, noun = q.partition(' ')
-            out.append(f'| {question_text(Question(kind, noun))} | {k} |')
+            out.append(f'| {question_text(kind, noun)} | {k} |')
     else:
         out.append('No questions recorded.')
     out += ['', '## Dialogues that turned a failure into a success', '',
@@ -1086,7 +1084,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
                 f'{base.steps} steps; with questions: success in {r.steps} steps']
         for qa in r.dialogue:
             answer = qa['answer'] if qa['valid'] else '(no answer)'
-            out.append(f'  - Q: {question_text(Question(qa["type"], qa["noun"]))} A: {answer}')
+            out.append(f'  - Q: {question_text(qa["type"], qa["noun"])} A: {answer}')
     out += ['', '## Run times', '']
     stamps = plan.run / 'stamps'
     total = 0.0

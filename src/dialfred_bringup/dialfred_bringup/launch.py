@@ -6,14 +6,14 @@ way `ros2 run <pkg> node` does (ament index prefix + lib/<pkg>/node), starts it,
 services answer, runs a job, and shuts everything down on exit or Ctrl-C. A node that dies is
 reported with its exit code and the last lines it printed.
 
-    python dialfred_launch.py demo [--tasks 3] [--questioner all] [--checkpoint out/performer/et.pt]
+    python dialfred_bringup/launch.py demo [--tasks 3] [--questioner all] [--checkpoint out/performer/et.pt]
                                    # the learned performer plays a few tasks through the sim, oracle,
-                                   # questioner and performer nodes (dialfred_demo.py); captioned GIFs
-    python dialfred_launch.py explore [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/explore]
+                                   # questioner and performer nodes (dialfred_bringup/demo.py); captioned GIFs
+    python dialfred_bringup/launch.py explore [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/explore]
                                  # a scripted explorer through the simulator node alone; saves its frames
-    python dialfred_launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
-    python dialfred_launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
-    python dialfred_launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
+    python dialfred_bringup/launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
+    python dialfred_bringup/launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
+    python dialfred_bringup/launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
                                    (or --tasks PATH: a split file of your own, e.g. a sealed test split)
                                    [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
                                    [--seed 0] [--resolution 128]
@@ -36,18 +36,15 @@ import sys
 import time
 from pathlib import Path
 
-# The process supervision lives in an installed module (dialfred_sim.graph); the names are kept here
-# for the scripts, tests and benchmarks that import them from the launcher.
-from dialfred_sim.graph import (RESEND_AFTER_S, SERVICE_SETTLE_S, Graph, NodeDied, NodeProcess,  # noqa: F401
-                                image_array, oracle_node, resolve_executable, sim_node, sim_service,
-                                use_private_ros_domain, use_project_environment)
-from dialfred_sim.film import save_captioned_gif  # noqa: F401
+from dialfred_sim.protocol import image_array
 
-REPO = Path(__file__).resolve().parent
+from .demo import add_demo_parser, run_demo
+from .evaluation import ResultsFileError, add_eval_parser, add_record_options, run_eval_command
+from .film import save_captioned_gif
+from .graph import RESEND_AFTER_S, Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain, use_project_environment
+from .paths import REPO
+
 use_project_environment(REPO)
-
-from dialfred_demo import add_demo_parser, run_demo  # noqa: E402
-from dialfred_eval import ResultsFileError, add_eval_parser, add_record_options, run_eval_command  # noqa: E402
 
 
 def run_explore(args) -> int:
@@ -131,9 +128,9 @@ def run_dialogue(args) -> int:
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
-    from dialfred_sim.agents import Question, scale_pixel
-    from dialfred_sim.messages import question_text
-    from dialfred_sim.recording import EpisodeRecorder
+    from dialfred_sim.protocol import scale_pixel
+    from dialfred_sim.protocol import question_text
+    from dialfred_sim.bag import EpisodeRecorder
     from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]
     film = []   # (frame, caption lines) for --gif
@@ -152,7 +149,7 @@ def run_dialogue(args) -> int:
             episode['questions'] += 1
             episode['invalid'] += not reply.valid
             if episode.get('recorder'):
-                episode['recorder'].question(episode['steps'], qtype, noun, question_text(Question(qtype, noun)),
+                episode['recorder'].question(episode['steps'], qtype, noun, question_text(qtype, noun),
                                              reply.answer, reply.valid)
             film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
 
@@ -180,7 +177,7 @@ def run_dialogue(args) -> int:
             ask('location', 'unicorn', frame, title)          # not in the scene: the oracle says why
             ask('colour', noun, frame, title)                 # not a question type
             # Walk the expert's path but the last action, and ask for directions again.
-            def expert_step(k: int):
+            def expert_step(k: int, task=task, title=title):
                 """The expert's action k (its pixel scaled from the task's frames to this node's)."""
                 a = task.expert_actions[k]
                 x, y = scale_pixel(a.x, a.y, task.resolution, args.resolution)

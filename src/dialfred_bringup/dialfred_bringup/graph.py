@@ -4,7 +4,7 @@ and talk to them from a client node of this process (no `ros2 launch` here: this
 `NodeProcess` is one node executable run as a child process in a session of its own (it gets SIGTERM
 when its parent dies; its last output is kept for error reports); `Graph` starts a list of them, waits
 for their services and gives a client node and executor to call them; a node that dies is reported
-with its exit code and last lines. Used by `dialfred_launch.py` (the jobs) and `dialfred_eval.py` (the
+with its exit code and last lines. Used by `dialfred_bringup/launch.py` (the jobs) and `dialfred_bringup/evaluation.py` (the
 evaluation), and by the tests and benchmarks.
 """
 
@@ -284,11 +284,3 @@ def oracle_node(namespace: str = '', human: bool = False, **params) -> NodeProce
 def sim_service(namespace: str, name: str) -> str:
     """The full name of the sim node's service `name` ('reset', 'step') in `namespace` ('' or '/w0')."""
     return f'{namespace.rstrip("/")}/sim/{name}'
-
-
-def image_array(msg):
-    import numpy as np
-    dtype = {'rgb8': np.uint8, '32FC1': np.float32, '32SC1': np.int32}[msg.encoding]
-    arr = np.frombuffer(bytes(msg.data), dtype=dtype)
-    channels = 3 if msg.encoding == 'rgb8' else 1
-    return arr.reshape(msg.height, msg.width, channels) if channels > 1 else arr.reshape(msg.height, msg.width)

@@ -9,7 +9,7 @@ steps, goal conditions, end reason). The frames come from the simulator's `sim/o
 (the observation after every reset and step). Each task is saved as a GIF of captioned frames (the
 instruction, the latest QA, the action) under --out, beside one contact sheet of all of them.
 
-    python dialfred_launch.py demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
+    python dialfred_bringup/launch.py demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
                                    [--checkpoint PATH (default: the shipped one)] [--resolution 64] [--seed 0]
                                    [--max-steps 100] [--out out/demo]
 """
@@ -21,11 +21,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dialfred_eval import (EvalConfig, LiveHook, PerformerWorker, add_record_options, play_episodes, record_options,
+from .evaluation import (EvalConfig, LiveHook, PerformerWorker, add_record_options, play_episodes, record_options,
                            start_live_view, worker_nodes)
-from dialfred_sim.graph import Graph
+from .graph import Graph
+from .paths import REPO
 
-REPO = Path(__file__).resolve().parent
 QA_SECONDS, ACTION_SECONDS = 2.0, 0.4     # how long a GIF frame stays up: an answer is read, an action seen
 
 
@@ -99,8 +99,8 @@ def run_demo(args) -> int:
     from dialfred_msgs.msg import Observation, QAPair
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    from dialfred_sim.film import save_captioned_gif, save_contact_sheet
-    from dialfred_sim.graph import image_array
+    from dialfred_bringup.film import save_captioned_gif, save_contact_sheet
+    from dialfred_sim.protocol import image_array
     from dialfred_sim.tasks import load_split
 
     config = demo_config(args)

@@ -1,0 +1,20 @@
+"""Where the repository is: run outputs (out/), docs/ and config/ are found from here.
+
+The package is installed with colcon's --symlink-install, so this file resolves into the source tree
+(src/dialfred_bringup/dialfred_bringup/paths.py); a copy installed elsewhere falls back to the current
+directory, which `./dialfred` sets to the repository root for the commands that write there.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def _repo_root() -> Path:
+    here = Path(__file__).resolve()
+    if len(here.parents) > 3 and (here.parents[3] / 'dialfred').is_file():
+        return here.parents[3]
+    return Path.cwd()
+
+
+REPO = _repo_root()

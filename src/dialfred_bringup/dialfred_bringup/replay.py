@@ -1,0 +1,132 @@
+"""Replay a recorded episode bag (dialfred_sim.bag): its dialogue and actions as text, a captioned GIF and a
+contact sheet from the bag alone, or a stream into the live view.
+
+    ./dialfred replay BAG [--gif OUT.gif] [--sheet OUT.png] [--foxglove [PORT]]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from dialfred_sim.bag import STEP_NS, BagError, RecordedEpisode, read_episode
+
+# --------------------------------------------------------------------------------------------- replay
+
+def transcript(ep: RecordedEpisode) -> list[str]:
+    """The episode as lines of text: the task, each QA and action in order, the outcome."""
+    lines = [f'{ep.task["task_id"]} in {ep.task["scene"]}: "{ep.task["instruction"]}"']
+    events = [(s, 0, k, f'  Q [{q[1]}{": " + q[2] if q[2] else ""}] -> '
+                        f'{q[4] if q[5] else "(the oracle could not answer)"}')
+              for k, q in enumerate(ep.dialogue) for s in [q[0]]]
+    events += [(a[0] - 1, 1, k, f'{a[0]:>4} {a[1]:<10} {f"({a[2]}, {a[3]})" if a[2] >= 0 else "":<10} '
+                                f'{"ok" if a[4] else "failed"}') for k, a in enumerate(ep.actions)]
+    lines += [text for *_, text in sorted(events)]
+    r = ep.result
+    if r:
+        lines.append(f'outcome: {"success" if r["success"] else "failure"} ({r["end_reason"]}) after {r["steps"]} '
+                     f'steps, {r["questions"]} questions, goal conditions {r["goal_conditions_met"]}/'
+                     f'{r["goal_conditions_total"]}' + (f'; {r["error"]}' if r["error"] else ''))
+    else:
+        lines.append('outcome: not recorded (the episode did not end)')
+    return lines
+
+
+def film(ep: RecordedEpisode) -> list:
+    """(frame, caption lines) pairs for a captioned GIF: the start, each QA over the frame it was asked
+    on, each action over the frame after it."""
+    title = f'{ep.task["task_id"]}: "{ep.task["instruction"]}"'
+    out = [(ep.frame(0), [title, 'start'])]
+    qas = sorted(ep.dialogue, key=lambda q: q[0])
+    qi = 0
+    for a in ep.actions:
+        while qi < len(qas) and qas[qi][0] < a[0]:
+            q = qas[qi]
+            out.append((ep.frame(q[0]), [title, f'Q [{q[1]}{": " + q[2] if q[2] else ""}]',
+                                         f'A: {q[4] if q[5] else "(no answer)"}']))
+            qi += 1
+        target = f' at ({a[2]}, {a[3]})' if a[2] >= 0 else ''
+        out.append((ep.frame(a[0]), [title, f'{a[0]}: {a[1]}{target} {"ok" if a[4] else "failed"}']))
+    if ep.result:
+        out[-1][1].append('success' if ep.result['success'] else f'failure ({ep.result["end_reason"]})')
+    return out
+
+
+def replay_bag(view, path, worker: str = 'w0', speed: float = 1.0) -> None:
+    """Stream a recorded episode bag into a live view (dialfred_bringup.live.LiveView) at `speed` times the
+    simulator's clock (0.1 s a step)."""
+    ep = read_episode(path)
+    t = ep.task
+    view.task(worker, t['task_id'], t['scene'], t['instruction'])
+    events = [(time_ns, 0, ('frame', step, rgb)) for time_ns, step, rgb in ep.frames]
+    events += [(q[0] * STEP_NS + 1, 1, ('qa', q)) for q in ep.dialogue]
+    events += [(a[0] * STEP_NS, 2, ('action', a)) for a in ep.actions]
+    poses = {p[0]: p for p in ep.poses}
+    start = time.monotonic()
+    for time_ns, _, event in sorted(events, key=lambda e: (e[0], e[1])):
+        wait = start + time_ns / 1e9 / max(speed, 1e-6) - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        if event[0] == 'frame':
+            p = poses.get(event[1], (event[1], 0.0, 0.0, 0.0, 0.0))
+            view.frame(worker, event[2], (p[1], p[2], p[3], p[4]), 0.9, event[1])
+        elif event[0] == 'qa':
+            q = event[1]
+            view.qa(worker, q[1], q[2], q[4], q[5])
+        else:
+            a = event[1]
+            view.action(worker, a[0], a[1], a[4])
+    if ep.result:
+        r = ep.result
+        view.result(worker, t['task_id'], r['success'], r['end_reason'], r['steps'], r['questions'])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog='dialfred replay', description='Print an episode bag\'s dialogue and actions '
+                                 'and render it as a captioned GIF and a contact sheet (no simulator).')
+    ap.add_argument('bag', help='a bag folder written with --record (or its .mcap file)')
+    ap.add_argument('--gif', default=None, help='captioned GIF (default <bag>.gif beside the bag; "" = none)')
+    ap.add_argument('--sheet', default=None, help='contact sheet PNG (default <bag>_sheet.png; "" = none)')
+    ap.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
+                    help='also stream the episode to the Foxglove app (a Foxglove WebSocket server on PORT, default '
+                         '8765) at --speed times the simulator clock, then keep serving until Ctrl-C')
+    ap.add_argument('--speed', type=float, default=1.0, help='replay speed for --foxglove (1 = 10 steps/s)')
+    args = ap.parse_args(argv)
+    try:
+        ep = read_episode(Path(args.bag))
+    except BagError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    print('\n'.join(transcript(ep)))
+    if not ep.frames:
+        print('(no camera frames in this bag: no pictures)', file=sys.stderr)
+        return 0
+    from .film import save_captioned_gif, save_contact_sheet
+    gif = Path(args.gif) if args.gif else ep.path.parent / f'{ep.path.name}.gif'
+    sheet = Path(args.sheet) if args.sheet else ep.path.parent / f'{ep.path.name}_sheet.png'
+    if args.gif != '':
+        save_captioned_gif(film(ep), gif)
+        print(f'GIF: {gif}')
+    if args.sheet != '':
+        save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
+        print(f'contact sheet: {sheet}')
+    if args.foxglove is not None:
+        from .live import LiveView, describe
+        view = LiveView(1, port=args.foxglove, total=1)
+        print(describe(view), flush=True)
+        try:
+            input('connect Foxglove, then press Enter to stream the episode (Ctrl-C to quit) ')
+            while True:
+                replay_bag(view, ep.path, speed=args.speed)
+                input('streamed; Enter streams it again, Ctrl-C quits ')
+        except (KeyboardInterrupt, EOFError):
+            pass
+        finally:
+            view.close()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
