@@ -294,9 +294,8 @@ def test_questioner_none_on_the_command_line_means_no_questions():
 
 
 def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, monkeypatch):
-    import dialfred_bringup.evaluation
     from dialfred_questioner import baselines
-    from dialfred_sim.protocol import Question
+    from dialfred_sim.protocol import MAX_QUESTIONS, Question
 
     class Chatty(baselines.AllQuestioner):
         name = 'chatty'
@@ -307,8 +306,8 @@ def test_an_agent_that_never_stops_asking_is_cut_off_with_an_error(tmp_path, mon
     monkeypatch.setitem(baselines.QUESTIONERS, 'chatty', Chatty)
     report = evaluate(tmp_path / 'chatty.jsonl', agent='expert', questioner='chatty', limit=2, workers=1)
     for r in report.results:
-        assert (r.end_reason, r.questions, r.steps) == ('error', dialfred_bringup.evaluation.MAX_QUESTIONS, 0)
-        assert f'more than {dialfred_bringup.evaluation.MAX_QUESTIONS} questions without acting' in r.error
+        assert (r.end_reason, r.questions, r.steps) == ('error', MAX_QUESTIONS, 0)
+        assert f'more than {MAX_QUESTIONS} questions without acting' in r.error
 
 
 def test_an_unknown_questioner_fails_before_any_node_starts(tmp_path):

@@ -35,7 +35,9 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.metrics import ResultsFileError
-from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES
+from dialfred_sim.protocol import QUESTION_TYPES
+
+from dialfred_sim.episode import EpisodeObserver
 
 from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service, use_project_environment
 from .paths import REPO
@@ -236,11 +238,12 @@ class EvalReport:
 RESEND_AFTER_S = 10.0  # a reset or question unanswered this long is sent again (see SimWorker.resend_if_lost)
 
 
-class SimWorker:
-    """One simulator node (in its own namespace) playing one episode at a time with its own agent,
-    one request in flight. `begin` starts an episode; `advance` handles the reply that arrived and
-    either sends the next request or returns the episode's EpisodeResult. With `oracle`, the agent's
-    questions go to the oracle node of the same namespace before it acts."""
+class SimWorker(EpisodeObserver):
+    """One simulator node (in its own namespace) playing one episode at a time with its own agent, one
+    request in flight: the episode loop (`dialfred_sim.episode.play`) driven by asynchronous service
+    calls. `begin` starts an episode; `advance` hands the reply that arrived to the loop and either sends
+    its next request or returns the episode's EpisodeResult. With `oracle`, the agent's questions go to
+    the oracle node of the same namespace before it acts."""
 
     def __init__(self, graph: Graph, namespace: str, agent, config: EvalConfig, oracle: bool = False):
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
@@ -261,22 +264,19 @@ class SimWorker:
         return self.future is not None
 
     def begin(self, index: int, task) -> None:
-        from dialfred_msgs.srv import SimReset
-
+        from dialfred_sim.agents import task_view
+        from dialfred_sim.episode import play
         from dialfred_sim.protocol import episode_seed
         self.job = (index, task)
-        self.task, self.episode_seed = task, episode_seed(self.config.seed, index)
-        self.started = time.monotonic()
-        self.last_action, self.last_error = '', ''
-        self.goal_conditions = (0, 0)
-        self.questions, self.invalid_questions = 0, 0
-        self.dialogue = []
-        self.asked_in_a_row = 0
+        self.task = task
+        self.started_at = time.monotonic()
         self.recorder = None
         if self.live is not None:
             self.live.begin(task)
-        self._send(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False, with_segmentation=False),
-                   'reset')
+        self.episode = play(self.agent, seed=episode_seed(self.config.seed, index),
+                            told=task_view(self.agent, task),      # the public view, unless privileged
+                            asks=self.ask_cli is not None, observers=[self])
+        self._request(next(self.episode))
 
     def overdue(self) -> bool:
         return self.busy and time.monotonic() - self.sent_at > self.config.request_timeout
@@ -287,83 +287,75 @@ class SimWorker:
         self.future, self.recorder = None, None
 
     def advance(self):
-        """Handle the finished request: the next request is sent, or the episode's result returned."""
-        from dialfred_sim.agents import task_view
+        """Hand the finished request's reply to the episode: its next request is sent, or its result returned."""
+        from dialfred_sim.episode import Failed
         reply, self.future = self.future.result(), None
         if reply is None:
-            return self._result('error', error='the service call returned no reply')
-        if self.pending == 'question':
-            return self._after_answer(reply)
-        if self.pending == 'reset':
-            if not reply.ok:
-                return self._result('error', error=reply.error)
-            self.goal_conditions = (0, reply.goal_conditions_total)
-            if self.config.record is not None:
-                from dialfred_sim.bag import EpisodeRecorder
-                t = reply.task       # what the agent is told
-                self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
-                                                image_format=self.config.record_format)
-                self.recorder.observation_msg(reply.observation)
-            self.agent.reset(task_view(self.agent, self.task), self.episode_seed)   # the public view, unless privileged
-            return self._act(reply.observation)
-        return self._after_step(reply)
-
-    def _after_step(self, reply):
-        from dialfred_sim.metrics import end_reason
-        obs = reply.observation
-        if not reply.ok:
-            return self._result('error', obs, error=reply.error)
-        self.goal_conditions = (reply.goal_conditions_met, reply.goal_conditions_total)
-        if self.recorder is not None:
-            name, x, y = self.traces[self.task.task_id][-1]
-            self.recorder.action(int(obs.step_count), name, x, y, obs.last_action_success, self.questions)
-            self.recorder.observation_msg(obs)
-        if self.live is not None:
-            self.live.action(int(obs.step_count), self.last_action, obs.last_action_success)
-        if not obs.last_action_success:
-            self.last_error = obs.last_action_error
-        if reply.terminated or reply.truncated:
-            reason = end_reason(reply.success, self.last_action, obs.failed_actions, reply.truncated)
-            return self._result(reason, obs, success=reply.success)
-        return self._act(obs)
-
-    def _act(self, obs):
-        """Send the agent's next question to the oracle, or else its next action to the simulator."""
-        from dialfred_msgs.msg import Action
-        from dialfred_msgs.srv import OracleAnswer, SimStep
-        if self.ask_cli is not None:
-            question = self.agent.ask(obs)
-            if question is not None:
-                if self.asked_in_a_row >= MAX_QUESTIONS:
-                    return self._result('error', obs, error=f'the agent asked more than {MAX_QUESTIONS} questions '
-                                                             'without acting')
-                self.asked_in_a_row += 1
-                self.question, self.observation = question, obs
-                self._send(self.ask_cli, OracleAnswer.Request(question_type=question.question_type,
-                                                              object_noun=question.object_noun), 'question')
-                return None
-        name, x, y = self.agent.act(obs)
-        self.last_action, self.asked_in_a_row = name, 0
-        self.traces[self.task.task_id].append((name, int(x), int(y)))
-        self._send(self.step_cli, SimStep.Request(action=Action(action=name, x=int(x), y=int(y)),
-                                                  with_depth=False, with_segmentation=False), 'step')
+            reply = Failed('the service call returned no reply')
+        elif self.pending == 'question':
+            from dialfred_sim.protocol import QA
+            reply = QA(self.asking, bool(reply.valid), reply.answer, reply.reason)
+        else:
+            from dialfred_sim.messages import sim_reply
+            reply = sim_reply(reply)
+        try:
+            self._request(self.episode.send(reply))
+        except StopIteration as stop:
+            return self._result(stop.value)
         return None
 
-    def _after_answer(self, reply):
-        from dialfred_sim.protocol import QA
-        from dialfred_sim.metrics import dialogue_entry
-        self.questions += 1
-        self.invalid_questions += not reply.valid
-        self.dialogue.append(dialogue_entry(self.question.question_type, self.question.object_noun,
-                                            bool(reply.valid), reply.answer))
-        qa = QA(self.question, bool(reply.valid), reply.answer, reply.reason)
+    def _request(self, request) -> None:
+        """Send the episode's request to the simulator or the oracle node."""
+        from dialfred_msgs.msg import Action
+        from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
+        from dialfred_sim.episode import Ask, Reset
+        if isinstance(request, Reset):
+            self._send(self.reset_cli, SimReset.Request(task_id=self.task.task_id, with_depth=False,
+                                                        with_segmentation=False), 'reset')
+        elif isinstance(request, Ask):
+            self.asking = request.question     # (not `question`: the observer method)
+            self._send(self.ask_cli, OracleAnswer.Request(question_type=request.question.question_type,
+                                                          object_noun=request.question.object_noun), 'question')
+        else:
+            self._send(self.step_cli, SimStep.Request(action=Action(action=request.action, x=request.x, y=request.y),
+                                                      with_depth=False, with_segmentation=False), 'step')
+
+    # EpisodeObserver: the recorder, the live view and the traces of the actions sent
+    def started(self, state, reply) -> None:
+        if self.config.record is not None:
+            from dialfred_sim.bag import EpisodeRecorder
+            t = reply.raw.task       # what the agent is told
+            self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
+                                            image_format=self.config.record_format)
+            self.recorder.observation_msg(reply.raw.observation)
+
+    def question(self, state, qa, step: int) -> None:
         if self.recorder is not None:
             from dialfred_sim.messages import qa_msg
-            self.recorder.question_msg(int(self.observation.step_count), qa_msg(qa))
+            self.recorder.question_msg(step, qa_msg(qa))
         if self.live is not None:
             self.live.qa(qa.question.question_type, qa.question.object_noun, qa.answer, qa.valid)
-        self.agent.hear(qa)
-        return self._act(self.observation)
+
+    def action(self, state, action: str, x: int, y: int) -> None:
+        self.traces[self.task.task_id].append((action, x, y))
+
+    def stepped(self, state, reply, action: str, x: int, y: int) -> None:
+        obs = reply.raw.observation
+        if self.recorder is not None:
+            self.recorder.action(int(obs.step_count), action, x, y, obs.last_action_success, state.questions)
+            self.recorder.observation_msg(obs)
+        if self.live is not None:
+            self.live.action(int(obs.step_count), action, obs.last_action_success)
+
+    def ended(self, state) -> None:
+        if self.recorder is not None:
+            self.recorder.result(success=state.success, steps=state.steps, goal_conditions_met=state.goal_conditions_met,
+                                 goal_conditions_total=state.goal_conditions_total,
+                                 failed_actions=state.failed_actions, questions=state.questions,
+                                 invalid_questions=state.invalid_questions, end_reason=state.end_reason,
+                                 error=state.error, last_action=state.last_action)
+            self.recorder.save(Path(self.config.record))
+            self.recorder = None
 
     def _send(self, cli, request, pending: str) -> None:
         self.sent_at = self.last_sent = time.monotonic()
@@ -382,28 +374,9 @@ class SimWorker:
         self.future = self.cli.call_async(self.request)
         return True
 
-    def _result(self, reason: str, obs=None, success: bool = False, error: str = ''):
-        from dialfred_sim.metrics import EpisodeResult
-        task = self.task
-        met, total = self.goal_conditions
-        if self.recorder is not None:
-            self.recorder.result(success=bool(success), steps=int(obs.step_count) if obs is not None else 0,
-                                 goal_conditions_met=int(met), goal_conditions_total=int(total),
-                                 failed_actions=int(obs.failed_actions) if obs is not None else 0,
-                                 questions=self.questions, invalid_questions=self.invalid_questions, end_reason=reason,
-                                 error='' if success else (error or self.last_error), last_action=self.last_action)
-            self.recorder.save(Path(self.config.record))
-            self.recorder = None
-        return EpisodeResult(
-            task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(success),
-            goal_conditions_met=int(met), goal_conditions_total=int(total),
-            steps=int(obs.step_count) if obs is not None else 0, expert_length=int(task.expert_length),
-            questions=self.questions, invalid_questions=self.invalid_questions,
-            failed_actions=int(obs.failed_actions) if obs is not None else 0, end_reason=reason,
-            error='' if success else (error or self.last_error), agent=self.config.agent_name,
-            oracle=self.config.oracle, seed=self.config.seed,
-            wall_s=round(time.monotonic() - self.started, 4), privileged=bool(getattr(self.agent, 'privileged', False)),
-            dialogue=list(self.dialogue))
+    def _result(self, state):
+        from .local import episode_result
+        return episode_result(self.config, self.task, self.agent, state, time.monotonic() - self.started_at)
 
 
 class PerformerWorker:

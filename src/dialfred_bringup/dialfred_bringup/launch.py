@@ -128,8 +128,7 @@ def run_dialogue(args) -> int:
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
-    from dialfred_sim.protocol import scale_pixel
-    from dialfred_sim.protocol import question_text
+    from dialfred_sim.protocol import Question, scale_pixel
     from dialfred_sim.bag import EpisodeRecorder
     from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]
@@ -149,7 +148,7 @@ def run_dialogue(args) -> int:
             episode['questions'] += 1
             episode['invalid'] += not reply.valid
             if episode.get('recorder'):
-                episode['recorder'].question(episode['steps'], qtype, noun, question_text(qtype, noun),
+                episode['recorder'].question(episode['steps'], qtype, noun, Question(qtype, noun).text,
                                              reply.answer, reply.valid)
             film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
 

@@ -365,6 +365,7 @@ def code_hash(paths: tuple[str, ...]) -> str:
 
 PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_questioner/dialfred_questioner', \
     'src/dialfred_sim/dialfred_sim'
+UP = 'src/dialfred_bringup/dialfred_bringup'
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -372,11 +373,11 @@ CODE = {
     'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
-    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
-    'eval': ('dialfred_bringup/evaluation.py', 'dialfred_bringup/local.py', f'{QUES}/baselines.py', f'{QUES}/policy.py', f'{PERF}/agent.py',
-             f'{SIM}/metrics.py'),
-    'check': ('dialfred_bringup/evaluation.py', 'dialfred_bringup/local.py', 'dialfred_bringup/reproduce.py'),
-    'doc': ('dialfred_bringup/reproduce.py', 'dialfred_bringup/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
+    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
+    'eval': (f'{UP}/evaluation.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py', f'{QUES}/policy.py',
+             f'{PERF}/agent.py', f'{SIM}/metrics.py'),
+    'check': (f'{UP}/evaluation.py', f'{UP}/local.py', f'{UP}/reproduce.py'),
+    'doc': (f'{UP}/reproduce.py', f'{UP}/results_doc.py', f'{UP}/baselines.py', f'{SIM}/metrics.py', f'{PERF}/curves.py'),
 }
 UPSTREAM = {
     'demos': (), 'performer': ('demos',), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),

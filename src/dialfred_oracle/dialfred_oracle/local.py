@@ -1,4 +1,5 @@
-"""The oracle in the same process as a `DialfredEnv` (no ROS): what `/oracle/answer` would say now.
+"""The oracle in the same process as a `DialfredEnv` (no ROS): what `/oracle/answer` would say now, and
+`EnvServer`, which serves an episode's requests (dialfred_sim.episode) from both.
 
 For loops that play many episodes in one process (the questioner's RL rollouts): the same rules
 as the node (`node.OracleNode.answer`): the world's ground truth now, an appearance answer
@@ -11,7 +12,9 @@ from __future__ import annotations
 
 from typing import Optional
 
+from dialfred_sim.episode import Ask, Reply, Request, Reset, SimReply
 from dialfred_sim.ground_truth import snapshot
+from dialfred_sim.protocol import QA
 
 from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, situation_key
 
@@ -30,3 +33,42 @@ def answer_now(env, question_type: str, object_noun: str = '', perturbation: Opt
     if perturbation is not None:
         result = perturbation.apply(result, situation_key(snap, qtype, object_noun))
     return result
+
+
+class EnvServer:
+    """Serves an episode's requests in this process: the simulator from `env` (a DialfredEnv, reset to
+    `task`), questions from the oracle's rules (`dialfred_oracle.local.answer_now`, with `perturbation`),
+    exactly as the simulator and oracle nodes answer them."""
+
+    def __init__(self, env, task, perturbation=None):
+        self.env, self.task, self.perturbation = env, task, perturbation
+        self.info: dict = {}
+
+    def __call__(self, request: Request) -> Reply:
+        if isinstance(request, Ask):
+            q = request.question
+            ans = answer_now(self.env, q.question_type, q.object_noun, self.perturbation)
+            return QA(q, bool(ans.valid), ans.text, ans.reason)
+        if isinstance(request, Reset):
+            try:
+                obs, self.info = self.env.reset(options={'task': self.task})
+            except (ValueError, FileNotFoundError) as exc:
+                return SimReply(ok=False, error=str(exc))
+            return self._reply(obs, self.info, task=self.task.public())
+        try:
+            obs, _, terminated, truncated, info = self.env.step({'action': request.action,
+                                                                 'pixel': (request.x, request.y)})
+        except (ValueError, RuntimeError) as exc:     # refused: nothing changed
+            return SimReply(step_count=int(self.info.get('step_count', 0)),
+                            failed_actions=int(self.info.get('failed_actions', 0)), ok=False, error=str(exc))
+        self.info = info
+        return self._reply(obs, info, terminated=terminated, truncated=truncated)
+
+    @staticmethod
+    def _reply(obs, info: dict, terminated: bool = False, truncated: bool = False, task=None) -> SimReply:
+        return SimReply(observation=obs, step_count=int(info['step_count']), failed_actions=int(info['failed_actions']),
+                        last_action_success=bool(info['last_action_success']),
+                        last_action_error=str(info['last_action_error']),
+                        goal_conditions_met=int(info['goal_conditions_met']),
+                        goal_conditions_total=int(info['goal_conditions_total']), success=bool(info['success']),
+                        terminated=bool(terminated), truncated=bool(truncated), task=task)

@@ -40,9 +40,9 @@ from rclpy.node import Node
 from dialfred_msgs.action import RunTask
 from dialfred_msgs.msg import Action, QAPair
 from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
+from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
+from dialfred_sim.messages import qa_msg, sim_reply, task_description_msg
 from dialfred_sim.protocol import QA, Question, top2_gap
-from dialfred_sim.messages import public_task_from_msg, qa_msg, task_description_msg
-from dialfred_sim.metrics import end_reason
 from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, refused_request, run_node
 
@@ -159,7 +159,8 @@ class PerformerNode(Node):
             self.get_logger().error(f'recording {recorder.task_id}: {type(exc).__name__}: {exc}')
 
     def play(self, goal_handle, result: RunTask.Result) -> None:
-        """Play the goal's task to its end, filling `result` as it goes."""
+        """Play the goal's task to its end (the episode loop, `dialfred_sim.episode.play`, its requests
+        served by this node's clients), filling `result` as it goes."""
         goal = goal_handle.request
         if goal.seed < 0:
             raise GoalFailed(f'seed must be a non-negative integer, got {goal.seed}')
@@ -167,79 +168,11 @@ class PerformerNode(Node):
             policy = self.policy(goal.checkpoint or self.checkpoint)
         except (FileNotFoundError, CheckpointError, ValueError) as exc:
             raise GoalFailed(f'checkpoint: {exc}') from None
-        reply = self.call(self.reset_cli, SimReset.Request(task_id=goal.task_id, with_depth=False,
-                                                           with_segmentation=False), resend=True)
-        if not reply.ok:
-            raise GoalFailed(f'reset: {reply.error}')
-        task = public_task_from_msg(reply.task)     # the public view: all the simulator tells any client
-        if self.record_dir:
-            self.recorder = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns,
-                                            image_format=self.record_format)
-            self.recorder.observation_msg(reply.observation)
-        policy.reset(task, int(goal.seed))
-        result.goal_conditions_total = int(reply.goal_conditions_total)
-        observation, dialogue, last_error = reply.observation, [], ''
-        while True:
-            if self.use_questioner:
-                self.ask_questions(goal_handle, policy, task, observation, dialogue, result)
-            if goal_handle.is_cancel_requested:
-                raise GoalCanceled
-            name, x, y = policy.act(observation)
-            action = Action(action=name, x=int(x), y=int(y))
-            self.action_pub.publish(action)
-            reply = self.call(self.step_cli, SimStep.Request(action=action, with_depth=False,
-                                                             with_segmentation=False), resend=False)
-            if not reply.ok:
-                raise GoalFailed(f'step {result.steps + 1} ({name}): {reply.error}')
-            observation = reply.observation
-            result.steps, result.failed_actions = int(observation.step_count), int(observation.failed_actions)
-            result.goal_conditions_met = int(reply.goal_conditions_met)
-            result.goal_conditions_total = int(reply.goal_conditions_total)
-            result.last_action = name
-            if not observation.last_action_success:
-                last_error = observation.last_action_error
-            goal_handle.publish_feedback(RunTask.Feedback(step=result.steps, action=action,
-                                                          action_success=observation.last_action_success,
-                                                          questions=result.questions))
-            if self.recorder is not None:
-                self.recorder.action(result.steps, name, x, y, observation.last_action_success, result.questions)
-                self.recorder.observation_msg(observation)
-            if reply.terminated or reply.truncated:
-                result.success = bool(reply.success)
-                result.end_reason = end_reason(result.success, name, result.failed_actions, reply.truncated)
-                result.error = '' if result.success else last_error
-                return
-
-    def ask_questions(self, goal_handle, policy, task, observation, dialogue: list, result) -> None:
-        """Ask what the questioner asks before this action, the oracle answering; every QA goes to the
-        policy (hear) and on dialogue/qa."""
-        max_questions = int(self.get_parameter('max_questions').value)
-        for asked in range(max_questions + 1):
-            if goal_handle.is_cancel_requested:
-                raise GoalCanceled
-            probabilities = getattr(policy, 'action_probabilities', None)
-            gap = top2_gap(probabilities(observation)) if probabilities is not None else -1.0
-            reply = self.call(self.questioner_cli, QuestionerAsk.Request(
-                task=task_description_msg(task), seed=int(goal_handle.request.seed), step=result.steps,
-                rgb=observation.rgb, dialogue=[qa_msg(qa) for qa in dialogue], confusion_gap=gap), resend=True)
-            if not reply.ok:
-                raise GoalFailed(f'questioner: {reply.error}')
-            if not reply.ask:
-                return
-            if asked == max_questions:
-                raise GoalFailed(f'the questioner asked more than {max_questions} questions without acting')
-            question = Question(reply.question_type, reply.object_noun)
-            answer = self.call(self.oracle_cli, OracleAnswer.Request(question_type=question.question_type,
-                                                                     object_noun=question.object_noun), resend=True)
-            qa = QA(question, bool(answer.valid), answer.answer, answer.reason)
-            dialogue.append(qa)
-            result.questions += 1
-            result.invalid_questions += not qa.valid
-            policy.hear(qa)
-            result.dialogue.append(qa_msg(qa))
-            self.qa_pub.publish(qa_msg(qa))
-            if self.recorder is not None:
-                self.recorder.question_msg(result.steps, qa_msg(qa))
+        goal_run = GoalRun(self, goal_handle, policy, result)
+        episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
+                       max_questions=int(self.get_parameter('max_questions').value), asker='questioner',
+                       observers=[goal_run])
+        run(episode, goal_run.serve)
 
     # ------------------------------------------------------------------ helpers
 
@@ -288,6 +221,104 @@ class PerformerNode(Node):
             client.remove_pending_request(future)
             if time.monotonic() >= deadline:
                 raise GoalFailed(f'no reply from {client.srv_name} after {timeout:g} s')
+
+
+class GoalRun(EpisodeObserver):
+    """One RunTask goal as the episode loop sees it: the agent (the policy, and the questioner node when
+    the node's `questioner` parameter is on), the transport (this node's service clients) and an
+    observer that fills the result, publishes QAs, actions and feedback, and records the bag."""
+
+    def __init__(self, node: PerformerNode, goal_handle, policy: PerformerAgent, result: RunTask.Result):
+        self.node, self.goal_handle, self.policy, self.result = node, goal_handle, policy, result
+        self.task, self.dialogue = None, []
+
+    # the agent
+    def reset(self, task, seed: int) -> None:
+        self.task, self.seed = task, seed
+        self.policy.reset(task, seed)
+
+    def ask(self, observation):
+        """What the questioner node asks before this action (with the policy's top-2 action-probability gap)."""
+        if self.goal_handle.is_cancel_requested:
+            raise GoalCanceled
+        probabilities = getattr(self.policy, 'action_probabilities', None)
+        gap = top2_gap(probabilities(observation)) if probabilities is not None else -1.0
+        reply = self.node.call(self.node.questioner_cli, QuestionerAsk.Request(
+            task=task_description_msg(self.task), seed=int(self.seed), step=self.result.steps, rgb=observation.rgb,
+            dialogue=[qa_msg(qa) for qa in self.dialogue], confusion_gap=gap), resend=True)
+        if not reply.ok:
+            raise GoalFailed(f'questioner: {reply.error}')
+        return Question(reply.question_type, reply.object_noun) if reply.ask else None
+
+    def hear(self, qa: QA) -> None:
+        self.dialogue.append(qa)
+        self.policy.hear(qa)
+
+    def act(self, observation):
+        if self.goal_handle.is_cancel_requested:
+            raise GoalCanceled
+        return self.policy.act(observation)
+
+    # the transport
+    def serve(self, request):
+        node = self.node
+        if isinstance(request, Reset):
+            reply = node.call(node.reset_cli, SimReset.Request(task_id=self.goal_handle.request.task_id,
+                                                               with_depth=False, with_segmentation=False), resend=True)
+            if not reply.ok:
+                raise GoalFailed(f'reset: {reply.error}')
+            return sim_reply(reply)
+        if isinstance(request, Ask):
+            q = request.question
+            answer = node.call(node.oracle_cli, OracleAnswer.Request(question_type=q.question_type,
+                                                                     object_noun=q.object_noun), resend=True)
+            return QA(q, bool(answer.valid), answer.answer, answer.reason)
+        reply = node.call(node.step_cli, SimStep.Request(action=Action(action=request.action, x=request.x, y=request.y),
+                                                         with_depth=False, with_segmentation=False), resend=False)
+        if not reply.ok:
+            raise GoalFailed(f'step {self.result.steps + 1} ({request.action}): {reply.error}')
+        return sim_reply(reply)
+
+    # the observer
+    def started(self, state: EpisodeState, reply) -> None:
+        node, task = self.node, reply.task     # the public view: all the simulator tells any client
+        if node.record_dir:
+            node.recorder = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns,
+                                            image_format=node.record_format)
+            node.recorder.observation_msg(reply.raw.observation)
+        self.result.goal_conditions_total = int(reply.goal_conditions_total)
+
+    def question(self, state: EpisodeState, qa: QA, step: int) -> None:
+        self.result.questions += 1
+        self.result.invalid_questions += not qa.valid
+        self.result.dialogue.append(qa_msg(qa))
+        self.node.qa_pub.publish(qa_msg(qa))
+        if self.node.recorder is not None:
+            self.node.recorder.question_msg(self.result.steps, qa_msg(qa))
+
+    def action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
+        self.node.action_pub.publish(Action(action=action, x=x, y=y))
+
+    def stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
+        result, observation = self.result, reply.raw.observation
+        result.steps, result.failed_actions = int(observation.step_count), int(observation.failed_actions)
+        result.goal_conditions_met = int(reply.goal_conditions_met)
+        result.goal_conditions_total = int(reply.goal_conditions_total)
+        result.last_action = action
+        self.goal_handle.publish_feedback(RunTask.Feedback(step=result.steps, action=Action(action=action, x=x, y=y),
+                                                           action_success=observation.last_action_success,
+                                                           questions=result.questions))
+        if self.node.recorder is not None:
+            self.node.recorder.action(result.steps, action, x, y, observation.last_action_success, result.questions)
+            self.node.recorder.observation_msg(observation)
+
+    def ended(self, state: EpisodeState) -> None:
+        if state.end_reason == 'error':          # too many questions in a row: the goal fails
+            raise GoalFailed(state.error)
+        self.result.success = state.success
+        self.result.end_reason = state.end_reason
+        self.result.error = state.error
+
 
 
 def main(args=None):

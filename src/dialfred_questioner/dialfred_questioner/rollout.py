@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
 from dialfred_performer.preprocess import AskedQA
+from dialfred_sim.episode import EpisodeObserver, run
+from dialfred_sim.episode import play as play_episode
 from dialfred_sim.protocol import QA, Question, top2_gap
 
 from .rl import Rewards
@@ -85,40 +87,65 @@ class Episode:
         return [d.reward for d in self.decisions]
 
 
+class RolloutAgent(EpisodeObserver):
+    """The frozen performer with the questioner being trained, as the episode loop's dialogue agent: at
+    each chance `timing` gives (at most one a step), `policy` decides on a question or none; each chance
+    is a `Decision` of `episode`, whose rewards this observer adds up as the steps go by."""
+
+    def __init__(self, performer, policy: Policy, timing: Timing, rewards: Rewards, episode: 'Episode'):
+        self.performer, self.policy, self.timing, self.rewards, self.episode = performer, policy, timing, rewards, episode
+        self.steps_since = 0
+        self.had_chance = False        # this step's chance was given (asked or not)
+
+    def reset(self, task, seed: int) -> None:
+        self.task = task
+        self.performer.reset(task, seed)
+
+    def ask(self, observation) -> Optional[Question]:
+        episode = self.episode
+        if self.had_chance:
+            return None
+        self.had_chance = True
+        if not self.timing.chance(episode.steps, self.performer, observation['rgb']):
+            return None
+        if episode.decisions:
+            episode.decisions[-1].reward += self.rewards.step * self.steps_since
+        self.steps_since = 0
+        asked = [AskedQA(qa, t) for qa, t in zip(episode.dialogue, episode.asked_at)]
+        question, record = self.policy(observation['rgb'], self.task, asked, episode.steps)
+        episode.decisions.append(Decision(episode.steps, question, record=record))
+        return question
+
+    def hear(self, qa: QA) -> None:
+        decision = self.episode.decisions[-1]
+        decision.valid = qa.valid
+        decision.reward += self.rewards.question + (0.0 if qa.valid else self.rewards.invalid)
+        self.episode.dialogue.append(qa)
+        self.episode.asked_at.append(self.episode.steps)
+        self.performer.hear(qa)
+
+    def act(self, observation):
+        self.had_chance = False
+        return self.performer.act(observation['rgb'])
+
+    def stepped(self, state, reply, action: str, x: int, y: int) -> None:
+        self.episode.steps += 1
+        self.steps_since += 1
+        self.episode.success = bool(reply.success)
+
+
 def play(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing, rewards: Rewards = Rewards(),
          perturbation=None) -> Episode:
     """One episode of `task_id`; see the module's doc."""
-    from dialfred_oracle.local import answer_now
-    obs, _ = env.reset(seed=seed, options={'task_id': task_id})
-    task = env.task.public()
-    performer.reset(task, seed)
+    from dialfred_oracle.local import EnvServer
+    from dialfred_sim.tasks import get_task
+    task = get_task(task_id)
     episode = Episode(task_id, seed)
-    steps_since = 0
-    terminated = truncated = False
-    while not (terminated or truncated):
-        if timing.chance(episode.steps, performer, obs['rgb']):
-            if episode.decisions:
-                last = episode.decisions[-1]
-                last.reward += rewards.step * steps_since
-            steps_since = 0
-            asked = [AskedQA(qa, t) for qa, t in zip(episode.dialogue, episode.asked_at)]
-            question, record = policy(obs['rgb'], task, asked, episode.steps)
-            decision = Decision(episode.steps, question, record=record)
-            if question is not None:
-                ans = answer_now(env, question.question_type, question.object_noun, perturbation)
-                qa = QA(question, ans.valid, ans.text, ans.reason)
-                decision.valid = ans.valid
-                episode.dialogue.append(qa)
-                episode.asked_at.append(episode.steps)
-                performer.hear(qa)
-                decision.reward += rewards.question + (0.0 if ans.valid else rewards.invalid)
-            episode.decisions.append(decision)
-        action, x, y = performer.act(obs['rgb'])
-        obs, success, terminated, truncated, _ = env.step({'action': action, 'pixel': (x, y)})
-        episode.steps += 1
-        steps_since += 1
-        episode.success = bool(success)
+    agent = RolloutAgent(performer, policy, timing, rewards, episode)
+    state = run(play_episode(agent, seed=seed, told=task.public(), observers=[agent]), EnvServer(env, task, perturbation))
+    if state.end_reason == 'error':
+        raise RuntimeError(f'{task_id}: {state.error}')
     if episode.decisions:
-        episode.decisions[-1].reward += rewards.step * steps_since + (rewards.success if episode.success else 0.0)
-    episode.end = 'success' if episode.success else ('max_steps' if truncated else 'ended')
+        episode.decisions[-1].reward += rewards.step * agent.steps_since + (rewards.success if episode.success else 0.0)
+    episode.end = 'success' if episode.success else ('max_steps' if state.end_reason == 'max_steps' else 'ended')
     return episode

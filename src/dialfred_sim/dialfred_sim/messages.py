@@ -10,6 +10,7 @@ from __future__ import annotations
 from dialfred_msgs.msg import QAPair, TaskDescription
 
 from .protocol import QA, Question
+from .episode import SimReply
 from .tasks.schema import PublicTask
 
 
@@ -32,3 +33,17 @@ def public_task_from_msg(msg: TaskDescription) -> PublicTask:
 def task_description_msg(task: PublicTask) -> TaskDescription:
     return TaskDescription(task_id=task.task_id, scene=task.scene, split=task.split, instruction=task.instruction,
                            object_nouns=list(task.object_nouns))
+
+
+def sim_reply(msg):
+    """A /sim/reset or /sim/step response as the episode loop's SimReply (the message kept as `raw`)."""
+    obs = msg.observation
+    is_reset = hasattr(msg, 'task')
+    return SimReply(observation=obs, step_count=int(obs.step_count), failed_actions=int(obs.failed_actions),
+                    last_action_success=bool(obs.last_action_success), last_action_error=obs.last_action_error,
+                    goal_conditions_met=0 if is_reset else int(msg.goal_conditions_met),
+                    goal_conditions_total=int(msg.goal_conditions_total),
+                    success=False if is_reset else bool(msg.success),
+                    terminated=False if is_reset else bool(msg.terminated),
+                    truncated=False if is_reset else bool(msg.truncated),
+                    task=public_task_from_msg(msg.task) if is_reset else None, ok=bool(msg.ok), error=msg.error, raw=msg)

@@ -57,7 +57,11 @@ class Question:
 
     @property
     def text(self) -> str:
-        return question_text(self.question_type, self.object_noun)
+        """The question's wording; a type that is not one of QUESTION_TYPES (which the oracle refuses) is
+        shown as it was asked, 'type: noun'."""
+        if self.question_type in QUESTION_TEMPLATES:
+            return question_text(self.question_type, self.object_noun)
+        return f'{self.question_type}: {self.object_noun}'.rstrip(': ')
 
 
 @dataclass(frozen=True)
