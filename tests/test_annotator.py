@@ -349,6 +349,7 @@ def test_location_answers_in_the_simulator_name_the_receptacle_of_the_task_objec
             assert f.parent_noun in a.answer.lower(), (task.task_id, noun, a)
 
 
+@pytest.mark.slow   # fast: reannotating shipped tasks in the simulator gives the same rows
 def test_rows_made_while_rendering_are_the_scripts_own(tmp_path):
     """prepare --annotate makes each train task's annotator row while rendering its demonstration
     (AnnotatingProbe, the task's start seen at 128 px through DialfredEnv.viewed_at); the script's

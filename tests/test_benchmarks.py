@@ -31,6 +31,7 @@ def test_sim_step_reports_the_overhead_over_the_bare_render():
     assert 0 < row['ratio_bare_over_step'] <= 2
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_ros_step_reports_both_reply_forms_and_the_ros_floor():
     report = run_bench('ros_step', '--resolution', '64', '--steps', '6')
     for label in ('rgb_depth_segmentation', 'rgb_only', 'floor_empty_trigger'):
@@ -40,6 +41,7 @@ def test_ros_step_reports_both_reply_forms_and_the_ros_floor():
     assert report['rgb_only']['sim_node_peak_rss_mb'] > 50
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_oracle_latency_times_both_paths_and_answers_every_request():
     report = run_bench('oracle_latency', '--requests', '30', '--after-steps', '3')
     assert set(report['paths']) == {'fetch_every_question', 'cached'}
@@ -51,6 +53,7 @@ def test_oracle_latency_times_both_paths_and_answers_every_request():
     assert isinstance(report['goal']['met'], bool)
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_service_flood_answers_every_request_only_with_keep_all():
     report = run_bench('service_flood', '--steps', '60', '--questions', '40', '--wait', '5')
     for service, sent in (('sim_step', 60), ('oracle_answer', 40)):
@@ -58,12 +61,14 @@ def test_service_flood_answers_every_request_only_with_keep_all():
         assert report['ros_default'][service]['replied'] < sent     # the baseline loses some: it is a real baseline
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_oracle_fuzz_finds_no_crash_on_a_short_run():
     report = run_bench('oracle_fuzz', '--requests', '60')
     assert report['crashes'] == 0 and report['malformed_replies'] == 0 and report['oracle_alive_at_end']
     assert report['passed'] is True
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_oracle_correctness_scores_every_question_kind():
     report = run_bench('oracle_correctness', '--questions', '12')
     assert report['questions'] == 12
@@ -71,11 +76,13 @@ def test_oracle_correctness_scores_every_question_kind():
 
 
 @pytest.mark.parametrize('workers', [1, 2])
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_expert_replay_succeeds_on_the_first_tasks(workers):
     report = run_bench('expert_replay', '--limit', '4', '--workers', str(workers))
     assert report['tasks'] == 4 and report['success_rate'] == 100.0 and report['failures'] == []
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks():
     report = run_bench('expert_gc', '--limit', '12')
     assert report['tasks'] == 12 and report['expert_failures'] == []
@@ -83,12 +90,14 @@ def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks()
     assert sum(row['n'] for row in report['per_type'].values()) == 12
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_split_physics_finds_every_shipped_valid_episode_allowed():
     report = run_bench('split_physics', '--split', 'valid_unseen', '--limit', '6')
     assert report['episodes'] == 6 and report['tasks'] > 0
     assert report['episodes_refused'] == 0 and report['refused'] == [] and report['reasons'] == {}
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_recording_reports_the_overhead_and_the_bag_size_per_episode():
     report = run_bench('recording', '--limit', '2', '--rounds', '1', '--workers', '1', '--settings', 'off', 'png')
     png = report['settings']['png']
@@ -96,6 +105,7 @@ def test_recording_reports_the_overhead_and_the_bag_size_per_episode():
     assert png['bytes_per_episode'] > 1000 and 'overhead_pct' in png and png['kB_per_frame'] > 0
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_bench_scaling_reports_throughput_by_workers_and_the_cost_on_n_machines(tmp_path):
     png = tmp_path / 'scaling.png'
     report = run_bench('bench_scaling', '--workers', '1', '2', '--limit', '3', '--resolution', '64',
@@ -120,6 +130,7 @@ def test_bench_scaling_rejects_a_bad_budget():
     assert proc.returncode == 2 and '--workers must be integers >= 1' in proc.stderr
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_training_determinism_compares_fresh_processes_update_by_update(tmp_path):
     from dialfred_performer.prepare import PrepareConfig, prepare
     folder = tmp_path / 'valid_unseen_64'
@@ -140,6 +151,7 @@ def test_training_determinism_rejects_a_malformed_env():
     assert proc.returncode == 2 and 'VAR=VALUE' in proc.stderr
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_eval_local_times_every_path_and_finds_the_same_episodes():
     report = run_bench('eval_local', '--limit', '3', '--questioner', 'all')
     assert report['same_episodes'] is True and report['NQ'] > 0

@@ -26,7 +26,12 @@ def comparable(results) -> list:
     return [dataclasses.replace(r, wall_s=0.0) for r in results]
 
 
-@pytest.mark.parametrize('case', list(CASES))
+# Two cases in the fast tier (every path of the loop: questions, answers, the learned questioner's chances);
+# the rest with --all.
+FAST = ('performer + all QAs', 'performer + RL anytime (learned)')
+
+
+@pytest.mark.parametrize('case', [c if c in FAST else pytest.param(c, marks=pytest.mark.slow) for c in CASES])
 def test_local_episodes_equal_the_graphs(tmp_path, case):
     settings = {'split': 'valid_unseen', 'limit': 5, 'workers': 2, 'resolution': 64, 'seed': 3, **CASES[case]}
     n = settings['limit']

@@ -84,6 +84,7 @@ def uninterrupted(checkpoint, tmp_path_factory) -> dict:
     return found
 
 
+@pytest.mark.slow   # fault injection on whole evaluations; fast: test_eval (resume, Ctrl-C), test_integrity (resend), test_sim_node (restart)
 def test_nodes_killed_at_random_moments_are_restarted_and_the_results_are_an_uninterrupted_runs(
         checkpoint, uninterrupted, tmp_path):
     out = tmp_path / 'r.jsonl'
@@ -118,6 +119,7 @@ def test_nodes_killed_at_random_moments_are_restarted_and_the_results_are_an_uni
     assert summary['this_run']['restarts'] >= 1
 
 
+@pytest.mark.slow   # fault injection on whole evaluations; fast: test_eval (resume, Ctrl-C), test_integrity (resend), test_sim_node (restart)
 def test_a_killed_launcher_leaves_no_node_and_the_same_command_resumes(checkpoint, uninterrupted, tmp_path):
     out = tmp_path / 'r.jsonl'
     launcher = subprocess.Popen(command(checkpoint, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -140,6 +142,7 @@ def test_a_killed_launcher_leaves_no_node_and_the_same_command_resumes(checkpoin
     assert metrics(out) == uninterrupted
 
 
+@pytest.mark.slow   # fault injection on whole evaluations; fast: test_eval (resume, Ctrl-C), test_integrity (resend), test_sim_node (restart)
 def test_a_results_file_cut_mid_line_is_reported_and_its_episode_replayed(checkpoint, uninterrupted, tmp_path):
     uninterrupted_lines = uninterrupted_run
     out = tmp_path / 'r.jsonl'
@@ -151,6 +154,7 @@ def test_a_results_file_cut_mid_line_is_reported_and_its_episode_replayed(checkp
     assert metrics(out) == uninterrupted
 
 
+@pytest.mark.slow   # fault injection on whole evaluations; fast: test_eval (resume, Ctrl-C), test_integrity (resend), test_sim_node (restart)
 def test_a_node_that_dies_at_every_start_is_given_up_on(tmp_path):
     from dialfred_bringup.evaluation import Supervisor
     from dialfred_bringup.graph import Graph, NodeDied, NodeProcess

@@ -223,7 +223,8 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
     return result, [(t, q.question_type, q.object_noun, q.valid, q.answer) for t, q in zip(asked_at, qas)]
 
 
-@pytest.mark.parametrize('timing, perturb', [('anytime', ''), ('anytime', 'direction'), ('confusion', '')],
+@pytest.mark.parametrize('timing, perturb', [('anytime', ''), pytest.param('anytime', 'direction', marks=pytest.mark.slow),
+                                             pytest.param('confusion', '', marks=pytest.mark.slow)],
                          ids=['anytime', 'anytime, withholding oracle', 'confusion'])
 def test_the_same_episode_in_process_in_the_eval_and_through_the_graph(checkpoint, mc_checkpoint, tmp_path,
                                                                        monkeypatch, timing, perturb):

@@ -123,6 +123,7 @@ def two_processes(folder, tmp_path_factory):
     return cfg, torchrun(cfg)
 
 
+@pytest.mark.slow   # torchrun with two ranks; fast: the sharded losses add up to the whole batch's
 def test_two_processes_train_through_the_losses_of_one_with_the_same_global_batch(one_process, two_processes):
     (one, summary1), (two, summary2) = one_process, two_processes
     assert summary2['processes'] == 2 and summary1['processes'] == 1
@@ -138,6 +139,7 @@ def test_two_processes_train_through_the_losses_of_one_with_the_same_global_batc
     assert load_checkpoint(Path(two.out) / 'last.pt')[2]['extra']['progress']['update'] == 8
 
 
+@pytest.mark.slow   # torchrun with two ranks; fast: the sharded losses add up to the whole batch's
 def test_a_two_process_run_stopped_and_resumed_ends_as_an_uninterrupted_one(two_processes, tmp_path):
     whole, _ = two_processes
     parts = dataclasses.replace(whole, out=str(tmp_path / 'parts'), stop_after=3)

@@ -198,6 +198,7 @@ def test_batches_cover_every_episode_once_and_the_schedule_warms_up_then_decays(
     assert lr_factor(20, 4, 20, 0.1) == pytest.approx(0.1)
 
 
+@pytest.mark.slow   # a training process through ./dialfred; fast: the tiny training runs above
 def test_the_entry_script_runs_training_with_the_malloc_settings(folder, tmp_path):
     root = Path(__file__).resolve().parents[1]
     env = {k: v for k, v in os.environ.items() if not k.startswith('MALLOC_')}

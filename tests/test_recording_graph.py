@@ -57,6 +57,7 @@ def test_the_performer_node_records_each_episode_and_a_rerun_gives_the_same_byte
     assert (tmp_path / 'r.gif').stat().st_size > 1000 and (tmp_path / 'r.png').is_file()
 
 
+@pytest.mark.slow   # fast: test_recording (PNG frames decode to the raw ones), the performer node's bags above
 def test_the_in_process_agent_path_records_and_png_frames_equal_raw_ones(tmp_path):
     common = dict(split='valid_unseen', agent='expert', questioner='all', limit=2, workers=2, resolution=RES, seed=0)
     raw = run_eval(EvalConfig(out=tmp_path / 'raw.jsonl', record=tmp_path / 'raw', **common), progress=False)

@@ -293,6 +293,7 @@ def test_a_summary_of_another_run_is_flagged(tmp_path):
     assert 'the summary file names agent random' in text
 
 
+@pytest.mark.slow   # ./dialfred report as a subprocess; fast: build_report and the page tests
 def test_the_dialfred_entry_point_runs_the_report_in_the_callers_directory(run):
     path, bags, _ = run
     proc = subprocess.run([str(REPO / 'dialfred'), 'report', path.name, '--bags', bags.name, '--out', 'page.html'],

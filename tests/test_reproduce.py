@@ -42,6 +42,7 @@ def first(tmp_path_factory):
     return out, run(out)
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
 def test_every_stage_runs_and_stamps(first):
     out, summary = first
     assert list(summary['stages']) == list(STAGES)
@@ -57,6 +58,7 @@ def test_every_stage_runs_and_stamps(first):
         assert (out / 'questioner' / name / 'final.pt').exists()
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
 def test_the_check_stage_replays_a_learned_and_a_perturbed_setting_through_the_graph(first):
     out, summary = first
     report = json.loads((out / 'check' / 'report.json').read_text())
@@ -70,6 +72,7 @@ def test_the_check_stage_replays_a_learned_and_a_perturbed_setting_through_the_g
     assert '4 episodes: every one the same' in (out / 'results.md').read_text()
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
 def test_the_doc_has_every_table_row_and_the_plot(first):
     out, _ = first
     doc = (out / 'results.md').read_text()
@@ -90,6 +93,7 @@ def test_the_doc_has_every_table_row_and_the_plot(first):
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 2000
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
 def test_results_record_the_questions_asked(first):
     out, _ = first
     lines = [json.loads(l) for l in (out / 'eval' / 'valid_unseen_all_qas.jsonl').read_text().splitlines()]
@@ -97,6 +101,7 @@ def test_results_record_the_questions_asked(first):
     assert {qa['type'] for l in lines for qa in l['dialogue']} <= {'location', 'appearance', 'direction'}
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
 def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first):
     out, _ = first
     before = (out / 'results.md').read_bytes()
@@ -109,6 +114,7 @@ def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first
     assert (out / 'results.md').read_bytes() == before
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
 def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first, tmp_path):
     import dialfred_bringup.compare_runs as compare_runs
     out, _ = first

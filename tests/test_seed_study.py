@@ -8,9 +8,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow   # RL fine-tuning and evaluations over seeds; fast: test_questioner_finetune, test_eval_local
 def test_seed_study_fine_tunes_evaluates_and_reports_the_spread(tmp_path):
     out = tmp_path / 'study'
     args = ['--runs', 'rl_anytime', '--seeds', '1', '--random-seeds', '0', '3', '--limit', '4', '--updates', '1',
