@@ -2,7 +2,7 @@
 """Does the current simulator still allow every recorded expert episode of a split? (no ROS)
 
 A task's start state is rebuilt by replaying its episode's expert actions on the world without
-rendering (`tasks.expert.replay`). When the world's rules change (issue 10: open doors take floor,
+rendering (`tasks.expert.replay`). When the world's rules change (say, open doors take floor,
 a held object stays out of the walls), a split made before may hold actions the world now refuses.
 This replays every episode of a split file and reports the refused ones, why, and how many tasks
 reach the refused action (their start state cannot be rebuilt, or their own actions fail there).

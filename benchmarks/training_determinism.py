@@ -7,7 +7,7 @@ none) and the largest relative difference. `--env VAR=VALUE` (repeatable) runs t
 that environment (e.g. `MKL_CBWR=COMPATIBLE`, `MKL_DYNAMIC=FALSE`, `OMP_NUM_THREADS=1`), to tell which
 setting removes a difference; `--threads` sets the trainer's torch threads. `--busy N` starts N
 busy-looping processes beside every second run (runs 2, 4, ...), so quiet and loaded processes are
-compared in one invocation (session 10: load is not what makes a process differ; a quiet one did).
+compared in one invocation (load is not what makes a process differ: a quiet one did too).
 `common_stream_sha256` names the stream most runs gave, so invocations can be compared.
 
     ./dialfred bench training_determinism [--runs 6] [--updates 60] [--demonstrations DIR] [--env VAR=VALUE]

@@ -89,7 +89,7 @@ def navigation_twins(tasks: Sequence[Task], resolution: int = TWIN_RESOLUTION) -
     agent) can. Returns a JSON-ready dict: navigation_goals, same_type (another object of the type),
     twins (of those, one of the same colour too), twin_types (twins per target type, most first),
     not_rebuilt (goals whose first state the simulator refuses to rebuild: a split made under older
-    rules, as the shipped train is since issue 10's physics; left out of the other counts).
+    rules than the simulator's now; left out of the other counts).
     """
     from dialfred_sim.env import DialfredEnv
     goals = [(t, c.obj) for t in tasks for c in t.goal if c.kind == 'reachable']
@@ -203,7 +203,7 @@ METRICS_SECTION = [
     'object is hot, it is in hand, the microwave is closed], and the object is in hand and the '
     "microwave closed when the task starts. Counted ALFRED's way, an agent that stops at once scored "
     'GC 66.7% on every Clean, Cool and Heat task and 50% on Open & Pick & Close and Open & Put & '
-    "Close: 6.3% over valid_unseen as it was shipped before issue 10, near the random agent's 7.8%. "
+    "Close: 6.3% over an earlier valid_unseen, near the random agent's 7.8%. "
     "And the expert's GC fell from 2/3 to 0/3 while it put the object into the microwave. Counted our"
     " way, doing nothing scores 0 on every task, and GC never falls along the expert's path "
     '(`./dialfred bench expert_gc`, every task of both valid splits).',
@@ -336,7 +336,7 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         left_out = {name: t['not_rebuilt'] for name, t in twins.items() if t.get('not_rebuilt')}
         if left_out:
             lines += ['Left out because the simulator refuses to rebuild their first state (the split was made '
-                      'before issue 10\'s physics; regenerate it): '
+                      'under older physics; regenerate it): '
                       + ', '.join(f'{n:,} navigation goals of `{name}`' for name, n in left_out.items()) + '.', '']
     if examples:
         lines += [

@@ -6,7 +6,7 @@ and evaluate every checkpoint on the same episodes. Prints JSON; writes `<out>/s
         [--random-seeds 0 1 2] [--split valid_unseen] [--limit N] [--workers 2] [--out out/seed_study]
         [--doc docs/seeds.md]
 
-One training run is one draw (docs/benchmarks.md: a retrained performer moved SR by up to 4.6 points).
+One training run is one draw (docs/figures.md: a retrained performer moved SR by up to 4.6 points).
 This study holds the performer (the shipped `et.pt`) and the pre-trained questioner (the shipped
 `pretrained.pt`) fixed and varies only what RL fine-tuning draws from its seed (task order, episodes,
 the questioner's samples):

@@ -1,6 +1,6 @@
 """Every benchmark script runs end to end on a tiny budget and prints the JSON its docs quote.
 
-The figures themselves are measured on a quiet machine (docs/benchmarks.md); these smoke tests only
+The figures themselves are measured on a quiet machine (docs/figures.md); these smoke tests only
 keep the scripts working, so that `./dialfred bench NAME` does not rot between measurements.
 """
 

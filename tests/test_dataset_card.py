@@ -136,8 +136,7 @@ def twins(tasks):
 
 
 def test_77_of_the_253_navigation_goals_of_valid_unseen_have_a_same_type_same_colour_twin(tasks, twins):
-    """Only a location answer tells such a target from its twin (issue 10's figure, reproduced; 75 of
-    255 before valid_unseen was regenerated for issue 10's physics)."""
+    """Only a location answer tells such a target from its twin."""
     navigation = [t for t in tasks if any(c.kind == 'reachable' for c in t.goal)]
     assert {t.task_type for t in navigation} == {'Move', 'Pick & Move'}
     assert len(navigation) == twins['navigation_goals'] == 253 and twins['not_rebuilt'] == 0

@@ -21,6 +21,7 @@ import pytest
 
 
 import dialfred_bringup.reproduce as reproduce
+from dialfred_sim.protocol import QUESTION_TYPES
 
 ROOT = Path(__file__).resolve().parents[1]
 STAGES = reproduce.STAGES
@@ -215,7 +216,7 @@ def test_why_lines_price_a_question_and_read_the_sampled_mixes(tmp_path):
     for name, mixes in (('rl_anytime', [(0.9, 0.1, 0.0)] * 10), ('rl_anytime_withhold_location', [(0.6, 0.3, 0.1)] * 10)):
         (run / 'questioner' / name).mkdir(parents=True)
         (run / 'questioner' / name / 'metrics.jsonl').write_text(''.join(
-            json.dumps({'update': i, 'episodes': 64, 'nq': 1.0, 'mix': dict(zip(reproduce.QUESTION_TYPES, m))}) + '\n'
+            json.dumps({'update': i, 'episodes': 64, 'nq': 1.0, 'mix': dict(zip(QUESTION_TYPES, m))}) + '\n'
             for i, m in enumerate(mixes)))
     plan = reproduce.Plan(reproduce.ReproduceConfig(out=str(run)))
     lines = reproduce.why_lines(plan, rows)

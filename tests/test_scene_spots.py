@@ -9,7 +9,7 @@ import hashlib
 
 def test_scattered_rooms_match_the_demonstrations_they_were_rendered_from(env):
     """The objects' poses after reset are what they were before the change: a digest of the first
-    tasks' scattered objects, measured with the loop (session 12)."""
+    tasks' scattered objects."""
     from dialfred_sim.tasks import load_split
     h = hashlib.sha256()
     for task in load_split('valid_seen')[:5]:

@@ -163,7 +163,7 @@ def test_move_ahead_into_furniture_fails_naming_it(env):
 
 # ---------------------------------------------------------------------------------------------- open doors
 
-UNSEEN_KITCHEN = 'FloorPlan10'     # the room of issue 10: 4 free points within 0.075 m of an open door
+UNSEEN_KITCHEN = 'FloorPlan10'     # 4 free points within 0.075 m of an open door
 
 
 def openables(env):
@@ -254,7 +254,7 @@ def _passes_into(env, obj):
 
 
 def test_a_held_object_stays_in_the_room_and_out_of_the_furniture(env):
-    """Issue 10: a bread carried towards a wall ended 0.17 m outside the room. On every free point
+    """A bread carried towards a wall must not end outside the room (it once ended 0.17 m out). On every free point
     and heading of the room the hand now draws it back until it is clear."""
     reset(env, UNSEEN_KITCHEN)
     w = env.world

@@ -10,7 +10,7 @@ tests/test_eval_local.py compares the two paths episode by episode for every kin
 
 What the graph adds is the system under test of a robotics user (nodes, services, actions, recording,
 the live view, crash recovery); what this path adds is speed: no serialisation, no executor, one
-process per core (docs/benchmarks.md, `./dialfred bench eval_local`). `./dialfred reproduce` plays its
+process per core (docs/figures.md, `./dialfred bench eval_local`). `./dialfred reproduce` plays its
 tables this way and checks a slice of every setting through the graph.
 """
 

@@ -31,7 +31,7 @@ INTERACTIONS = ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slic
 INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
 # The trained checkpoint shipped in the package (the command that made it is stored inside it and in
-# docs/benchmarks.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
+# docs/figures.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
 SHIPPED_CHECKPOINT = Path(__file__).resolve().parent / 'checkpoints' / 'et.pt'
 
 

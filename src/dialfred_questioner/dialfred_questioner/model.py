@@ -4,7 +4,7 @@ and what, with a value head for actor-critic fine-tuning. ROS-free, torch.
 The paper's model: an LSTM encoder over the instruction's tokens; an LSTM decoder fed the current
 frame's image feature and the previous output token, with dot-product attention over the encoder's
 states; a question is two tokens, its type (location / appearance / direction) and its object, or a
-single `none` token. Where this one goes further (issue 12): the original read only the instruction,
+single `none` token. Where this one goes further: the original read only the instruction,
 so it could ask the same question twice; here the encoder reads the instruction **and the dialogue so
 far** (each QA with its type and the step it was asked, through `dialfred_performer.preprocess`, the
 performer's own path from text to tokens), and the decoder also gets the step (actions taken so far).

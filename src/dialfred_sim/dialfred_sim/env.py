@@ -40,7 +40,7 @@ from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action  
 from .world.rooms import all_scenes, room_layout, scene_number  # noqa: E402  (after pybullet, whose banner is silenced above)
 from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World  # noqa: E402  (after pybullet, whose banner is silenced above)
 
-DEFAULT_RESOLUTION = 128   # see docs/benchmarks.md: 4x the frame rate of 300x300 on this CPU
+DEFAULT_RESOLUTION = 128   # see docs/figures.md: 4x the frame rate of 300x300 on this CPU
 # pybullet 3.2.7 keeps about 0.5 KB for every body made and removed (0.14 MB per reset here) and
 # frees it only with its client, so the world moves to a fresh client every so many rooms. A fresh
 # client hands out the same body ids, so frames and segmentation do not change (tested).

@@ -119,7 +119,7 @@ class ShapeCache:
         self.client = client
         self._ids: dict[tuple, int] = {}
         # createMultiBody's link arguments per (spec, colour): they depend on nothing else, and
-        # working them out part by part took about 40% of a body's build (session 13)
+        # working them out part by part took about 40% of a body's build
         self._links: dict[tuple, dict] = {}
 
     def links(self, spec: ShapeSpec, colour: str) -> dict:

@@ -1,0 +1,79 @@
+"""Reproduce the paper's Tables II, III and IV end to end: `./dialfred reproduce`.
+
+    ./dialfred reproduce                      # everything after set-up -> out/reproduce/ (resumable), docs/results.md
+    ./dialfred reproduce --quick              # the same pipeline on tiny slices, in minutes -> out/reproduce_quick/
+    ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> docs/results_shipped.md
+    ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
+    ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
+
+Stages, in order (each calls the project's own API or command; none repeats their logic):
+
+| stage | what | output (under the run folder, `--out`) |
+|---|---|---|
+| demos | the performer's demonstrations of train (`dialfred_performer.prepare --annotate`): the expert's frames, and while each task is played the oracle's QAs at its start and middle and the synthetic annotators' row at its start (no second or third replay of train) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
+| performer | performer training (`dialfred_performer.train`: one epoch, 15,776 updates; the shipped checkpoint is the best of a 2-epoch run, which was also at the end of its epoch 1) | `performer/best.pt` |
+| dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
+| frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
+| pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
+| rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
+| eval | every setting of the tables (`dialfred_bringup.evaluation.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_bringup.local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| check | the first `--check-tasks` tasks of every setting played again through the ROS graph (performer, questioner, oracle and simulator nodes) and compared with the eval stage's episodes field by field (wall time aside); mismatches are listed in the document, not hidden | `check/<split>_<setting>.jsonl`, `check/report.json` |
+| doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`, its plot beside it: `sr_nq.png`, or `<stem>_sr_nq.png` for a doc of another name) |
+
+Each stage writes `stamps/<stage>.json` with the hash of its inputs (its config, the hashes of the stages
+it depends on, and the source files that make it). A stage whose stamp matches is skipped
+(`[reproduce] <stage>: skipped (stamp matches)`); a changed input reruns it and therefore every stage
+after it. A stage cut off midway resumes (training from its last.pt, evaluations from their results
+files) when rerun with the same inputs; with other inputs its outputs are cleared first. A progress
+line per stage (name, skipped/ran, seconds) goes to stderr and one JSON summary to stdout.
+
+`--shipped` runs no training: the performer is the shipped `dialfred_performer/checkpoints/et.pt`
+and the questioners the shipped `dialfred_questioner/checkpoints/<setting>.pt` (a setting whose file
+is absent is left out of the tables, marked "no results"); its run folder is out/reproduce_shipped.
+The document goes to the run folder, and is copied to docs/results.md (a full run in out/reproduce),
+docs/results_shipped.md (`--shipped` in out/reproduce_shipped) or `--doc PATH`; a quick run or another
+`--out` copies it nowhere unless `--doc` says where, `--doc none` never.
+`--quick` runs the whole pipeline on slices (32 train tasks, a tiny performer and questioner, RL of
+2 updates x 8 episodes of at most 30 steps, evaluations of 8 tasks in this process); its numbers mean
+nothing, it checks the pipeline. Caches of the quick run stay in its run folder (DIALFRED_DIALOGUE_DIR
+and explicit paths), so it never replaces the full train data in ~/.cache.
+
+Everything is seeded (`--seed`). Each stage's output is reproducible: the demonstrations, dialogues
+and first frames are byte-identical across runs, and evaluating the same checkpoints gives the same
+episodes. Performer training usually repeats bit for bit, but not always: in session 9, one process
+in two of the same command differed by a rounding in its first updates and trained a different
+model, and the tables moved by up to 4.3 SR points (docs/benchmarks.md; `./dialfred bench
+training_determinism` looks for the cause). On the AMD EPYC of sessions 11-12 no process of 28 left the
+common stream, but that stream differs from the old CPU's from the first updates on, so a run on
+another CPU retrains other models. The run times, listed apart from the tables, always differ.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Optional
+
+from dialfred_performer.cli import parse
+
+from .document import copy_doc, draw_frontier, render, why_lines, write_outputs
+from .plan import (EXTRA, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,
+                   SPLITS, STAGES, Plan, ReproduceConfig, Setting, settings, weights_sha256)
+from .stages import Runner
+
+__all__ = ['EXTRA', 'PAPER_T2', 'PAPER_T3', 'PAPER_T4', 'PERTURB_PROBABILITY', 'RESOLUTION', 'RL_RUNS',
+           'SHIPPED_QUESTIONERS', 'SPLITS', 'STAGES', 'Plan', 'ReproduceConfig', 'Runner', 'Setting', 'copy_doc',
+           'draw_frontier', 'main', 'render', 'settings', 'weights_sha256', 'why_lines', 'write_outputs']
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    cfg = parse(ReproduceConfig, argv, prog='./dialfred reproduce')
+    try:
+        summary = Runner(cfg).run()
+    except (FileNotFoundError, ValueError, RuntimeError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    print(json.dumps(summary))
+    return 0
+

@@ -1,0 +1,7 @@
+"""`python -m dialfred_bringup.reproduce` (`./dialfred reproduce`)."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

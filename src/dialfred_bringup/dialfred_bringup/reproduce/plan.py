@@ -1,0 +1,289 @@
+"""What `./dialfred reproduce` runs: the settings of the paper's tables, the run's config and sizes."""
+
+from __future__ import annotations
+import hashlib
+import json
+import pickle
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+
+from dialfred_performer.cli import arg
+from dialfred_sim.protocol import QUESTION_TYPES
+
+from ..baselines import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4
+from ..paths import REPO
+
+
+STAGES = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'check', 'doc')
+EVAL_PATHS = ('local', 'graph', 'in-process')
+SPLITS = ('valid_seen', 'valid_unseen')
+PERTURB_PROBABILITY = 0.5
+SHIPPED_QUESTIONERS = REPO / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
+RESOLUTION = 64
+
+# The RL fine-tunings (FinetuneConfig fields beyond the shared ones).
+RL_RUNS = {
+    'rl_begin': dict(timing='begin'),
+    'rl_anytime': dict(timing='anytime', gap=5),
+    'rl_anytime_1': dict(timing='anytime', gap=1, rewards='fixed_1'),
+    'rl_anytime_10': dict(timing='anytime', gap=10),
+    'rl_mc': dict(timing='confusion'),
+    **{f'rl_anytime_withhold_{t}': dict(timing='anytime', gap=5, perturb_type=t) for t in QUESTION_TYPES},
+    # Beyond the paper: RL anytime reading the instruction only, as the original questioner did (ablation).
+    'rl_anytime_no_dialogue': dict(timing='anytime', gap=5, dialogue=False),
+}
+# The rows of the returns table (both splits where the setting was evaluated there).
+RETURN_ROWS = ('instruction_only', 'all_qas', 'random_qa', 'random_mc', 'pretrained', 'rl_begin', 'rl_anytime',
+               'rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue')
+# Rows beyond the paper's tables: (name, what it shows).
+EXTRA = {
+    'pretrained': 'Pre-trained only (no RL; asks at the start)',
+    'rl_anytime': 'RL anytime (reads the dialogue so far)',
+    'rl_anytime_no_dialogue': 'RL anytime, instruction only (the original\'s input)',
+}
+
+# The paper's numbers. Table II rows 1-4 come from dialfred_bringup/baselines.py; rows 5-6 here.
+PAPER_T2 = {
+    **{k: {'number': b.number, 'name': b.name, 'SR': b.paper_sr, 'PWSR': b.paper_pwsr, 'NQ': b.paper_nq}
+       for k, b in TABLE2_BASELINES.items()},
+    'rl_begin': {'number': 5, 'name': 'RL begin', 'SR': {'valid_seen': 47.3, 'valid_unseen': 32.7},
+                 'PWSR': {'valid_seen': 33.5, 'valid_unseen': 20.1}, 'NQ': 0.37},
+    'rl_anytime': {'number': 6, 'name': 'RL anytime', 'SR': {'valid_seen': 47.8, 'valid_unseen': 33.6},
+                   'PWSR': {'valid_seen': 34.2, 'valid_unseen': 20.4}, 'NQ': 0.71},
+}
+# Table III (valid_unseen): SR, PWSR, NQ, location / appearance / direction shares.
+PAPER_T3 = {
+    'rl_anytime': ('RL anytime', 33.6, 20.4, 0.71, (0.65, 0.14, 0.21)),
+    'rl_anytime_withhold_location': ('RL Loc perturb', 32.2, 19.8, 0.66, (0.47, 0.15, 0.38)),
+    'rl_anytime_withhold_appearance': ('RL App perturb', 32.4, 19.9, 0.40, (0.92, 0.04, 0.04)),
+    'rl_anytime_withhold_direction': ('RL Dir perturb', 33.0, 20.4, 0.61, (0.51, 0.45, 0.04)),
+    'random_qa': ('Random', 28.4, 17.3, 0.81, (0.36, 0.31, 0.33)),
+    'random_qa_withhold_location': ('Random Loc perturb', 26.0, 16.0, 0.81, (0.36, 0.31, 0.33)),
+    'random_qa_withhold_appearance': ('Random App perturb', 26.1, 16.1, 0.81, (0.36, 0.31, 0.33)),
+    'random_qa_withhold_direction': ('Random Dir perturb', 26.2, 15.8, 0.81, (0.36, 0.31, 0.33)),
+}
+# Table IV: unseen SR, unseen PWSR, NQ.
+PAPER_T4 = {
+    'rl_anytime_1': ('RL anytime (Fixed 1)', 34.7, 21.2, 21.39),
+    'rl_anytime': ('RL anytime (Fixed 5)', 33.6, 20.4, 0.71),
+    'rl_anytime_10': ('RL anytime (Fixed 10)', 32.4, 19.9, 0.36),
+    'rl_mc': ('RL anytime (MC)', 33.0, 20.4, 0.31),
+}
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One evaluation: a questioner (a baseline's name, or an RL run's checkpoint) on a split, maybe perturbed."""
+
+    key: str          # results file: eval/<split>_<key>.jsonl
+    split: str
+    questioner: str   # '' = none; a dialfred_questioner baseline; or 'rl:<run>' (an RL run's checkpoint)
+    perturb_type: str = ''
+
+
+def settings() -> list[Setting]:
+    out = []
+    for split in SPLITS:
+        for key, b in TABLE2_BASELINES.items():
+            out.append(Setting(key, split, b.questioner))
+        out += [Setting('rl_begin', split, 'rl:rl_begin'), Setting('rl_anytime', split, 'rl:rl_anytime'),
+                Setting('pretrained', split, 'rl:pretrained')]
+    for t in QUESTION_TYPES:
+        out.append(Setting(f'rl_anytime_withhold_{t}', 'valid_unseen', f'rl:rl_anytime_withhold_{t}', t))
+        out.append(Setting(f'random_qa_withhold_{t}', 'valid_unseen', 'random', t))
+    for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue'):
+        out.append(Setting(run, 'valid_unseen', f'rl:{run}'))
+    return out
+
+
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """Run the whole DialFRED pipeline after set-up and write the results document (Tables II, III, IV)."""
+
+    out: str = arg('', "the run folder (default out/reproduce; --quick: out/reproduce_quick; --shipped: "
+                       "out/reproduce_shipped)")
+    quick: bool = arg(False, 'tiny slices of every stage (minutes): checks the pipeline, the numbers mean nothing')
+    shipped: bool = arg(False, 'no training stages: evaluate the shipped performer and questioner checkpoints')
+    doc: str = arg('', "also write the document here; '' = docs/results.md for a full run in out/reproduce, "
+                       "docs/results_shipped.md for --shipped in out/reproduce_shipped, nowhere else (--quick, "
+                       "another --out); 'none' = only <out>/results.md")
+    force: str = arg('', 'rerun this stage and every stage after it, stamps or not')
+    until: str = arg('', "stop after this stage ('' = run to the end)")
+    eval_path: str = arg('local', "how the tables' episodes are played: local (worker processes without ROS, "
+                                  'the same episodes as the graph; fastest), graph (performer nodes), in-process '
+                                  '(the agent in this process, simulator and oracle nodes)')
+    check_tasks: int = arg(20, 'the check stage plays the first N tasks of every setting through the ROS graph and '
+                               'compares them with the tables\' episodes (0: no check)')
+    workers: int = arg(2, 'processes / simulator nodes of every stage')
+    seed: int = arg(0, 'the seed of every stage')
+    resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
+    progress: bool = arg(False, "the stages' own progress bars on stderr")
+
+    def __post_init__(self):
+        for name in ('force', 'until'):
+            if getattr(self, name) and getattr(self, name) not in STAGES:
+                raise ValueError(f'--{name} takes one of {", ".join(STAGES)}, got {getattr(self, name)!r}')
+        if self.quick and self.shipped:
+            raise ValueError('--quick and --shipped do not go together')
+        if self.workers < 1:
+            raise ValueError('--workers must be at least 1')
+        if self.eval_path not in EVAL_PATHS:
+            raise ValueError(f'--eval-path takes one of {", ".join(EVAL_PATHS)}, got {self.eval_path!r}')
+        if self.check_tasks < 0:
+            raise ValueError('--check-tasks must be 0 or more')
+
+    @property
+    def doc_target(self) -> Optional[Path]:
+        """Where the document is copied besides the run folder (None: nowhere)."""
+        if self.doc == 'none':
+            return None
+        if self.doc:
+            return Path(self.doc) if Path(self.doc).is_absolute() else REPO / self.doc
+        if self.quick or self.out:
+            return None
+        return REPO / 'docs' / ('results_shipped.md' if self.shipped else 'results.md')
+
+    @property
+    def run_dir(self) -> Path:
+        name = self.out or ('out/reproduce_quick' if self.quick else
+                            'out/reproduce_shipped' if self.shipped else 'out/reproduce')
+        return Path(name) if Path(name).is_absolute() else REPO / name
+
+
+# --------------------------------------------------------------------------------------------- sizes
+
+class Plan:
+    """What each stage runs (paths and configs), from the run's config: full size or quick slices."""
+
+    def __init__(self, cfg: ReproduceConfig):
+        from dialfred_questioner.frames import default_path
+        from dialfred_sim.tasks.demonstrations import default_dir
+        self.cfg, self.run = cfg, cfg.run_dir
+        q = cfg.quick
+        self.train_limit = 32 if q else 0
+        cache = self.run / 'cache'
+        self.demos = cache / 'demonstrations' / f'train_{RESOLUTION}' if q else default_dir('train', RESOLUTION)
+        self.dialogue_dir = cache / 'dialogues' if q else None     # None: annotator's default (~/.cache)
+        self.frames = cache / f'train_first_{RESOLUTION}.npz' if q else default_path('train', RESOLUTION)
+        self.performer_dir = self.run / 'performer'
+        self.pretrain_dir = self.run / 'questioner' / 'pretrain'
+        self.eval_dir = self.run / 'eval'
+        self.eval_limit = 8 if q else 0
+        self.eval_path = cfg.eval_path
+        self.check_dir = self.run / 'check'
+        self.check_tasks = min(cfg.check_tasks, 2) if q else cfg.check_tasks
+
+    # each stage's config, as plain JSON (part of its stamp)
+    def demos_config(self) -> dict:
+        return dict(split='train', resolution=RESOLUTION, workers=self.cfg.workers, limit=self.train_limit,
+                    out=str(self.demos), progress=self.cfg.progress, annotate=True)
+
+    def performer_config(self) -> dict:
+        base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
+                    progress=self.cfg.progress, epochs=1, max_updates=0, validation='', val_fraction=0.05)
+        if self.cfg.quick:
+            base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
+                        checkpoint_every=30, val_fraction=0.2,
+                        model=dict(resolution=RESOLUTION, d_model=32, heads=2, layers=1, ff=64))
+        return base
+
+    def dialogues_config(self) -> dict:
+        return dict(splits=['train'], workers=self.cfg.workers, limit=self.train_limit,
+                    dialogue_dir=str(self.dialogue_dir) if self.dialogue_dir else '', demonstrations=str(self.demos))
+
+    def frames_config(self) -> dict:
+        return dict(split='train', resolution=RESOLUTION, out=str(self.frames), demonstrations=str(self.demos),
+                    limit=self.train_limit)
+
+    @property
+    def performer_checkpoint(self) -> Path:
+        if self.cfg.shipped:
+            from dialfred_performer.model import SHIPPED_CHECKPOINT
+            return Path(SHIPPED_CHECKPOINT)
+        best = self.performer_dir / 'best.pt'
+        return best if best.exists() or not (self.performer_dir / 'last.pt').exists() else self.performer_dir / 'last.pt'
+
+    def pretrain_config(self) -> dict:
+        base = dict(split='train', frames=str(self.frames), performer=str(self.performer_checkpoint),
+                    out=str(self.pretrain_dir), seed=self.cfg.seed, limit=self.train_limit,
+                    progress=self.cfg.progress)
+        if self.cfg.quick:
+            base.update(epochs=1, batch_size=8, threads=1, val_fraction=0.2,
+                        model=dict(embedding=16, hidden=32, image=32))
+        return base
+
+    def rl_config(self, name: str) -> dict:
+        base = dict(init=str(self.pretrain_dir / 'best.pt'), performer=str(self.performer_checkpoint),
+                    split='valid_seen', out=str(self.run / 'questioner' / name), resolution=RESOLUTION,
+                    workers=self.cfg.workers, seed=self.cfg.seed, progress=self.cfg.progress,
+                    perturb_probability=PERTURB_PROBABILITY, **RL_RUNS[name])
+        if self.cfg.quick:
+            base.update(updates=2, episodes_per_update=8, max_steps=30, limit=16)
+        return base
+
+    def questioner_checkpoint(self, run: str) -> Path:
+        """The checkpoint of an RL run, or of the pre-trained questioner for 'pretrained'."""
+        if self.cfg.shipped:
+            return SHIPPED_QUESTIONERS / f'{run}.pt'
+        if run == 'pretrained':
+            return self.pretrain_dir / 'best.pt'
+        return self.run / 'questioner' / run / 'final.pt'
+
+    def eval_config(self, s: Setting, check: bool = False):
+        """The evaluation of setting `s` for the tables, or with `check` its first check_tasks tasks
+        through the graph (performer nodes)."""
+        from dialfred_bringup.evaluation import EvalConfig
+        questioner = s.questioner
+        if questioner.startswith('rl:'):
+            questioner = f'learned:{self.questioner_checkpoint(questioner[3:])}'
+        path = 'graph' if check else self.eval_path
+        limit = self.check_tasks if check else self.eval_limit or None
+        if check and self.eval_limit:
+            limit = min(limit, self.eval_limit)
+        return EvalConfig(split=s.split, agent='et', performer='et' if path == 'graph' else '', local=path == 'local',
+                          questioner=questioner, perturb_type=s.perturb_type,
+                          perturb_probability=PERTURB_PROBABILITY, limit=limit,
+                          workers=self.cfg.workers,
+                          out=(self.check_dir if check else self.eval_dir) / f'{s.split}_{s.key}.jsonl',
+                          seed=self.cfg.seed, resolution=RESOLUTION, checkpoint=self.performer_checkpoint)
+
+    def check_settings(self) -> list:
+        """The settings the check stage plays through the graph: all of them (quick: the first with a learned
+        questioner and the first with a perturbed oracle)."""
+        chosen = [s for s in settings() if self.available(s)]
+        if self.cfg.quick:
+            chosen = [s for s in chosen if s.questioner.startswith('rl:')][:1] + [s for s in chosen if s.perturb_type][:1]
+        return chosen if self.check_tasks else []
+
+    def available(self, s: Setting) -> bool:
+        """Whether the setting's questioner checkpoint exists (only shipped ones can be missing)."""
+        return not s.questioner.startswith('rl:') or self.questioner_checkpoint(s.questioner[3:]).exists()
+
+
+TRAINING = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
+
+
+def sha256_of(data) -> str:
+    if isinstance(data, (bytes, bytearray)):
+        return hashlib.sha256(data).hexdigest()
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def weights_sha256(path: Path) -> str:
+    """A checkpoint's weights digest: sha256 over its state_dict's tensors (name, dtype, shape and bytes, in
+    name order). Two runs that train the same model get the same digest even though their files differ:
+    a checkpoint also records the command and git commit that made it."""
+    import torch
+    try:
+        state = torch.load(path, map_location='cpu', weights_only=False)['state_dict']
+    except (OSError, RuntimeError, EOFError, KeyError, TypeError, pickle.UnpicklingError) as exc:
+        raise ValueError(f'{path}: not a checkpoint with a state_dict ({exc})') from None
+    h = hashlib.sha256()
+    for name in sorted(state):
+        t = state[name].detach().contiguous().reshape(-1)
+        h.update(f'{name}\0{t.dtype}\0{tuple(state[name].shape)}\0'.encode())
+        h.update(t.view(torch.uint8).numpy().tobytes())
+    return h.hexdigest()

@@ -1,0 +1,312 @@
+"""The stages of `./dialfred reproduce`, each stamped with the hash of its inputs and resumable."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+
+
+from ..paths import REPO
+
+
+from .document import (build_report, copy_doc, write_outputs)
+from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, STAGES, settings)
+
+
+# --------------------------------------------------------------------------------------------- stages
+
+def newest_mtime(paths) -> float:
+    """The newest modification time of the files under `paths` (0 if there are none)."""
+    times = [0.0]
+    for path in paths:
+        path = Path(path)
+        if path.is_file():
+            times.append(path.stat().st_mtime)
+        elif path.is_dir():
+            times += [f.stat().st_mtime for f in path.rglob('*') if f.is_file()]
+    return max(times)
+
+
+def code_hash(paths: tuple[str, ...]) -> str:
+    h = hashlib.sha256()
+    for rel in paths:
+        p = REPO / rel
+        h.update(rel.encode() + b'\0' + (p.read_bytes() if p.exists() else b'(absent)') + b'\0')
+    return h.hexdigest()
+
+
+PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_questioner/dialfred_questioner', \
+    'src/dialfred_sim/dialfred_sim'
+UP = 'src/dialfred_bringup/dialfred_bringup'
+CODE = {
+    'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
+              'src/dialfred_oracle/dialfred_oracle/annotator.py'),
+    'performer': (f'{PERF}/train.py', f'{PERF}/model.py', f'{PERF}/data.py', f'{PERF}/preprocess.py'),
+    'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
+    'frames': (f'{QUES}/frames.py',),
+    'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
+    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
+    'eval': (f'{UP}/evaluation.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py', f'{QUES}/policy.py',
+             f'{PERF}/agent.py', f'{SIM}/metrics.py'),
+    'check': (f'{UP}/evaluation.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
+    'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
+            f'{PERF}/curves.py'),
+}
+UPSTREAM = {
+    'demos': (), 'performer': ('demos',), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
+    'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
+}
+
+
+class Runner:
+    def __init__(self, cfg: ReproduceConfig):
+        self.cfg, self.plan = cfg, Plan(cfg)
+        self.stamps_dir = cfg.run_dir / 'stamps'
+        self.hashes: dict[str, str] = {}
+        self.summary: dict[str, dict] = {}
+        self.forced = False
+
+    def log(self, text: str) -> None:
+        print(f'[reproduce] {text}', file=sys.stderr, flush=True)
+
+    def stage_inputs(self, stage: str) -> dict:
+        p = self.plan
+        config = {
+            'demos': p.demos_config, 'performer': p.performer_config, 'dialogues': p.dialogues_config,
+            'frames': p.frames_config, 'pretrain': p.pretrain_config,
+            'rl': lambda: {name: p.rl_config(name) for name in RL_RUNS},
+            'eval': lambda: {'settings': [dataclasses.asdict(s) for s in settings() if p.available(s)],
+                             'eval_path': p.eval_path, 'limit': p.eval_limit, 'seed': self.cfg.seed,
+                             'performer': str(p.performer_checkpoint),
+                             'questioners': {r: str(p.questioner_checkpoint(r)) for r in (*RL_RUNS, 'pretrained')},
+                             'shipped': self.shipped_hashes() if self.cfg.shipped else None},
+            'check': lambda: {'settings': [dataclasses.asdict(s) for s in p.check_settings()],
+                              'tasks': p.check_tasks, 'seed': self.cfg.seed},
+            'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit},
+        }[stage]()
+        return {'stage': stage, 'config': config, 'code': code_hash(CODE[stage]),
+                'upstream': {u: self.hashes.get(u, 'shipped') for u in UPSTREAM[stage]}}
+
+    def shipped_hashes(self) -> dict:
+        files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in (*RL_RUNS, 'pretrained')]
+        return {str(f): sha256_of(f.read_bytes()) if f.exists() else None for f in files}
+
+    def stamp_path(self, stage: str) -> Path:
+        return self.stamps_dir / f'{stage}.json'
+
+    def read_stamp(self, stage: str) -> Optional[dict]:
+        try:
+            return json.loads(self.stamp_path(stage).read_text())
+        except (OSError, ValueError):
+            return None
+
+    def write_stamp(self, stage: str, record: dict) -> None:
+        self.stamps_dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.stamp_path(stage).with_suffix('.tmp')
+        from dialfred_bringup.machine import machine
+        record = {**record, 'machine': machine()}      # the seconds, and bit patterns, depend on it
+        tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + '\n')
+        tmp.replace(self.stamp_path(stage))
+
+    def run_stage(self, stage: str, action: Callable[[bool], dict], outputs: list[Path]) -> None:
+        """Skip `stage` if its stamp holds the hash of its inputs, else run `action(resume)`: resume is
+        True when the stage was cut off with these same inputs (else its outputs are cleared first)."""
+        if self.cfg.force == stage:
+            self.forced = True
+        inputs = self.stage_inputs(stage)
+        digest = sha256_of(inputs)
+        self.hashes[stage] = digest
+        old = self.read_stamp(stage)
+        if old and old.get('hash') == digest and old.get('status') == 'done' and not self.forced:
+            self.log(f'{stage}: skipped (stamp matches, {digest[:12]})')
+            self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
+            return
+        resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
+        if not resume:
+            for path in outputs:
+                if path.is_dir():
+                    shutil.rmtree(path)
+                elif path.exists():
+                    path.unlink()
+        why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
+        # A resumed stage's time includes its cut-off runs: each lasted from its start until its
+        # outputs were last written (the newest modification time under them).
+        before, runs = (old.get('seconds_before', 0.0) + max(0.0, newest_mtime(outputs) - old.get('started_at', time.time())),
+                        old.get('runs', 1) + 1) if resume else (0.0, 1)
+        self.log(f'{stage}: running ({why}, {digest[:12]})')
+        self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'running', 'inputs': inputs,
+                                 'started_at': time.time(), 'seconds_before': round(before, 1), 'runs': runs})
+        t0 = time.monotonic()
+        report = action(resume) or {}
+        this_run = time.monotonic() - t0
+        seconds = round(before + this_run, 1)
+        self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'done', 'inputs': inputs,
+                                 'seconds': seconds, 'seconds_this_run': round(this_run, 1), 'runs': runs,
+                                 'report': report})
+        self.log(f'{stage}: ran in {this_run:.1f} s' + (f' ({seconds:.1f} s over {runs} runs)' if runs > 1 else ''))
+        self.summary[stage] = {'status': 'ran', 'hash': digest, 'seconds': seconds, 'runs': runs, 'report': report}
+
+    # ---- the stages
+
+    def demos(self, resume: bool) -> dict:
+        from dialfred_performer.prepare import PrepareConfig, prepare
+        return prepare(PrepareConfig(**self.plan.demos_config()))
+
+    def performer(self, resume: bool) -> dict:
+        from dialfred_performer.model import PerformerConfig
+        from dialfred_performer.train import TrainConfig, train
+        c = dict(self.plan.performer_config())
+        if 'model' in c:
+            c['model'] = PerformerConfig(**c['model'])
+        resume = resume and (self.plan.performer_dir / 'last.pt').exists()
+        if self.cfg.quick:
+            c['threads'] = 1
+        report = train(TrainConfig(**c, resume=resume))
+        return {k: report.get(k) for k in ('finished', 'updates', 'session_seconds', 'val')}
+
+    def dialogues(self, resume: bool) -> dict:
+        c = self.plan.dialogues_config()
+        env = dict(os.environ)
+        if c['dialogue_dir']:
+            env['DIALFRED_DIALOGUE_DIR'] = c['dialogue_dir']
+        cmd = [sys.executable, str(REPO / 'scripts' / 'annotate_dialogues.py'), '--splits', *c['splits'],
+               '--workers', str(c['workers']), '--limit', str(c['limit']),
+               '--from-demonstrations', c['demonstrations'], '--doc', str(self.cfg.run_dir / 'dialogue_data.md')]
+        done = subprocess.run(cmd, env=env, cwd=REPO, stdout=subprocess.PIPE, text=True)
+        if done.returncode:
+            raise RuntimeError(f'{shlex.join(cmd)} exited with {done.returncode}')
+        first = json.loads(done.stdout.splitlines()[0])
+        return {k: first.get(k) for k in ('split', 'path', 'seconds', 'tasks') if k in first}
+
+    def frames(self, resume: bool) -> dict:
+        from dialfred_questioner.frames import build_first_frames
+        c = self.plan.frames_config()
+        path = build_first_frames(c['split'], c['resolution'], Path(c['out']), limit=c['limit'],
+                                  progress=self.cfg.progress, demonstrations=Path(c['demonstrations']))
+        return {'path': str(path)}
+
+    def with_dialogues_env(self, fn):
+        d = self.plan.dialogue_dir
+        if d is None:
+            return fn()
+        from dialfred_oracle.annotator import DIALOGUE_CACHE_ENV
+        old = os.environ.get(DIALOGUE_CACHE_ENV)
+        os.environ[DIALOGUE_CACHE_ENV] = str(d)
+        try:
+            return fn()
+        finally:
+            if old is None:
+                os.environ.pop(DIALOGUE_CACHE_ENV, None)
+            else:
+                os.environ[DIALOGUE_CACHE_ENV] = old
+
+    def pretrain(self, resume: bool) -> dict:
+        from dialfred_questioner.model import QuestionerConfig
+        from dialfred_questioner.pretrain import PretrainConfig, pretrain
+        c = dict(self.plan.pretrain_config())
+        if 'model' in c:
+            c['model'] = QuestionerConfig(**c['model'])
+        resume = resume and (self.plan.pretrain_dir / 'last.pt').exists()
+        report = self.with_dialogues_env(lambda: pretrain(PretrainConfig(**c, resume=resume)))
+        return {k: v for k, v in report.items() if isinstance(v, (int, float, str))}
+
+    def rl(self, resume: bool) -> dict:
+        from dialfred_questioner.finetune import FinetuneConfig, finetune
+        out = {}
+        for name in RL_RUNS:
+            c = self.plan.rl_config(name)
+            folder = Path(c['out'])
+            if (folder / 'final.pt').exists() and resume:
+                self.log(f'rl: {name} done before the cut-off')
+                continue
+            t0 = time.monotonic()
+            report = finetune(FinetuneConfig(**c, resume=resume and (folder / 'last.pt').exists()))
+            out[name] = {'sr': report.get('sr'), 'nq': report.get('nq'), 'seconds': round(time.monotonic() - t0, 1)}
+            self.log(f'rl: {name} in {out[name]["seconds"]:.1f} s (last update: SR {report.get("sr")}, '
+                     f'NQ {report.get("nq")})')
+        return out
+
+    def eval(self, resume: bool) -> dict:
+        from dialfred_bringup.baselines import run_baseline
+        self.plan.eval_dir.mkdir(parents=True, exist_ok=True)
+        out = {}
+        for s in settings():
+            if not self.plan.available(s):
+                self.log(f'eval: {s.split} {s.key}: no questioner checkpoint, left out')
+                continue
+            config = self.plan.eval_config(s)
+            t0 = time.monotonic()
+            run_baseline(config, self.cfg.progress)     # run_eval, and its wall time in <results>.runs.jsonl
+            out[f'{s.split}/{s.key}'] = round(time.monotonic() - t0, 1)
+            self.log(f'eval: {s.split} {s.key} in {out[f"{s.split}/{s.key}"]:.1f} s')
+        return {'seconds': out}
+
+    def check(self, resume: bool) -> dict:
+        """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
+        from dialfred_bringup.baselines import run_baseline
+
+        from dialfred_bringup.evaluation import resumable_results
+        from dialfred_sim.metrics import write_text_atomically
+        from dialfred_sim.tasks import load_split
+        p = self.plan
+        p.check_dir.mkdir(parents=True, exist_ok=True)
+        report = {'tasks': p.check_tasks, 'eval_path': p.eval_path, 'settings': {}}
+        for s in p.check_settings():
+            config = p.eval_config(s, check=True)
+            t0 = time.monotonic()
+            run_baseline(config, self.cfg.progress)
+            ids = [t.task_id for t in load_split(s.split)[:config.limit]]
+            graph = resumable_results(config, ids)
+            tables = resumable_results(p.eval_config(s), ids)
+            differing = [i for i in ids if i not in tables or
+                         dataclasses.replace(graph[i], wall_s=0.0) != dataclasses.replace(tables[i], wall_s=0.0)]
+            report['settings'][f'{s.split}/{s.key}'] = {'episodes': len(ids), 'differing': differing,
+                                                        'seconds': round(time.monotonic() - t0, 1)}
+            self.log(f'check: {s.split} {s.key}: {len(ids) - len(differing)} of {len(ids)} episodes the same '
+                     'through the graph')
+        write_text_atomically(p.check_dir / 'report.json', json.dumps(report, indent=1) + '\n')
+        return {'episodes': sum(r['episodes'] for r in report['settings'].values()),
+                'differing': sum(len(r['differing']) for r in report['settings'].values())}
+
+    def doc(self, resume: bool) -> dict:
+        report = build_report(self.plan, self.cfg.resamples)
+        paths = write_outputs(self.plan, report)
+        return {'doc': str(paths[0]), 'plot': str(paths[1]), 'sha256': sha256_of(paths[0].read_bytes())}
+
+    def outputs(self, stage: str) -> list[Path]:
+        p = self.plan
+        return {
+            'demos': [], 'dialogues': [], 'frames': [],          # caches: rewritten in place (same bytes)
+            'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
+            'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir], 'check': [p.check_dir],
+            'doc': [p.run / 'results.md', p.run / 'sr_nq.png'],
+        }[stage]
+
+    def run(self) -> dict:
+        self.cfg.run_dir.mkdir(parents=True, exist_ok=True)
+        t0 = time.monotonic()
+        for stage in STAGES:
+            if self.cfg.shipped and stage in TRAINING:
+                self.log(f'{stage}: skipped (--shipped)')
+                self.summary[stage] = {'status': 'shipped', 'seconds': 0.0}
+            else:
+                self.run_stage(stage, getattr(self, stage), self.outputs(stage))
+            if stage == self.cfg.until:
+                break
+        target = self.cfg.doc_target if 'doc' in self.summary else None
+        if target is not None:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            copy_doc(self.plan.run, target)
+        return {'run': str(self.cfg.run_dir), 'quick': self.cfg.quick, 'shipped': self.cfg.shipped,
+                'stages': self.summary, 'seconds': round(time.monotonic() - t0, 1),
+                'doc': str(self.plan.run / 'results.md'), 'copied_to': str(target) if target else None}
