@@ -249,9 +249,9 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         'put, open, close, turn on/off, slice) carrying one of the paper\'s 25 task types, each with a goal, a '
         'main-action instruction ("Chill the tomato.") and step-by-step instructions. Everything is '
         'deterministic from seeds: episode *k* of a split plays in room *k* mod (rooms of the split) with '
-        'a seed derived from (split, *k*), so regenerating a split gives the same tasks. The valid splits '
-        'ship in `src/dialfred_sim/dialfred_sim/data/tasks/`; `train` is generated on demand into '
-        '`~/.cache/dialfred/tasks/` (or `$DIALFRED_TASK_DIR`). Regenerate a split with',
+        'a seed derived from (split, *k*), so regenerating a split gives the same tasks. All three splits '
+        'ship in `src/dialfred_sim/dialfred_sim/data/tasks/` (a split missing there is read from '
+        '`~/.cache/dialfred/tasks/` or `$DIALFRED_TASK_DIR`). Regenerate a split with',
         '',
         '```bash',
         './dialfred env python3 -m dialfred_sim.tasks.splits <split>      # train, valid_seen or valid_unseen',

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compare two `./dialfred reproduce` runs: the same tables, episodes, weights and caches?
 
-    ./dialfred env python dialfred_bringup/compare_runs.py out/reproduce out/reproduce_b [--parts tables,episodes,weights,caches]
+    ./dialfred env python -m dialfred_bringup.compare_runs out/reproduce out/reproduce_b [--parts tables,episodes,weights,caches]
 
 A second run that is independent of the first needs its own caches; point them into its run folder:
 
@@ -238,7 +238,7 @@ def compare(a: Path, b: Path, parts=DEFAULT_PARTS, show: int = 5) -> dict:
 
 
 def main(argv: Optional[list[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog='dialfred_bringup/compare_runs.py', description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(prog="python -m dialfred_bringup.compare_runs", description=__doc__.split('\n')[0])
     ap.add_argument('a', type=Path, help='a run folder of ./dialfred reproduce')
     ap.add_argument('b', type=Path, help='another run folder')
     ap.add_argument('--parts', default=','.join(DEFAULT_PARTS),

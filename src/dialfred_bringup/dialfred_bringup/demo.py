@@ -9,7 +9,7 @@ steps, goal conditions, end reason). The frames come from the simulator's `sim/o
 (the observation after every reset and step). Each task is saved as a GIF of captioned frames (the
 instruction, the latest QA, the action) under --out, beside one contact sheet of all of them.
 
-    python dialfred_bringup/launch.py demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
+    ./dialfred launch demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
                                    [--checkpoint PATH (default: the shipped one)] [--resolution 64] [--seed 0]
                                    [--max-steps 100] [--out out/demo]
 """

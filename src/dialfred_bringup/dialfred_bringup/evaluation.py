@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Evaluation through the node graph: an agent plays (a part of) a split on simulator nodes.
 
-`python dialfred_bringup/launch.py eval ...` runs `--workers` simulator nodes, each in its own namespace
+`./dialfred launch eval ...` runs `--workers` simulator nodes, each in its own namespace
 (/eval_<pid>/w0/sim/step, /eval_<pid>/w1/sim/step, ...), drives them all from this process with
 asynchronous calls, appends each episode's result to the JSON-lines file as it ends (a rerun skips
 the tasks already there), and prints SR / PWSR / GC / NQ overall and per task type; the summary also
@@ -968,7 +968,7 @@ def add_eval_parser(sub) -> None:
                          'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
                          'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
                          'pretrained, rl-begin, rl-anytime (every 5 steps), rl-anytime-1, rl-anytime-10, '
-                         'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction '
+                         'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction, rl-anytime-no-dialogue '
                          '(the checkpoints shipped in dialfred_questioner/checkpoints), or learned:PATH (any '
                          'questioner checkpoint; results are named learned-<file stem>-<sha256[:8]>); '
                          'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')

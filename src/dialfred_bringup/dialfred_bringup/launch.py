@@ -6,14 +6,14 @@ way `ros2 run <pkg> node` does (ament index prefix + lib/<pkg>/node), starts it,
 services answer, runs a job, and shuts everything down on exit or Ctrl-C. A node that dies is
 reported with its exit code and the last lines it printed.
 
-    python dialfred_bringup/launch.py demo [--tasks 3] [--questioner all] [--checkpoint out/performer/et.pt]
+    ./dialfred launch demo [--tasks 3] [--questioner all] [--checkpoint out/performer/et.pt]
                                    # the learned performer plays a few tasks through the sim, oracle,
                                    # questioner and performer nodes (dialfred_bringup/demo.py); captioned GIFs
-    python dialfred_bringup/launch.py explore [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/explore]
+    ./dialfred launch explore [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/explore]
                                  # a scripted explorer through the simulator node alone; saves its frames
-    python dialfred_bringup/launch.py nodes              # start the graph (simulator + oracle) until Ctrl-C
-    python dialfred_bringup/launch.py dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
-    python dialfred_bringup/launch.py eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
+    ./dialfred launch nodes              # start the graph (simulator + oracle) until Ctrl-C
+    ./dialfred launch dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
+    ./dialfred launch eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
                                    (or --tasks PATH: a split file of your own, e.g. a sealed test split)
                                    [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
                                    [--seed 0] [--resolution 128]

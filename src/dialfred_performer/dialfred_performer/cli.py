@@ -11,21 +11,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import shlex
-import sys
 import typing
 from typing import Any, Iterator, Optional, Sequence, TypeVar
 
 C = TypeVar('C')
 SCALARS = (int, float, str, bool)
-
-# glibc malloc: big buffers stay on the heap and are never handed back; measured to cut batched CNN
-# time by 25-60% on this project's 2-core machine. Read by glibc at process start only.
-MALLOC_SETTINGS = {'MALLOC_MMAP_THRESHOLD_': '1000000000', 'MALLOC_TRIM_THRESHOLD_': '1000000000',
-                   'MALLOC_TOP_PAD_': '1000000000'}
-_REEXEC_MARK = 'DIALFRED_MALLOC_REEXEC'
-
 
 def arg(default: Any, help: str, **kwargs) -> Any:  # noqa: A002 - argparse's name
     """A config field with its help text."""
@@ -114,18 +105,6 @@ def to_argv(config) -> list[str]:
 
 def command_line(module: str, config) -> str:
     return shlex.join(['python', '-m', module, *to_argv(config)])
-
-
-def ensure_malloc_settings(module: str) -> None:
-    """Re-execute this process (`python -m module ARGS`) with MALLOC_SETTINGS unless they are set
-    already (`./dialfred env` and `./dialfred train-performer` set them)."""
-    missing = {k: v for k, v in MALLOC_SETTINGS.items() if k not in os.environ}
-    if not missing or os.environ.get(_REEXEC_MARK):
-        return
-    env = {**os.environ, **missing, _REEXEC_MARK: '1'}
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os.execve(sys.executable, [sys.executable, '-m', module, *sys.argv[1:]], env)
 
 
 def config_changes(saved: dict, cfg, allowed: Sequence[str]) -> dict:

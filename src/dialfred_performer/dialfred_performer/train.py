@@ -49,7 +49,8 @@ import torch
 
 from dialfred_sim.tasks.demonstrations import default_dir
 
-from .cli import MALLOC_SETTINGS, arg, command_line, config_changes, ensure_malloc_settings, parse
+from .cli import arg, command_line, config_changes, parse
+from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
 from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,

@@ -14,8 +14,8 @@ never got a gradient, and summed rewards and log-probabilities as running totals
 - `group_baseline`: a baseline from the other episodes of the same task and start (a leave-one-out
   mean of their returns). The env and the frozen performer are deterministic, so episodes of one
   task from one seed differ only by the questioner's choices: this baseline removes the task's
-  difficulty from the advantage, which the critic, seeing only the instruction, the frame and the
-  step, cannot do well (measured in docs/figures.md). It does not depend on the episode's own
+  difficulty from the advantage, which the critic, seeing only the instruction and the dialogue so
+  far, the frame and the step, cannot do well (measured in docs/figures.md). It does not depend on the episode's own
   actions, so the policy gradient stays unbiased.
 """
 

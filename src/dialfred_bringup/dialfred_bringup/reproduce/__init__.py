@@ -34,18 +34,18 @@ The document goes to the run folder, and is copied to docs/results.md (a full ru
 docs/results_shipped.md (`--shipped` in out/reproduce_shipped) or `--doc PATH`; a quick run or another
 `--out` copies it nowhere unless `--doc` says where, `--doc none` never.
 `--quick` runs the whole pipeline on slices (32 train tasks, a tiny performer and questioner, RL of
-2 updates x 8 episodes of at most 30 steps, evaluations of 8 tasks in this process); its numbers mean
+2 updates x 8 episodes of at most 30 steps, evaluations of 8 tasks by `--eval-path`); its numbers mean
 nothing, it checks the pipeline. Caches of the quick run stay in its run folder (DIALFRED_DIALOGUE_DIR
 and explicit paths), so it never replaces the full train data in ~/.cache.
 
 Everything is seeded (`--seed`). Each stage's output is reproducible: the demonstrations, dialogues
 and first frames are byte-identical across runs, and evaluating the same checkpoints gives the same
-episodes. Performer training usually repeats bit for bit, but not always: in session 9, one process
-in two of the same command differed by a rounding in its first updates and trained a different
-model, and the tables moved by up to 4.3 SR points (docs/benchmarks.md; `./dialfred bench
-training_determinism` looks for the cause). On the AMD EPYC of sessions 11-12 no process of 28 left the
-common stream, but that stream differs from the old CPU's from the first updates on, so a run on
-another CPU retrains other models. The run times, listed apart from the tables, always differ.
+episodes. Performer training repeats bit for bit on one CPU, but not on every one: on one machine, one
+process in two of the same command differed by a rounding in its first updates and trained a different
+model, and the tables moved by up to 4.3 SR points (`./dialfred bench training_determinism` looks for
+the cause; docs/figures.md). On an AMD EPYC no process of 28 left the common stream, but that stream
+differs from the other CPU's from the first updates on, so a run on another CPU retrains other models.
+The run times, listed apart from the tables, always differ.
 """
 
 from __future__ import annotations
