@@ -10,6 +10,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
+    package_data={package_name: ['templates/*']},
     install_requires=['setuptools'],
     zip_safe=False,
     license='MIT',
