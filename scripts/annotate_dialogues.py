@@ -186,105 +186,34 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str) -> l
 
 def doc_text(stats: dict[str, dict], shares: dict[str, dict], absent: Sequence[str],
              examples: Sequence[TaskDialogues]) -> str:
-    """docs/dialogue_data.md (its first line says that the data is synthetic)."""
+    """docs/dialogue_data.md (its first line says that the data is synthetic); the words are
+    templates/dialogue_data.md.j2, the model's numbers and the tables come from here."""
+    import jinja2
     m = CHOICE_MODEL
-    lines = [
-        '# Synthetic DialFRED dialogue data (generated, not human)',
-        '',
-        '<!-- Written by scripts/annotate_dialogues.py; edit the script, not this file. -->',
-        '',
-        'DialFRED\'s 53K human questions and answers (two Mechanical Turk workers per sub-goal) cannot be '
-        'obtained here. This data is made by a **synthetic annotator** (`dialfred_oracle/annotator.py`) that '
-        'plays the paper\'s annotation protocol on every task, with statistics calibrated to what the paper '
-        'reports for its humans. No person wrote or checked any of it; treat it as a stand-in for '
-        'pre-training a questioner, not as evidence about how people ask.',
-        '',
-        '```bash',
-        './dialfred env python3 scripts/annotate_dialogues.py --splits valid_seen valid_unseen train --workers 2',
-        '```',
-        '',
-        'writes `src/dialfred_oracle/dialfred_oracle/data/dialogues/{valid_seen,valid_unseen}.jsonl.gz` (shipped) '
-        'and `~/.cache/dialfred/dialogues/train.jsonl.gz` (or `$DIALFRED_DIALOGUE_DIR`), one gzip JSON line per '
-        'task: `task_id`, `task_type`, `instruction`, the `situation` features and two `annotations` '
-        '(`annotator_id`, `question_type` or null, `object_noun`, `question`, `answer`, `necessary`, '
-        '`oracle_answer`, `valid`). Load them with `dialfred_oracle.annotator.load_dialogues(split)`. '
-        f'Annotator *k* of task *n* of a split draws from `SeedSequence([{SEED}, split code, n, k])`, so a rerun '
-        'writes the same bytes.',
-        '',
-        '## The protocol (the paper\'s hybrid data collection, played by a program)',
-        '',
-        '1. **First clip.** The annotator sees the task\'s main instruction and the room at the task\'s start: '
-        'the ground-truth `Snapshot` (`dialfred_sim.ground_truth`). From it a `Situation` is read: is the main '
-        'target (the object of the task\'s first non-walking step; for a put, the receptacle) in the first '
-        'frame; is there another object of the same class as a task object; is the target behind the agent '
-        '(its direction bin from the start pose is one of the oracle\'s rear bins); is it shut in a closed '
-        'container or already in hand; does the main instruction name every object of the task.',
-        '2. **Question.** One of the paper\'s predefined questions or none: '
-        + ', '.join(f'"{QUESTION_TEMPLATES[t]}"' for t in QUESTION_TYPES) + '. The noun is one of the '
-        'task\'s object nouns (the instructions\' nouns): the main target most often; for appearance, a noun '
-        'with a look-alike in the room, and rarely an object the agent already holds; direction questions name '
-        'no object, as in the paper.',
-        '3. **Demonstration.** What the expert\'s demonstration shows is what the oracle knows '
-        '(`dialfred_oracle.answers.answer`: the receptacle and direction for location, colour from the rendered '
-        'pixels and material for appearance, the turn towards the expert\'s end pose for direction).',
-        '4. **Answer and feedback.** The annotator answers in its own words, paraphrasing the oracle\'s '
-        'content (several templates per type, synonyms for directions, prepositions, colours and "made of", '
-        'optional hedges such as "I think", inconsistent capitals and full stops; the receptacle noun is kept), '
-        'and says whether asking was necessary.',
-        '',
-        '## Noise and calibration model',
-        '',
-        '- **Which question.** Each annotator draws independently from '
-        '`P(c | situation) = softmax(bias_c + strength * evidence_c(situation))` over c in '
-        '{none, location, appearance, direction}. Evidence: *none* 1 for a clear situation (complete '
-        'instruction, target visible, no look-alike) and 0.5 if the target is in hand; *location* 1 if the target '
-        'is not visible, +0.5 if shut in, -1 if in hand; *appearance* 1 if the target has a look-alike, 0.5 if '
-        'only another task object has one; *direction* 2 if the target is behind (direction questions are '
-        'rare, so they must stand out where they fit). '
-        f'Fitted on the valid splits\' situations (`--fit`): strength = {m.strength}, bias = '
-        + ', '.join(f'{c} {b:+.3f}' for c, b in zip(CATEGORIES, m.bias)) + '. '
-        'The biases make the expected shares the paper\'s (none 0.34, questions 0.66 split 0.72 / 0.22 / 0.06); '
-        'the strength is the one whose expected Fleiss\' kappa between two independent annotators is the '
-        'paper\'s 0.13. So choices follow the situation (table below) but two annotators of the same task '
-        'often disagree, as the paper\'s workers did.',
-        '- **Answer length.** For each answer a target length 1 + Gamma(shape '
-        f'{LENGTH_SHAPE:g}, mean {LENGTH_MEAN - 1:g}) words is drawn and, of 12 wordings drawn from the '
-        'templates, the closest in length is said; the mean is tuned to the paper\'s 6.73 words.',
-        '- **Necessary.** P(yes) = ' + '; '.join(f'{t} {lo} / {hi}' for t, (lo, hi) in NECESSARY_P.items())
-        + ' (when the situation did not / did call for that question: target not visible or shut in, a '
-        'look-alike of the asked object, target behind). The paper reports no such figure.',
-        '- **What it cannot imitate.** Human vocabulary (the paper\'s 7,915 distinct answer words), typed '
-        'questions of the worker\'s own, wrong or careless answers, and workers who differ from each other in '
-        'habit: every synthetic annotator follows the same model.',
-        '',
-        '## Measured statistics',
-        '',
-    ]
-    if absent:
-        lines += ['Not annotated on the machine that wrote this file (tasks not generated): '
-                  + ', '.join(f'`{s}`' for s in absent) + '.', '']
-    lines += ['Words are tokens of `dialfred_sim.tasks.instructions.tokenize`. Kappa is Fleiss\' over the four '
-              'choices (none counts as a choice), two annotators per task.', '']
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).resolve().parent / 'templates'),
+                             autoescape=False, keep_trailing_newline=True, undefined=jinja2.StrictUndefined)
     names = list(stats)
-    rows = [[label] + [value(stats[n]) for n in names] + [paper] for label, value, paper in STAT_ROWS]
-    lines += table(['statistic', *names, 'paper (human)'], rows, 'l' + 'r' * (len(names) + 1))
-    lines += ['', '## Choices by situation (all annotated splits together)', '',
-              'Share of annotations choosing each question (or none) among tasks in a situation; a task can be in '
-              'several.', '']
-    rows = [[label, f"{v['annotations']:,}"] + [f'{v[c]:.2f}' for c in CATEGORIES] for label, v in shares.items()]
-    lines += table(['situation', 'annotations', *CATEGORIES], rows, 'lr' + 'r' * len(CATEGORIES))
-    lines += ['', f'## Examples (`{EXAMPLES_SPLIT}`)', '']
-    rows = []
+    stats_rows = [[label] + [value(stats[n]) for n in names] + [paper] for label, value, paper in STAT_ROWS]
+    share_rows = [[label, f"{v['annotations']:,}"] + [f'{v[c]:.2f}' for c in CATEGORIES] for label, v in shares.items()]
+    example_rows = []
     for r in examples:
         for a in r.annotations:
             asked = f'{a.question} -> "{a.answer}" ({"necessary" if a.necessary else "not necessary"})' \
                 if a.question_type else '(no question)'
-            rows.append([f'`{r.task_id}`' if a.annotator_id == 0 else '', r.instruction if a.annotator_id == 0 else '',
-                         str(a.annotator_id), asked.replace('|', '/'),
-                         a.oracle_answer.replace('|', '/') if a.question_type else ''])
-    lines += table(['task', 'instruction', 'annotator', 'question -> free-form answer', 'oracle\'s answer'],
-                   rows, 'lllll')
-    return '\n'.join(lines) + '\n'
+            example_rows.append([f'`{r.task_id}`' if a.annotator_id == 0 else '', r.instruction if a.annotator_id == 0 else '',
+                                 str(a.annotator_id), asked.replace('|', '/'),
+                                 a.oracle_answer.replace('|', '/') if a.question_type else ''])
+    return env.get_template('dialogue_data.md.j2').render(
+        seed=SEED, questions=', '.join(f'"{QUESTION_TEMPLATES[t]}"' for t in QUESTION_TYPES),
+        strength=m.strength, bias=', '.join(f'{c} {b:+.3f}' for c, b in zip(CATEGORIES, m.bias)),
+        length_shape=f'{LENGTH_SHAPE:g}', length_mean=f'{LENGTH_MEAN - 1:g}',
+        necessary='; '.join(f'{t} {lo} / {hi}' for t, (lo, hi) in NECESSARY_P.items()),
+        absent=', '.join(f'`{s}`' for s in absent),
+        stats_table='\n'.join(table(['statistic', *names, 'paper (human)'], stats_rows, 'l' + 'r' * (len(names) + 1))),
+        shares_table='\n'.join(table(['situation', 'annotations', *CATEGORIES], share_rows, 'lr' + 'r' * len(CATEGORIES))),
+        examples_split=EXAMPLES_SPLIT,
+        examples_table='\n'.join(table(['task', 'instruction', 'annotator', 'question -> free-form answer',
+                                        'oracle\'s answer'], example_rows, 'lllll')))
 
 
 def pick_examples(rows: Sequence[TaskDialogues], count: int = EXAMPLE_COUNT) -> list[TaskDialogues]:

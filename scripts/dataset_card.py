@@ -185,44 +185,6 @@ def job_type_table(stats: dict[str, dict]) -> list[str]:
     return markdown_table(['ALFRED job type (episodes)', *stats], rows, 'l' + 'r' * len(stats))
 
 
-# How the evaluation scores an episode, GC's definition beside ALFRED's.
-METRICS_SECTION = [
-    '## Metrics',
-    '',
-    '`dialfred_sim/metrics.py` scores an evaluated episode as the paper does (after ALFRED), with one'
-    ' change to GC:',
-    '',
-    '- **SR**: a task succeeds when every goal condition holds; the episode ends at that moment.',
-    "- **PWSR**: success weighted by path length, s L* / max(L*, L), with L* the expert's length and "
-    "L the agent's steps.",
-    "- **GC** (goal-condition success). ALFRED's is the fraction of the goal's conditions that hold "
-    'at the end of the episode. Ours is the fraction of the conditions **that did not hold when the '
-    "task started** that hold at the end (`dialfred_sim.tasks.goals.goal_progress`). ALFRED's "
-    'episodes start in a fresh room, where hardly any condition holds yet. A DialFRED task starts '
-    "where the previous task of its episode ended, and there some do. A Heat task's goal is [the "
-    'object is hot, it is in hand, the microwave is closed], and the object is in hand and the '
-    "microwave closed when the task starts. Counted ALFRED's way, an agent that stops at once scored "
-    'GC 66.7% on every Clean, Cool and Heat task and 50% on Open & Pick & Close and Open & Put & '
-    "Close: 6.3% over an earlier valid_unseen, near the random agent's 7.8%. "
-    "And the expert's GC fell from 2/3 to 0/3 while it put the object into the microwave. Counted our"
-    " way, doing nothing scores 0 on every task, and GC never falls along the expert's path "
-    '(`./dialfred bench expert_gc`, every task of both valid splits).',
-    '  - GC 100% does not mean success. Success also needs the conditions that held at the start to '
-    'hold at the end. An agent that heats the apple and leaves it in the microwave has made the one '
-    'change the task asked for (GC 1/1), but it has not finished the task (the apple is not in hand).',
-    '  - Undoing a condition that held at the start costs success, never GC. GC falls only when the agent'
-    ' undoes what it achieved itself (it walks away from the place it had reached, or opens again what it'
-    ' had closed).',
-    '  - Every generated task has at least one condition left to do (the generator drops a task whose'
-    ' goal already holds). A hand-made task with none scores GC = its success (0 or 1).',
-    "  - The simulator reports both numbers: `info['goal_conditions_met']` and "
-    "`info['goal_conditions_total']` in the Gymnasium env, the same fields in the `/sim/step` reply, "
-    'and `goal_conditions_total` in the `/sim/reset` reply and the oracle\'s task answer key.',
-    '- **NQ**: questions asked per task (NQ_invalid: those the oracle could not answer).',
-    '',
-]
-
-
 def twin_table(twins: dict[str, dict]) -> list[str]:
     rows = [['navigation goals (`Move` and `Pick & Move` tasks)']
             + [_integer(t['navigation_goals']) for t in twins.values()],
@@ -235,124 +197,31 @@ def twin_table(twins: dict[str, dict]) -> list[str]:
 
 def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[Task],
               twins: dict[str, dict] | None = None) -> str:
-    """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples."""
-    present = ', '.join(f'`{name}`' for name in stats)
-    lines = [
-        '# DialFRED task data (generated)',
-        '',
-        '<!-- Written by scripts/dataset_card.py; edit the script, not this file. -->',
-        '',
-        'The tasks are procedurally generated ALFRED-style episodes played by our expert in our pybullet '
-        'rooms: for each episode the generator picks a room and one of ALFRED\'s 7 job types (e.g. heat an '
-        'apple and put it on the table), sets the room up so the job is possible, and records the expert\'s '
-        'low-level actions. Each episode is then cut into runs of consecutive primitives (go to, pick up, '
-        'put, open, close, turn on/off, slice) carrying one of the paper\'s 25 task types, each with a goal, a '
-        'main-action instruction ("Chill the tomato.") and step-by-step instructions. Everything is '
-        'deterministic from seeds: episode *k* of a split plays in room *k* mod (rooms of the split) with '
-        'a seed derived from (split, *k*), so regenerating a split gives the same tasks. All three splits '
-        'ship in `src/dialfred_sim/dialfred_sim/data/tasks/` (a split missing there is read from '
-        '`~/.cache/dialfred/tasks/` or `$DIALFRED_TASK_DIR`). Regenerate a split with',
-        '',
-        '```bash',
-        './dialfred env python3 -m dialfred_sim.tasks.splits <split>      # train, valid_seen or valid_unseen',
-        './dialfred env python3 scripts/dataset_card.py                   # then this card',
-        '```',
-        '',
-        'A sealed test split is not shipped: each user makes one from a seed of their own, in rooms no '
-        'shipped split uses, with the same generator and checks, and evaluates on it:',
-        '',
-        '```bash',
-        f'./dialfred env python3 -m dialfred_sim.tasks.splits {TEST_SPLIT} --seed S --size N --out PATH   '
-        '# N tasks; --workers 2',
-        './dialfred launch eval --tasks PATH --agent expert',
-        './dialfred env python3 scripts/dataset_card.py --tasks PATH      # its statistics, without this card',
-        '```',
-        '',
-        '## How this differs from the paper\'s data',
-        '',
-        '- **Episodes.** DialFRED cut its tasks out of ALFRED\'s episodes: expert demonstrations in AI2-THOR '
-        '(112 rooms, 80 object types), each annotated by people with a goal and step-by-step sentences. '
-        'Ours are generated by our planner in pybullet re-creations of the ALFRED floor plans; object '
-        'placement, the expert\'s paths and hence the expert lengths are ours, and no person wrote or '
-        'checked any of it.',
-        '- **Instructions.** The paper also builds its task instructions from templates per low-level '
-        'action (step-by-step) plus a main-action instruction; ours follow that recipe with DialFRED\'s '
-        'verb synonyms and our object nouns. What we lack is any human language: none of ALFRED\'s human '
-        'annotations and none of DialFRED\'s 53K human questions and answers. The vocabulary is therefore '
-        'small and every instruction is grammatical and correct, unlike crowd-sourced text.',
-        '- **Sizes.** The split sizes are the paper\'s by construction (train {:,}, valid_seen {:,}, '
-        'valid_unseen {:,} tasks); the mix of task types follows from our episodes, not from ALFRED\'s.'
-        .format(SPLIT_SIZES['train'], SPLIT_SIZES['valid_seen'], SPLIT_SIZES['valid_unseen']),
-        '- **Rooms.** As in ALFRED, valid_unseen uses rooms never seen in train (FloorPlan'
-        + ', '.join(map(str, VALID_UNSEEN_SCENES)) + ') and valid_seen reuses train\'s rooms. '
-        'ALFRED\'s test_unseen rooms (FloorPlan' + ', '.join(map(str, TEST_UNSEEN_SCENES)) + ') are in no '
-        'shipped split; only a test split of your own uses them.',
-        '',
-        *METRICS_SECTION,
-        '## Summary per split',
-        '',
-        f'Splits present when this card was written: {present}.',
-    ]
-    if absent:
-        lines.append('Absent (not generated on the machine that wrote this card): '
-                     + ', '.join(f'`{name}` ({SPLIT_SIZES[name]:,} tasks once generated)' for name in absent) + '.')
-    lines += [
-        '',
-        'Expert actions are low-level actions (moves, turns, looks, interactions). Word counts are tokens '
-        'of `dialfred_sim.tasks.instructions.tokenize`; the step-by-step count adds up all step sentences of '
-        'a task. A distractor is a second object of the target\'s class in the room; "not visible at start" '
-        'means the target is outside the first frame.',
-        '',
-        *summary_table(stats),
-        '',
-        '## Tasks per type',
-        '',
-        *task_type_table(stats),
-        '',
-        '## Episodes per ALFRED job type',
-        '',
-        *job_type_table(stats),
-        '',
-    ]
+    """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples (the
+    words are templates/dataset.md.j2; the numbers and tables come from here)."""
+    import jinja2
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).resolve().parent / 'templates'),
+                             autoescape=False, keep_trailing_newline=True, undefined=jinja2.StrictUndefined)
+    context = dict(
+        test_split=TEST_SPLIT, sizes={k: f'{v:,}' for k, v in SPLIT_SIZES.items()},
+        valid_unseen_scenes=', '.join(map(str, VALID_UNSEEN_SCENES)),
+        test_unseen_scenes=', '.join(map(str, TEST_UNSEEN_SCENES)),
+        present=', '.join(f'`{name}`' for name in stats),
+        absent=', '.join(f'`{name}` ({SPLIT_SIZES[name]:,} tasks once generated)' for name in absent),
+        summary_table='\n'.join(summary_table(stats)), task_type_table='\n'.join(task_type_table(stats)),
+        job_type_table='\n'.join(job_type_table(stats)), twins=bool(twins), examples=bool(examples),
+        example_resolution=EXAMPLE_RESOLUTION, example_split=EXAMPLE_SPLIT)
     if twins:
         named = EXAMPLE_SPLIT if EXAMPLE_SPLIT in twins else next(iter(twins))
-        lines += [
-            '## Navigation goals with a twin',
-            '',
-            'A navigation goal is a task whose goal includes getting an object in view and within reach '
-            '(the `reachable` condition of the task types `Move` and `Pick & Move`). Its target has a **twin** '
-            'when, in the room as the task starts, another object has the same type and the same colour: '
-            'the instruction ("Walk to the counter.") and an appearance answer fit both; of the answers, only '
-            'the location answer, which says where the object is as seen from the agent, tells them apart '
-            '(direction answers lead to where the expert ends, without naming the object). Counted by '
-            '`navigation_twins` in `scripts/dataset_card.py`, which rebuilds each task\'s first state.',
-            '',
-            *twin_table(twins),
-            '',
-            f'Targets with a twin in `{named}`, by type: '
-            + ', '.join(f'{name} {n}' for name, n in twins[named]['twin_types'].items()) + '.',
-            '',
-        ]
         left_out = {name: t['not_rebuilt'] for name, t in twins.items() if t.get('not_rebuilt')}
-        if left_out:
-            lines += ['Left out because the simulator refuses to rebuild their first state (the split was made '
-                      'under older physics; regenerate it): '
-                      + ', '.join(f'{n:,} navigation goals of `{name}`' for name, n in left_out.items()) + '.', '']
+        context.update(twin_table='\n'.join(twin_table(twins)), twins_named=named,
+                       twin_types=', '.join(f'{name} {n}' for name, n in twins[named]['twin_types'].items()),
+                       left_out=', '.join(f'{n:,} navigation goals of `{name}`' for name, n in left_out.items()))
     if examples:
-        lines += [
-            '## Examples',
-            '',
-            f'First frames ({EXAMPLE_RESOLUTION}x{EXAMPLE_RESOLUTION}) of six `{EXAMPLE_SPLIT}` tasks of '
-            'different types, with the main-action instruction the agent receives:',
-            '',
-            '![six example tasks](images/task_examples.png)',
-            '',
-            *markdown_table(['task', 'type', 'main instruction', 'step-by-step instructions'],
-                            [[f'`{t.task_id}`', t.task_type, t.instruction, ' '.join(t.step_instructions)]
-                             for t in examples], 'llll'),
-            '',
-        ]
-    return '\n'.join(lines)
+        context['examples_table'] = '\n'.join(markdown_table(
+            ['task', 'type', 'main instruction', 'step-by-step instructions'],
+            [[f'`{t.task_id}`', t.task_type, t.instruction, ' '.join(t.step_instructions)] for t in examples], 'llll'))
+    return env.get_template('dataset.md.j2').render(**context)
 
 
 # ---------------------------------------------------------------------- example image
