@@ -209,8 +209,12 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
     worker = dialfred_bringup.evaluation.PerformerWorker.__init__
 
     def init(self, g, namespace, config, on_feedback=None):
-        g.client_node.create_subscription(QAPair, f'{namespace}/dialogue/qa', qas.append, 100)
-        g.client_node.create_subscription(QAPair, f'{namespace}/questioner/question', decided.append, 100)
+        subs = [g.client_node.create_subscription(QAPair, f'{namespace}/dialogue/qa', qas.append, 100),
+                g.client_node.create_subscription(QAPair, f'{namespace}/questioner/question', decided.append, 100)]
+        # the topics are volatile: wait until both publishers are matched, or a loaded machine loses the first
+        deadline = time.monotonic() + 60
+        while any(s.get_publisher_count() == 0 for s in subs) and time.monotonic() < deadline:
+            g.executor.spin_once(timeout_sec=0.1)
         worker(self, g, namespace, config, on_feedback=lambda task, fb: counts.append(fb.questions))
 
     monkeypatch.setattr(dialfred_bringup.evaluation.PerformerWorker, '__init__', init)
