@@ -220,7 +220,7 @@ def _interrupt(signum, frame):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(prog='./dialfred launch', description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
     add_demo_parser(sub)
     explore = sub.add_parser('explore', help='scripted exploring episode through the simulator node; saves frames')
