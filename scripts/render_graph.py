@@ -25,7 +25,7 @@ SCALE = 2                # the PNG is drawn this much larger, then scaled down
 # name: (x0, y0, x1, y1), title, lines under it
 NODES = {
     'client': ((290, 84, 610, 150), 'launcher client',
-               ['node dialfred_launcher (launch.py eval / demo)', 'PerformerWorker, evaluation.py']),
+               ['node dialfred_launcher (launch.py eval / demo)', 'PerformerWorker, workers.py']),
     'performer': ((340, 280, 560, 336), 'performer', ['node dialfred_performer']),
     'questioner': ((30, 460, 230, 516), 'questioner', ['node dialfred_questioner']),
     'oracle': ((650, 460, 870, 516), 'oracle', ['node dialfred_oracle', '(+ dialfred_oracle_sim_client)']),
@@ -35,7 +35,7 @@ NODES = {
 # kind, name, type, from, to, path (the last point is the arrow's tip), label (x, y, anchor), step, note.
 # A label is its step's number, the name, the type and the note, one line each, from its first baseline.
 EDGES = [
-    # evaluation.py PerformerWorker: ActionClient(graph.client_node, RunTask, '<ns>/performer/run_task');
+    # workers.py PerformerWorker: ActionClient(graph.client_node, RunTask, '<ns>/performer/run_task');
     # performer/node.py: ActionServer(self, RunTask, 'performer/run_task')
     ('action', 'performer/run_task', 'dialfred_msgs/action/RunTask', 'client', 'performer',
      [(480, 150), (480, 280)], (494, 196, 'start'), 1, 'goal (task id, seed) ↓, feedback and result ↑'),
@@ -172,7 +172,7 @@ def render_png(path: Path) -> None:
     s = SCALE
     img = Image.new('RGB', (W * s, H * s), (255, 255, 255))
     d = ImageDraw.Draw(img)
-    P = lambda pts: [(x * s, y * s) for x, y in pts]     # noqa: E731
+    P = lambda pts: [(x * s, y * s) for x, y in pts]
     for (x0, y0, x1, y1), _, _ in NODES.values():
         d.rounded_rectangle((x0 * s, y0 * s, x1 * s, y1 * s), radius=8 * s, fill=NODE_FILL, outline=NODE_EDGE,
                             width=int(1.5 * s))

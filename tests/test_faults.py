@@ -156,7 +156,7 @@ def test_a_results_file_cut_mid_line_is_reported_and_its_episode_replayed(checkp
 
 @pytest.mark.slow   # fault injection on whole evaluations; fast: test_eval (resume, Ctrl-C), test_integrity (resend), test_sim_node (restart)
 def test_a_node_that_dies_at_every_start_is_given_up_on(tmp_path):
-    from dialfred_bringup.evaluation import Supervisor
+    from dialfred_bringup.workers import Supervisor
     from dialfred_bringup.graph import Graph, NodeDied, NodeProcess
     # a performer node with a bad parameter dies while it starts, every time
     nodes_of = {'/dying': [NodeProcess('dialfred_performer', {'record_format': 'gif'}, namespace='/dying')]}

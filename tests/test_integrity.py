@@ -149,7 +149,7 @@ def test_a_users_class_cannot_make_itself_privileged(cheaters):
 
 
 def test_an_unanswered_reset_is_sent_again_but_a_step_never_is(monkeypatch):
-    import dialfred_bringup.evaluation
+    import dialfred_bringup.workers
 
     class Future:
         def done(self):
@@ -166,9 +166,9 @@ def test_an_unanswered_reset_is_sent_again_but_a_step_never_is(monkeypatch):
         def remove_pending_request(self, future):
             self.removed += 1
 
-    worker = dialfred_bringup.evaluation.SimWorker.__new__(dialfred_bringup.evaluation.SimWorker)
+    worker = dialfred_bringup.workers.SimWorker.__new__(dialfred_bringup.workers.SimWorker)
     cli = Client()
-    monkeypatch.setattr(dialfred_bringup.evaluation, 'RESEND_AFTER_S', 0.0)
+    monkeypatch.setattr(dialfred_bringup.workers, 'RESEND_AFTER_S', 0.0)
     for pending, resent in (('reset', True), ('question', True), ('step', False)):
         cli.sent.clear()
         worker._send(cli, pending, pending)

@@ -31,8 +31,9 @@ from dialfred_questioner.policy import LearnedQuestioner, retimed
 from dialfred_questioner.questioners import make_questioner
 from dialfred_questioner.rollout import Timing
 
-import dialfred_bringup.evaluation
-from dialfred_bringup.evaluation import EvalConfig, run_eval, worker_nodes
+import dialfred_bringup.workers
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.workers import worker_nodes
 from dialfred_bringup.graph import Graph, NodeProcess
 
 REPO = Path(__file__).resolve().parents[1]
@@ -206,7 +207,7 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
         return report.results[-1], [(a.step, a.qa.question.question_type, a.qa.question.object_noun, a.qa.valid,
                                      a.qa.answer) for a in dialogue]
     counts, qas, decided = [], [], []
-    worker = dialfred_bringup.evaluation.PerformerWorker.__init__
+    worker = dialfred_bringup.workers.PerformerWorker.__init__
 
     def init(self, g, namespace, config, on_feedback=None):
         subs = [g.client_node.create_subscription(QAPair, f'{namespace}/dialogue/qa', qas.append, 100),
@@ -217,7 +218,7 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
             g.executor.spin_once(timeout_sec=0.1)
         worker(self, g, namespace, config, on_feedback=lambda task, fb: counts.append(fb.questions))
 
-    monkeypatch.setattr(dialfred_bringup.evaluation.PerformerWorker, '__init__', init)
+    monkeypatch.setattr(dialfred_bringup.workers.PerformerWorker, '__init__', init)
     report = run_eval(config, progress=False, traces={})       # traces: wait for the last messages
     result = report.results[-1]
     assert result.end_reason != 'error', result.error

@@ -21,8 +21,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .evaluation import (EvalConfig, LiveHook, PerformerWorker, add_record_options, play_episodes, record_options,
-                           start_live_view, worker_nodes)
+from .evaluation import EvalConfig, add_record_options, record_options
+from .workers import LiveHook, PerformerWorker, play_episodes, start_live_view, worker_nodes
 from .graph import Graph
 from .paths import REPO
 

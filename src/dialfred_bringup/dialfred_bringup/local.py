@@ -1,7 +1,7 @@
 """Evaluation without ROS: the episodes `launch eval` plays through the graph, played in worker processes
 that each hold a simulator, the oracle's rules and the agent (`./dialfred launch eval --local`).
 
-Each worker plays the one episode loop (`dialfred_sim.episode.play`) that `evaluation.SimWorker` plays
+Each worker plays the one episode loop (`dialfred_sim.episode.play`) that `workers.SimWorker` plays
 through the simulator and oracle nodes, served here by `dialfred_oracle.local.EnvServer`: the simulator
 resets to the task (`DialfredEnv.reset(options={'task': task})`, as the node's `/sim/reset` with a task
 id does), the questions are answered by the oracle node's rules and perturbation, keyed on the same

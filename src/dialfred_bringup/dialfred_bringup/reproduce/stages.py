@@ -56,9 +56,9 @@ CODE = {
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
-    'eval': (f'{UP}/evaluation.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py', f'{QUES}/policy.py',
+    'eval': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py', f'{QUES}/policy.py',
              f'{PERF}/agent.py', f'{SIM}/metrics.py'),
-    'check': (f'{UP}/evaluation.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
+    'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
     'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
 }
