@@ -40,6 +40,7 @@ def lines_of(folder: Path) -> dict:
     return {p.name: len(p.read_text().splitlines()) for p in sorted((folder / 'out').glob('*.jsonl'))}
 
 
+@pytest.mark.slow   # the baselines script end to end; fast: test_eval_local, reproduce's document tests
 def test_every_baseline_is_played_reported_and_documented_and_a_rerun_resumes(run, capfd):
     folder, argv = run
     report = call(capfd, argv)

@@ -138,6 +138,7 @@ class _AskingAnotherSimulator(NodeProcess):
         return super().command() + ['-r', f'sim/ground_truth:={self.sim_namespace}/sim/ground_truth']
 
 
+@pytest.mark.slow   # fast: test_ground_truth's cache tests (the snapshot of the moment, close-ups equal fresh renders)
 def test_answers_with_the_cache_are_byte_identical_to_fetching_the_world_every_time():
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import SimStep
@@ -175,6 +176,7 @@ def test_without_a_simulator_the_oracle_says_so():
         assert not reply.valid and 'simulator' in reply.reason
 
 
+@pytest.mark.slow   # fast: test_answers (the perturbation withholds one type at the given rate, deterministically)
 def test_the_perturbation_withholds_about_half_of_one_type_reproducibly():
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import SimStep

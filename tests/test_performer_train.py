@@ -140,6 +140,7 @@ def test_prepared_dialogues_are_those_of_generate_dialogues_whatever_the_shardin
     assert not list(tmp_path.glob('dialogues-*.part'))
 
 
+@pytest.mark.slow   # fast: prepared dialogues equal generate_dialogues whatever the sharding; the probe before the middle
 def test_the_oracle_probe_asks_what_a_replay_asks_and_leaves_the_frames_alone(tmp_path, monkeypatch):
     """prepare asks the dialogues' QAs while rendering (OracleProbe): the same dialogues.jsonl as
     replaying every task afterwards (generate_dialogues), the same frames and records as a build
