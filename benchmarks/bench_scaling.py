@@ -1,7 +1,7 @@
 """Evaluation throughput against workers on this machine, and what a 1,000-task evaluation costs on N
 machines (docs/scaling.md).
 
-For each --workers W, a fresh `dialfred_bringup/launch.py eval` (a process of its own, in a ROS domain of its
+For each --workers W, a fresh `./dialfred launch eval` (a process of its own, in a ROS domain of its
 own, its results in a temporary folder) plays the first --limit tasks of --split, --repeats times; its
 summary gives the start-up (nodes started and answering) and the episode loop's time. Printed as JSON:
 per W, the loop's episodes/s, seconds per task, start-up and speed-up over the first W; then, with the
@@ -36,7 +36,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 def run_once(args, workers: int, out: Path) -> dict:
     """One evaluation with `workers` workers in a process of its own: its summary's `this_run`."""
-    cmd = [sys.executable, str(REPO / 'dialfred_bringup/launch.py'), 'eval', '--split', args.split, '--agent', args.agent,
+    cmd = [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', args.split, '--agent', args.agent,
            '--limit', str(args.limit), '--workers', str(workers), '--resolution', str(args.resolution),
            '--seed', str(args.seed), '--out', str(out), '--no-progress']
     if args.performer:
