@@ -98,7 +98,7 @@ class SimWorker(EpisodeObserver):
             self._send(self.reset_cli, SimReset.Request(task_id=self.task.task_id, with_depth=False,
                                                         with_segmentation=False), 'reset')
         elif isinstance(request, Ask):
-            self.asking = request.question     # (not `question`: the observer method)
+            self.asking = request.question
             self._send(self.ask_cli, OracleAnswer.Request(question_type=request.question.question_type,
                                                           object_noun=request.question.object_noun), 'question')
         else:
@@ -106,7 +106,7 @@ class SimWorker(EpisodeObserver):
                                                       with_depth=False, with_segmentation=False), 'step')
 
     # EpisodeObserver: the recorder, the live view and the traces of the actions sent
-    def started(self, state, reply) -> None:
+    def on_started(self, state, reply) -> None:
         if self.config.record is not None:
             from dialfred_sim.bag import EpisodeRecorder
             t = reply.raw.task       # what the agent is told
@@ -114,17 +114,17 @@ class SimWorker(EpisodeObserver):
                                             image_format=self.config.record_format)
             self.recorder.observation_msg(reply.raw.observation)
 
-    def question(self, state, qa, step: int) -> None:
+    def on_question(self, state, qa, step: int) -> None:
         if self.recorder is not None:
             from dialfred_sim.messages import qa_msg
             self.recorder.question_msg(step, qa_msg(qa))
         if self.live is not None:
             self.live.qa(qa.question.question_type, qa.question.object_noun, qa.answer, qa.valid)
 
-    def action(self, state, action: str, x: int, y: int) -> None:
+    def on_action(self, state, action: str, x: int, y: int) -> None:
         self.traces[self.task.task_id].append((action, x, y))
 
-    def stepped(self, state, reply, action: str, x: int, y: int) -> None:
+    def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
         obs = reply.raw.observation
         if self.recorder is not None:
             self.recorder.action(int(obs.step_count), action, x, y, obs.last_action_success, state.questions)
@@ -132,7 +132,7 @@ class SimWorker(EpisodeObserver):
         if self.live is not None:
             self.live.action(int(obs.step_count), action, obs.last_action_success)
 
-    def ended(self, state) -> None:
+    def on_ended(self, state) -> None:
         if self.recorder is not None:
             self.recorder.result(success=state.success, steps=state.steps, goal_conditions_met=state.goal_conditions_met,
                                  goal_conditions_total=state.goal_conditions_total,

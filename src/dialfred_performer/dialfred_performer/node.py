@@ -280,7 +280,7 @@ class GoalRun(EpisodeObserver):
         return sim_reply(reply)
 
     # the observer
-    def started(self, state: EpisodeState, reply) -> None:
+    def on_started(self, state: EpisodeState, reply) -> None:
         node, task = self.node, reply.task     # the public view: all the simulator tells any client
         if node.record_dir:
             node.recorder = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns,
@@ -288,7 +288,7 @@ class GoalRun(EpisodeObserver):
             node.recorder.observation_msg(reply.raw.observation)
         self.result.goal_conditions_total = int(reply.goal_conditions_total)
 
-    def question(self, state: EpisodeState, qa: QA, step: int) -> None:
+    def on_question(self, state: EpisodeState, qa: QA, step: int) -> None:
         self.result.questions += 1
         self.result.invalid_questions += not qa.valid
         self.result.dialogue.append(qa_msg(qa))
@@ -296,10 +296,10 @@ class GoalRun(EpisodeObserver):
         if self.node.recorder is not None:
             self.node.recorder.question_msg(self.result.steps, qa_msg(qa))
 
-    def action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
+    def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
         self.node.action_pub.publish(Action(action=action, x=x, y=y))
 
-    def stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
+    def on_stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
         result, observation = self.result, reply.raw.observation
         result.steps, result.failed_actions = int(observation.step_count), int(observation.failed_actions)
         result.goal_conditions_met = int(reply.goal_conditions_met)
@@ -312,7 +312,7 @@ class GoalRun(EpisodeObserver):
             self.node.recorder.action(result.steps, action, x, y, observation.last_action_success, result.questions)
             self.node.recorder.observation_msg(observation)
 
-    def ended(self, state: EpisodeState) -> None:
+    def on_ended(self, state: EpisodeState) -> None:
         if state.end_reason == 'error':          # too many questions in a row: the goal fails
             raise GoalFailed(state.error)
         self.result.success = state.success

@@ -128,7 +128,7 @@ class RolloutAgent(EpisodeObserver):
         self.had_chance = False
         return self.performer.act(observation['rgb'])
 
-    def stepped(self, state, reply, action: str, x: int, y: int) -> None:
+    def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
         self.episode.steps += 1
         self.steps_since += 1
         self.episode.success = bool(reply.success)

@@ -108,21 +108,22 @@ class EpisodeState:
 
 
 class EpisodeObserver:
-    """Sees an episode as it is played; every method is optional."""
+    """Sees an episode as it is played; every method is optional. The hooks are named on_* so that one
+    object can be an agent (reset / ask / hear / act) and an observer at once."""
 
-    def started(self, state: EpisodeState, reply: SimReply) -> None:
+    def on_started(self, state: EpisodeState, reply: SimReply) -> None:
         """The simulator started the episode (before the agent is told the task)."""
 
-    def question(self, state: EpisodeState, qa: QA, step: int) -> None:
+    def on_question(self, state: EpisodeState, qa: QA, step: int) -> None:
         """The oracle answered (before the agent hears it); `step`: actions taken so far."""
 
-    def action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
+    def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
         """The agent decided (before the simulator is asked to act)."""
 
-    def stepped(self, state: EpisodeState, reply: SimReply, action: str, x: int, y: int) -> None:
+    def on_stepped(self, state: EpisodeState, reply: SimReply, action: str, x: int, y: int) -> None:
         """The simulator took the action (`reply.ok`), before the episode's end is checked."""
 
-    def ended(self, state: EpisodeState) -> None:
+    def on_ended(self, state: EpisodeState) -> None:
         """The episode ended: `state.end_reason` says how."""
 
 
@@ -143,17 +144,15 @@ def play(agent, *, seed: int, told: Any = None, asks: bool = True, max_questions
         state.failed_actions = int(reply.failed_actions) if reply is not None else 0
         state.error = '' if success else (error or state.last_error)
         for o in observers:
-            o.ended(state)
+            o.on_ended(state)
         return state
 
     reply = yield RESET
-    if isinstance(reply, Failed):
-        return end('error', error=reply.error)
-    if not reply.ok:
+    if isinstance(reply, Failed) or not reply.ok:
         return end('error', error=reply.error)
     state.goal_conditions_total = int(reply.goal_conditions_total)
     for o in observers:
-        o.started(state, reply)
+        o.on_started(state, reply)
     agent.reset(told if told is not None else reply.task, seed)
     current = reply
     while True:
@@ -172,13 +171,13 @@ def play(agent, *, seed: int, told: Any = None, asks: bool = True, max_questions
             state.invalid_questions += not qa.valid
             state.dialogue.append(qa)
             for o in observers:
-                o.question(state, qa, int(current.step_count))
+                o.on_question(state, qa, int(current.step_count))
             agent.hear(qa)
         name, x, y = agent.act(current.observation)
         x, y = int(x), int(y)
         state.last_action = name
         for o in observers:
-            o.action(state, name, x, y)
+            o.on_action(state, name, x, y)
         reply = yield Step(name, x, y)
         if isinstance(reply, Failed):
             return end('error', error=reply.error)
@@ -188,7 +187,7 @@ def play(agent, *, seed: int, told: Any = None, asks: bool = True, max_questions
         state.goal_conditions_total = int(reply.goal_conditions_total)
         state.steps, state.failed_actions = int(reply.step_count), int(reply.failed_actions)
         for o in observers:
-            o.stepped(state, reply, name, x, y)
+            o.on_stepped(state, reply, name, x, y)
         if not reply.last_action_success:
             state.last_error = reply.last_action_error
         if reply.terminated or reply.truncated:
