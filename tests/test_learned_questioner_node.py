@@ -196,7 +196,8 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
     published on questioner/question must be the same)."""
     from dialfred_msgs.msg import QAPair
     config = EvalConfig(split=SPLIT, agent='et', questioner=f'learned:{checkpoint}', limit=TASK_INDEX + 1,
-                        workers=1, out=tmp_path / f'{"graph" if graph else "local"}.jsonl',
+                        resolution=128, workers=1,   # the rollout's DialfredEnv(resolution=128)
+                        out=tmp_path / f'{"graph" if graph else "local"}.jsonl',
                         performer='et' if graph else '', **kw)
     if not graph:
         agents = []

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from dialfred_performer.cli import to_argv
+from dialfred_sim.dataclass_cli import to_argv
 from dialfred_performer.data import DemonstrationDataset, collate
 from dialfred_performer.distributed import Ranks, check_batch, rank_share, sharded_loss
 from dialfred_performer.model import Performer, PerformerConfig, load_checkpoint, performer_loss

@@ -21,7 +21,7 @@ import pytest
 import torch
 from PIL import Image
 
-from dialfred_performer.cli import parse, to_argv
+from dialfred_sim.dataclass_cli import parse, to_argv
 from dialfred_performer.data import DIALOGUES_FILE, OracleProbe, generate_dialogues
 from dialfred_performer.model import PerformerConfig, load_checkpoint
 from dialfred_performer.prepare import (VOCABULARY_FILE, PrepareConfig, _dialogue_worker, _part_path, prepare,
@@ -227,7 +227,7 @@ def test_without_every_combination_an_epoch_shows_each_training_task_once(folder
 def test_a_percent_sign_in_a_help_text_does_not_break_help():
     from dataclasses import dataclass
 
-    from dialfred_performer.cli import arg, parser_for
+    from dialfred_sim.dataclass_cli import arg, parser_for
 
     @dataclass(frozen=True)
     class Config:

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Optional
 
 
-from dialfred_performer.cli import arg, parse
+from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.metrics import intervals, summarize
 from dialfred_sim.tasks import load_split
 

@@ -33,12 +33,14 @@ Prints one JSON object; exit status 0 when every part compared is the same, 1 wh
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
+
+from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
 TABLES_FROM, TABLES_TO = '## Table II', '## Run times'
 IGNORED_FIELDS = ('wall_s', 'agent')
@@ -237,14 +239,19 @@ def compare(a: Path, b: Path, parts=DEFAULT_PARTS, show: int = 5) -> dict:
     return report
 
 
+@dataclass
+class CompareConfig:
+    """Compare two run folders of ./dialfred reproduce."""
+
+    a: Path = arg(REQUIRED, 'a run folder of ./dialfred reproduce', positional=True)
+    b: Path = arg(REQUIRED, 'another run folder', positional=True)
+    parts: str = arg(','.join(DEFAULT_PARTS), f'what to compare, comma-separated: some of {", ".join(PARTS)}')
+    show: int = arg(5, 'how many differences of each kind to list')
+
+
 def main(argv: Optional[list[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m dialfred_bringup.compare_runs", description=__doc__.split('\n')[0])
-    ap.add_argument('a', type=Path, help='a run folder of ./dialfred reproduce')
-    ap.add_argument('b', type=Path, help='another run folder')
-    ap.add_argument('--parts', default=','.join(DEFAULT_PARTS),
-                    help=f'what to compare, comma-separated: some of {", ".join(PARTS)} (default %(default)s)')
-    ap.add_argument('--show', type=int, default=5, help='how many differences of each kind to list')
-    args = ap.parse_args(argv)
+    args = parse(CompareConfig, argv, prog='python -m dialfred_bringup.compare_runs',
+                 description=__doc__.split('\n')[0])
     try:
         report = compare(args.a, args.b, tuple(p for p in args.parts.split(',') if p), args.show)
     except (MissingPart, ValueError) as exc:

@@ -9,9 +9,9 @@ steps, goal conditions, end reason). The frames come from the simulator's `sim/o
 (the observation after every reset and step). Each task is saved as a GIF of captioned frames (the
 instruction, the latest QA, the action) under --out, beside one contact sheet of all of them.
 
-    ./dialfred launch demo [--tasks 3] [--first 0] [--questioner all|random|confusion|none]
-                                   [--checkpoint PATH (default: the shipped one)] [--resolution 64] [--seed 0]
-                                   [--max-steps 100] [--out out/demo]
+    ./dialfred demo [--tasks N] [--questioner NAME] [--checkpoint PATH] ...   (--help: each option, its default)
+
+Its options are the fields of `DemoConfig`.
 """
 
 from __future__ import annotations
@@ -20,11 +20,13 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
-from .evaluation import EvalConfig, add_record_options, record_options
+from dialfred_sim.dataclass_cli import arg
+
+from .evaluation import EvalConfig, foxglove_field, record_field, record_format_field
 from .workers import LiveHook, PerformerWorker, play_episodes, start_live_view, worker_nodes
 from .graph import Graph
-from .paths import REPO
 
 QA_SECONDS, ACTION_SECONDS = 2.0, 0.4     # how long a GIF frame stays up: an answer is read, an action seen
 
@@ -87,13 +89,36 @@ def outcome_text(result) -> str:
             f'{result.questions} questions, end reason {result.end_reason}{why}')
 
 
-def demo_config(args) -> EvalConfig:
-    return EvalConfig(split='valid_unseen', performer='et', questioner='' if args.questioner == 'none' else args.questioner,
-                      checkpoint=Path(args.checkpoint) if args.checkpoint else None, resolution=args.resolution,
-                      seed=args.seed, workers=1, episode_timeout=600.0, foxglove=args.foxglove, **record_options(args))
+@dataclass
+class DemoConfig:
+    """The learned performer plays a few valid_unseen tasks through the sim, oracle, questioner and
+    performer nodes; captioned GIFs."""
+
+    tasks: int = arg(3, 'how many tasks')
+    first: int = arg(0, 'index of the first valid_unseen task')
+    questioner: str = arg('all', 'all, random, confusion, none, a learned questioner (rl-anytime, rl-mc, ... or '
+                          'learned:PATH: see eval --help), or package.module:ClassName', aliases={'none': ''},
+                          metavar='NAME')
+    checkpoint: Optional[Path] = arg(None, 'the performer checkpoint (none: the one shipped in the package, as the '
+                                     'eval\'s)', metavar='PATH')
+    resolution: Optional[int] = arg(None, 'camera pixels (none: the resolution the checkpoint was trained at)',
+                                    metavar='PIXELS')
+    max_steps: int = arg(100, 'the simulator ends an episode after this many actions (the benchmark\'s limit is 1000)')
+    seed: int = arg(0, 'the run\'s seed')
+    out: Path = arg(Path('out/demo'), 'where the GIFs and the contact sheet go', metavar='DIR')
+    episode_timeout: float = arg(600.0, 'seconds one task may take before its goal is cancelled')
+    foxglove: Optional[int] = foxglove_field()
+    record: Optional[Path] = record_field()
+    record_format: str = record_format_field()
+
+    def eval_config(self) -> EvalConfig:
+        """The evaluation the demo's worker plays: one performer node, this questioner."""
+        return EvalConfig(split='valid_unseen', performer='et', questioner=self.questioner, checkpoint=self.checkpoint,
+                          resolution=self.resolution, seed=self.seed, workers=1, episode_timeout=self.episode_timeout,
+                          foxglove=self.foxglove, record=self.record, record_format=self.record_format)
 
 
-def run_demo(args) -> int:
+def run_demo(demo: DemoConfig) -> int:
     """Start sim, oracle, questioner and performer nodes; play --tasks tasks as RunTask goals; print
     the dialogue, the actions and the outcomes; save a captioned GIF per task and a contact sheet."""
     from dialfred_msgs.msg import Observation, QAPair
@@ -103,7 +128,7 @@ def run_demo(args) -> int:
     from dialfred_sim.protocol import image_array
     from dialfred_sim.tasks import load_split
 
-    config = demo_config(args)
+    config = demo.eval_config()
     if not config.checkpoint_path.is_file():
         print(f'error: no performer checkpoint at {config.checkpoint_path}; train one with '
               './dialfred prepare-performer && ./dialfred train-performer --out out/performer (see the README), '
@@ -114,16 +139,16 @@ def run_demo(args) -> int:
     except ValueError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    tasks = load_split(config.split)[args.first:args.first + args.tasks]
+    tasks = load_split(config.split)[demo.first:demo.first + demo.tasks]
     if not tasks:
-        print(f'error: no tasks from index {args.first} of {config.split}', file=sys.stderr)
+        print(f'error: no tasks from index {demo.first} of {config.split}', file=sys.stderr)
         return 2
-    out = Path(args.out)
+    out = Path(demo.out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f'checkpoint {config.checkpoint_path}, questioner {config.questioner or "none"}, {args.resolution} px, '
-          f'seed {args.seed}')
+    print(f'checkpoint {config.checkpoint_path}, questioner {config.questioner or "none"}, {config.resolution} px, '
+          f'seed {config.seed}')
     t0 = time.monotonic()
-    nodes = worker_nodes(config, '', publish_observations=True, max_steps=args.max_steps)
+    nodes = worker_nodes(config, '', publish_observations=True, max_steps=demo.max_steps)
     with Graph(nodes) as graph:
         record = None
 
@@ -158,7 +183,7 @@ def run_demo(args) -> int:
         graph.spin_until_any([], 0.3)     # the publishers see this subscriber a moment later
         print(f'graph ready in {time.monotonic() - t0:.1f} s (sim, oracle, questioner, performer nodes)')
         sheet = []
-        for index, task in enumerate(tasks, start=args.first):
+        for index, task in enumerate(tasks, start=demo.first):
             print(f'\n{task.task_id} ({task.task_type}) in {task.scene}: "{task.instruction}"', flush=True)
             record = EpisodeRecord(task)
             results = []
@@ -184,24 +209,3 @@ def run_demo(args) -> int:
         save_contact_sheet(sheet, out / 'contact_sheet.png')
         print(f'\ncontact sheet: {out / "contact_sheet.png"}')
     return 0
-
-
-def add_demo_parser(sub) -> None:
-    demo = sub.add_parser('demo', help='the learned performer plays a few valid_unseen tasks through the '
-                                       'sim, oracle, questioner and performer nodes; captioned GIFs')
-    demo.add_argument('--tasks', type=int, default=3, help='how many tasks (default 3)')
-    demo.add_argument('--first', type=int, default=0, help='index of the first valid_unseen task')
-    demo.add_argument('--questioner', default='all',
-                      help='all (default), random, confusion, none, a learned questioner (rl-anytime, rl-mc, ... '
-                           'or learned:PATH: see eval --help), or package.module:ClassName')
-    demo.add_argument('--checkpoint', default=None, metavar='PATH',
-                      help='the performer checkpoint (default: the one shipped in the package, as the eval)')
-    demo.add_argument('--resolution', type=int, default=64)
-    demo.add_argument('--max-steps', type=int, default=100,
-                      help='the simulator ends an episode after this many actions (default 100; the '
-                           'benchmark\'s limit is 1000)')
-    demo.add_argument('--seed', type=int, default=0)
-    demo.add_argument('--out', default=str(REPO / 'out' / 'demo'))
-    demo.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
-                      help='watch it live in the Foxglove app (a Foxglove WebSocket server on PORT, default 8765)')
-    add_record_options(demo)

@@ -22,6 +22,7 @@ index, as in a whole run) into <out>_shardKofN.jsonl; `./dialfred merge` joins t
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import functools
 import json
@@ -33,45 +34,105 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from dialfred_sim.bag import IMAGE_FORMATS
+from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.metrics import ResultsFileError
 from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .graph import Graph, use_project_environment
+from .live import FOXGLOVE_PORT
 from .paths import REPO
-from .shards import check_shard, shard_suffix, shard_tasks
+from .shards import check_shard, parse_shard, shard_suffix, shard_tasks, show_shard
 from .workers import (LiveHook, PerformerWorker, SimWorker, Supervisor, play_episodes, start_live_view,
                       worker_nodes)
 
 use_project_environment(REPO)
 
+DEFAULT_RESOLUTION = 128      # camera pixels, for every agent but the et performer (its checkpoint's)
+
+
+def record_field():
+    """--record DIR, for every job that plays episodes (eval, demo, dialogue)."""
+    return arg(None, 'write each episode as a ROS 2 bag (rosbag2, MCAP storage) into DIR/<split>_<number>/: task, '
+               'camera, poses, QAs, actions and their results, the outcome; `./dialfred replay DIR/<bag>` prints '
+               'and renders one', metavar='DIR')
+
+
+def record_format_field():
+    return arg('raw', 'camera frames in the bags: raw sensor_msgs/Image or CompressedImage (png, jpeg)',
+               choices=IMAGE_FORMATS)
+
+
+def foxglove_field():
+    return arg(None, 'watch the workers live in the Foxglove app: a Foxglove WebSocket server on PORT (the flag '
+               f'alone: {FOXGLOVE_PORT}) streams each camera, a top-down map with the agent, the dialogue and the '
+               'progress', const=FOXGLOVE_PORT, metavar='PORT')
+
+
 @dataclass
 class EvalConfig:
-    """One evaluation run: an agent over (the first `limit` tasks of) a split."""
+    """One evaluation run: an agent over (the first `limit` tasks of) a split.
 
-    split: str = 'valid_unseen'
-    agent: str = 'expert'
-    questioner: str = ''                # '' = the agent asks nothing; else a dialfred_questioner.questioners name
-    perturb_type: str = ''              # the paper's ablation: the oracle withholds answers of this type ...
-    perturb_probability: float = 0.5    # ... with this probability
-    limit: Optional[int] = None
-    workers: int = 2
-    out: Optional[Path] = None          # default: out/eval/<split>_<agent>.jsonl
-    seed: int = 0
-    resolution: int = 128
-    request_timeout: float = 120.0      # seconds one reset or step may take before the run gives up
-    tasks_file: Optional[Path] = None   # a split file of your own (a test_unseen split) instead of `split`
-    performer: str = ''                 # 'et': a performer node per worker plays each task (RunTask goals);
-                                        # '' = the agent is a Python object of this process (the in-process path)
-    checkpoint: Optional[Path] = None   # the `et` performer's checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)
-    episode_timeout: float = 1800.0     # seconds one RunTask goal may take before it is cancelled
-    record: Optional[Path] = None       # write each episode as a rosbag2/MCAP bag into this folder
-    record_format: str = 'raw'          # the bags' camera frames: raw, png or jpeg (dialfred_sim.bag)
-    foxglove: Optional[int] = None      # a port: stream the workers live to Foxglove (dialfred_bringup.live)
-    max_restarts: int = 3               # a worker whose node dies is restarted (its episode replayed) this many
-                                        # times in a row at most; 0 = a dead node ends the run
-    shard: Optional[tuple] = None       # (K, N): only shard K of N of the selected tasks (see dialfred_bringup.shards.shard_tasks)
-    local: bool = False                 # no ROS: worker processes with a simulator, the oracle's rules and the agent
-                                        # each (dialfred_bringup.local: the same episodes as through the graph, faster)
+    Its fields are the options of `./dialfred launch eval` (dialfred_sim.dataclass_cli)."""
+
+    split: str = arg('valid_unseen', 'a shipped split', choices=SPLIT_SIZES, group='tasks')
+    tasks_file: Optional[Path] = arg(
+        None, 'a split file of your own instead of --split, e.g. a sealed test split made with '
+        '`python -m dialfred_sim.tasks.splits test_unseen --seed S --size N --out PATH`; results record its '
+        'path and sha256 and are never mixed with another file\'s', flag='--tasks', metavar='PATH', group='tasks')
+    agent: str = arg('expert', 'expert, random, et (the performer of --checkpoint, in this process), or your own '
+                     'class as package.module:ClassName (on the Python path; made as ClassName(resolution=R), with '
+                     'reset(task, seed) and act(observation))')
+    performer: str = arg('', 'et: a performer node per worker plays each task as a RunTask goal (with sim, oracle '
+                         'and questioner nodes in its namespace); this process only sends goals and records results. '
+                         'none: the agent is a Python object of this process (--agent et plays the same performer '
+                         'there)', choices=['et'], aliases={'none': ''})
+    checkpoint: Optional[Path] = arg(None, 'the et performer\'s checkpoint (none: the one shipped in the package, '
+                                     'dialfred_performer/checkpoints/et.pt)', metavar='PATH')
+    questioner: str = arg(
+        '', 'ask the oracle (one oracle node per worker): none = no questions; '
+        'random = the paper\'s Random QA: at the start, a type drawn with 25% each for '
+        'location, appearance, direction and no question, then every question of that type '
+        '(one per instruction object, or one direction question); '
+        'all = location + appearance of every instruction object, then direction; '
+        'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
+        'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
+        'pretrained, rl-begin, rl-anytime (every 5 steps), rl-anytime-1, rl-anytime-10, '
+        'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction, '
+        'rl-anytime-no-dialogue (the checkpoints shipped in dialfred_questioner/checkpoints), or learned:PATH (any '
+        'questioner checkpoint; results are named learned-<file stem>-<sha256[:8]>); '
+        'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))',
+        aliases={'none': ''}, metavar='NAME')
+    perturb_type: str = arg('', 'the paper\'s ablation: the oracle withholds answers of this type ("I don\'t know.")',
+                            choices=QUESTION_TYPES, aliases={'none': ''})
+    perturb_probability: float = arg(0.5, 'how often it withholds them (0.5 in the paper)')
+    limit: Optional[int] = arg(None, 'only the first N tasks of the split (none: all)', metavar='N')
+    shard: Optional[tuple] = arg(None, 'only shard K of N (0 <= K < N) of the selected tasks (after --limit): those '
+                                 'whose index in the split is K modulo N, seeded as in a whole run; results go to '
+                                 '<default name>_shardKofN.jsonl. Join the shards\' files with `./dialfred merge` '
+                                 '(docs/scaling.md)', parse=parse_shard, show=show_shard, metavar='K/N')
+    workers: int = arg(2, 'simulator nodes (or, with --local, processes) playing episodes in parallel')
+    local: bool = arg(False, 'no ROS: each worker is a process with its own simulator, the oracle\'s rules and the '
+                      'agent (the same episodes as through the graph, faster; not with --performer, --record, '
+                      '--foxglove; dialfred_bringup/local.py)')
+    out: Optional[Path] = arg(None, 'the results file (none: out/eval/<split>_<agent>[+<questioner>].jsonl)',
+                              metavar='PATH')
+    seed: int = arg(0, 'the run\'s seed: episode k of the split is seeded with (seed, k)')
+    resolution: Optional[int] = arg(None, 'camera pixels (none: for the et performer, the resolution its checkpoint '
+                                    'was trained at, 64 for the shipped one; else 128)', metavar='PIXELS')
+    request_timeout: float = arg(120.0, 'seconds one reset or step may take before the run gives up')
+    episode_timeout: float = arg(1800.0, 'seconds one RunTask goal (--performer et) may take before it is cancelled')
+    max_restarts: int = arg(3, 'a worker whose node dies or stops answering has its nodes restarted and its '
+                            'episode replayed from the start, at most this many times in a row (0: a dead node '
+                            'ends the run)')
+    record: Optional[Path] = record_field()
+    record_format: str = record_format_field()
+    foxglove: Optional[int] = foxglove_field()
+
+    def __post_init__(self):
+        if self.resolution is None:
+            self.resolution = default_resolution(self)
 
     @functools.cached_property
     def tasks_source(self):
@@ -232,17 +293,6 @@ class EvalReport:
             'failures': [{'task_id': r.task_id, 'task_type': r.task_type, 'end_reason': r.end_reason,
                           'error': r.error} for r in failures(self.results)],
         }
-
-
-def parse_shard(text: str) -> tuple:
-    """--shard K/N -> (K, N); argparse's usage error unless 0 <= K < N."""
-    import argparse
-
-    from dialfred_bringup.shards import parse_shard as parse
-    try:
-        return parse(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def run_namespace() -> str:
@@ -409,45 +459,17 @@ def print_report(report: EvalReport) -> None:
               f'{c.tasks_record_path})')
 
 
-def eval_config(args) -> EvalConfig:
-    return EvalConfig(split=args.split or 'valid_unseen',
-                      agent=args.agent, questioner='' if args.questioner in (None, 'none') else args.questioner,
-                      limit=args.limit,
-                      perturb_type=args.perturb_type or '', perturb_probability=args.perturb_probability,
-                      workers=args.workers,
-                      out=Path(args.out) if args.out else None, seed=args.seed,
-                      resolution=args.resolution or default_resolution(args),
-                      tasks_file=Path(args.tasks) if args.tasks else None,
-                      performer=args.performer or '', checkpoint=Path(args.checkpoint) if args.checkpoint else None,
-                      foxglove=args.foxglove, max_restarts=args.max_restarts, shard=getattr(args, 'shard', None),
-                      local=bool(getattr(args, 'local', False)), **record_options(args))
-
-
-def default_resolution(args) -> int:
+def default_resolution(config: EvalConfig) -> int:
     """The et performer's training resolution (its checkpoint's: a frame of another size would be
     resized by area averaging, which is not the rendering it learned from); 128 for other agents. An
     unreadable checkpoint: 128, and check() says why."""
-    if args.agent != 'et' and args.performer != 'et':
-        return 128
-    from dialfred_performer.model import SHIPPED_CHECKPOINT, CheckpointError, load_checkpoint
+    if config.agent != 'et' and config.performer != 'et':
+        return DEFAULT_RESOLUTION
+    from dialfred_performer.model import CheckpointError, load_checkpoint
     try:
-        return int(load_checkpoint(Path(args.checkpoint) if args.checkpoint else SHIPPED_CHECKPOINT)[0].config.resolution)
+        return int(load_checkpoint(config.checkpoint_path)[0].config.resolution)
     except (FileNotFoundError, CheckpointError):
-        return 128
-
-
-def add_record_options(parser) -> None:
-    """--record / --record-format, for every job that plays episodes (eval, demo, dialogue)."""
-    parser.add_argument('--record', default=None, metavar='DIR',
-                        help='write each episode as a ROS 2 bag (rosbag2, MCAP storage) into DIR/<split>_<number>/: '
-                             'task, camera, poses, QAs, actions and their results, the outcome; '
-                             '`./dialfred replay DIR/<bag>` prints and renders one')
-    parser.add_argument('--record-format', default='raw', choices=['raw', 'png', 'jpeg'],
-                        help='camera frames in the bags: raw sensor_msgs/Image (default) or CompressedImage')
-
-
-def record_options(args) -> dict:
-    return {'record': Path(args.record) if args.record else None, 'record_format': args.record_format}
+        return DEFAULT_RESOLUTION
 
 
 def run_eval_command(args) -> int:
@@ -458,7 +480,7 @@ def run_eval_command(args) -> int:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     try:
-        report = run_eval(config, progress=not args.no_progress)
+        report = run_eval(config, progress=args.progress)
     except KeyboardInterrupt:
         print(f'interrupted: finished episodes are in {config.results_path}; the same command resumes',
               file=sys.stderr)
@@ -467,66 +489,19 @@ def run_eval_command(args) -> int:
     return 0
 
 
-def add_eval_parser(sub) -> None:
-    ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table')
-    tasks = ev.add_mutually_exclusive_group()
-    tasks.add_argument('--split', default=None, choices=['train', 'valid_seen', 'valid_unseen'],
-                       help='a shipped split (default valid_unseen)')
-    tasks.add_argument('--tasks', default=None, metavar='PATH',
-                       help='a split file of your own instead of --split, e.g. a sealed test split made with '
-                            '`python -m dialfred_sim.tasks.splits test_unseen --seed S --size N --out PATH`; '
-                            'results record its path and sha256 and are never mixed with another file\'s')
-    ev.add_argument('--agent', default='expert',
-                    help='expert, random, et (the performer of --checkpoint, in this process), or your own class '
-                         'as package.module:ClassName (on the Python path; '
-                         'made as ClassName(resolution=R), with reset(task, seed) and act(observation))')
-    ev.add_argument('--performer', default=None, choices=['et'],
-                    help='et: a performer node per worker plays each task as a RunTask goal (with sim, oracle '
-                         'and questioner nodes in its namespace); this process only sends goals and records '
-                         'results. (--agent et plays the same performer in this process.)')
-    ev.add_argument('--checkpoint', default=None, metavar='PATH',
-                    help='the et performer\'s checkpoint (default the one shipped in the package, dialfred_performer/checkpoints/et.pt)')
-    ev.add_argument('--questioner', default=None,
-                    help='ask the oracle (one oracle node per worker): none (the default) = no questions; '
-                         'random = the paper\'s Random QA: at the start, a type drawn with 25%% each for '
-                         'location, appearance, direction and no question, then every question of that type '
-                         '(one per instruction object, or one direction question); '
-                         'all = location + appearance of every instruction object, then direction; '
-                         'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
-                         'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
-                         'pretrained, rl-begin, rl-anytime (every 5 steps), rl-anytime-1, rl-anytime-10, '
-                         'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction, rl-anytime-no-dialogue '
-                         '(the checkpoints shipped in dialfred_questioner/checkpoints), or learned:PATH (any '
-                         'questioner checkpoint; results are named learned-<file stem>-<sha256[:8]>); '
-                         'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))')
-    ev.add_argument('--perturb-type', default=None, choices=['location', 'appearance', 'direction'],
-                    help="the paper's ablation: the oracle withholds answers of this type (\"I don't know.\")")
-    ev.add_argument('--perturb-probability', type=float, default=0.5,
-                    help='how often it withholds them (default 0.5, as in the paper)')
-    ev.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
-    ev.add_argument('--shard', type=parse_shard, default=None, metavar='K/N',
-                    help='only shard K of N (0 <= K < N) of the selected tasks (after --limit): those whose index '
-                         'in the split is K modulo N, seeded as in a whole run; results go to '
-                         '<default name>_shardKofN.jsonl. Join the shards\' files with `./dialfred merge` '
-                         '(docs/scaling.md)')
-    ev.add_argument('--workers', type=int, default=2, help='simulator nodes playing episodes in parallel')
-    ev.add_argument('--local', action='store_true',
-                    help='no ROS: each worker is a process with its own simulator, the oracle\'s rules and the agent '
-                         '(the same episodes as through the graph, faster; not with --performer, --record, '
-                         '--foxglove; dialfred_bringup/local.py)')
-    ev.add_argument('--out', default=None,
-                    help='results file (default out/eval/<split>_<agent>[+<questioner>].jsonl)')
-    ev.add_argument('--seed', type=int, default=0)
-    ev.add_argument('--resolution', type=int, default=None,
-                    help='camera pixels (default: for the et performer, the resolution its checkpoint was trained '
-                         'at, 64 for the shipped one; else 128)')
-    ev.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
-    ev.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
-                    help='watch the workers live in the Foxglove app: a Foxglove WebSocket server on PORT (default '
-                         '8765) streams each camera, a top-down map with the agent, the dialogue and the progress')
-    ev.add_argument('--max-restarts', type=int, default=3,
-                    help='a worker whose node dies or stops answering has its nodes restarted and its episode '
-                         'replayed from the start, at most this many times in a row (default 3; 0 = stop the run)')
-    add_record_options(ev)
+def add_eval_parser(sub) -> argparse.ArgumentParser:
+    """The `eval` subcommand: EvalConfig's fields and --no-progress."""
+    ev = sub.add_parser('eval', help='evaluate an agent on a split; resumable JSON-lines results and a metrics table',
+                        description=EvalConfig.__doc__.split('\n\n')[0])
+    add_fields(EvalConfig, ev)
+    ev.add_argument('--progress', action=argparse.BooleanOptionalAction, default=True,
+                    help='a progress bar on stderr (default: --progress)')
+    ev.set_defaults(config_parser=ev)
+    return ev
+
+
+def eval_config(args) -> EvalConfig:
+    """The EvalConfig of `eval`'s parsed arguments."""
+    return from_args(EvalConfig, args, args.config_parser)
 
 

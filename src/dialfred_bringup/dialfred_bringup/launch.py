@@ -6,17 +6,19 @@ way `ros2 run <pkg> node` does (ament index prefix + lib/<pkg>/node), starts it,
 services answer, runs a job, and shuts everything down on exit or Ctrl-C. A node that dies is
 reported with its exit code and the last lines it printed.
 
-    ./dialfred launch demo [--tasks 3] [--questioner all] [--checkpoint out/performer/et.pt]
+    ./dialfred launch demo [--tasks N] [--questioner NAME] [--checkpoint PATH]
                                    # the learned performer plays a few tasks through the sim, oracle,
                                    # questioner and performer nodes (dialfred_bringup/demo.py); captioned GIFs
-    ./dialfred launch explore [--scene FloorPlan1] [--seed 0] [--steps 40] [--out out/explore]
+    ./dialfred launch explore [--scene NAME] [--seed S] [--steps N] [--out DIR]
                                  # a scripted explorer through the simulator node alone; saves its frames
     ./dialfred launch nodes              # start the graph (simulator + oracle) until Ctrl-C
-    ./dialfred launch dialogue [--split valid_unseen] [--tasks 3]   # ask the oracle on a few tasks
-    ./dialfred launch eval --split valid_unseen --agent expert|random [--questioner random|all|confusion]
-                                   (or --tasks PATH: a split file of your own, e.g. a sealed test split)
-                                   [--limit N] [--workers 2] [--out out/eval/<split>_<agent>.jsonl]
-                                   [--seed 0] [--resolution 128]
+    ./dialfred launch dialogue [--split NAME] [--tasks N]   # ask the oracle on a few tasks
+    ./dialfred launch eval [--split NAME | --tasks PATH] [--agent NAME] [--questioner NAME] [--limit N]
+                                   [--workers N] [--out PATH] [--seed S] [--resolution PIXELS] ...
+
+Each job's options are the fields of its config dataclass (`ExploreConfig`, `NodesConfig`,
+`DialogueConfig` here, `DemoConfig`, `EvalConfig`); `./dialfred launch JOB --help` lists them with
+their defaults.
 
 `eval` runs `--workers` simulator nodes, each in its own namespace (/eval_<pid>/w0/sim/step, ...),
 drives them all from this process with asynchronous calls, appends each episode's result to the
@@ -34,20 +36,56 @@ import argparse
 import signal
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
+from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.protocol import image_array
+from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
-from .demo import add_demo_parser, run_demo
-from .evaluation import ResultsFileError, add_eval_parser, add_record_options, run_eval_command
+from .demo import DemoConfig, run_demo
+from .evaluation import (DEFAULT_RESOLUTION, ResultsFileError, add_eval_parser, record_field, record_format_field,
+                         run_eval_command)
 from .film import save_captioned_gif
 from .graph import RESEND_AFTER_S, Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain, use_project_environment
 from .paths import REPO
 
 use_project_environment(REPO)
 
+@dataclass
+class ExploreConfig:
+    """A scripted exploring episode through the simulator node; saves its frames."""
 
-def run_explore(args) -> int:
+    scene: str = arg('FloorPlan1', 'the room')
+    seed: int = arg(0, 'the reset\'s seed and the explorer\'s')
+    steps: int = arg(40, 'actions at most')
+    resolution: int = arg(DEFAULT_RESOLUTION, 'camera pixels')
+    out: Path = arg(Path('out/explore'), 'where the frames, the GIF and the contact sheet go', metavar='DIR')
+
+
+@dataclass
+class NodesConfig:
+    """Start the node graph (simulator + oracle) and keep it running until Ctrl-C."""
+
+    resolution: int = arg(DEFAULT_RESOLUTION, 'camera pixels')
+
+
+@dataclass
+class DialogueConfig:
+    """Ask the oracle each question type on a few tasks and print the dialogue."""
+
+    split: str = arg('valid_unseen', 'a shipped split', choices=SPLIT_SIZES)
+    first: int = arg(0, 'index of the first task')
+    tasks: int = arg(3, 'how many tasks')
+    human: bool = arg(False, 'the oracle asks you in this terminal')
+    resolution: int = arg(DEFAULT_RESOLUTION, 'camera pixels')
+    gif: Optional[Path] = arg(None, 'also save the dialogue as a GIF of captioned frames to this path', metavar='PATH')
+    record: Optional[Path] = record_field()
+    record_format: str = record_format_field()
+
+
+def run_explore(args: ExploreConfig) -> int:
     """Start the simulator node, play a scripted exploring episode through ROS, save its frames."""
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import SimReset, SimStep
@@ -110,7 +148,7 @@ def save_frames(frames, out: Path) -> dict:
     return {'gif': gif, 'sheet': out / 'contact_sheet.png'}
 
 
-def run_nodes(args) -> int:
+def run_nodes(args: NodesConfig) -> int:
     """Start the graph and keep it up until Ctrl-C, reporting any node that dies."""
     from dialfred_msgs.srv import OracleAnswer, SimReset
     with Graph([sim_node(args.resolution), oracle_node()]) as graph:
@@ -122,7 +160,7 @@ def run_nodes(args) -> int:
             time.sleep(0.5)
 
 
-def run_dialogue(args) -> int:
+def run_dialogue(args: DialogueConfig) -> int:
     """Scripted integration run: on a few tasks, ask the oracle each question type and print the
     dialogue; with `--gif`, also save it as captioned frames (what the agent saw when it asked)."""
     from dialfred_msgs.msg import Action
@@ -219,29 +257,25 @@ def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
-def main(argv=None) -> int:
+JOBS = {'demo': (DemoConfig, run_demo), 'explore': (ExploreConfig, run_explore), 'nodes': (NodesConfig, run_nodes),
+        'dialogue': (DialogueConfig, run_dialogue)}
+
+
+def make_parser() -> argparse.ArgumentParser:
+    """The launcher's command line: a subcommand per job, its options the fields of the job's config."""
     parser = argparse.ArgumentParser(prog='./dialfred launch', description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
-    add_demo_parser(sub)
-    explore = sub.add_parser('explore', help='scripted exploring episode through the simulator node; saves frames')
-    explore.add_argument('--scene', default='FloorPlan1')
-    explore.add_argument('--seed', type=int, default=0)
-    explore.add_argument('--steps', type=int, default=40)
-    explore.add_argument('--resolution', type=int, default=128)
-    explore.add_argument('--out', default=str(REPO / 'out' / 'explore'))
-    nodes = sub.add_parser('nodes', help='start the node graph and keep it running')
-    nodes.add_argument('--resolution', type=int, default=128)
-    dialogue = sub.add_parser('dialogue',
-                              help='ask the oracle each question type on a few tasks and print the dialogue')
-    dialogue.add_argument('--split', default='valid_unseen')
-    dialogue.add_argument('--first', type=int, default=0, help='index of the first task')
-    dialogue.add_argument('--tasks', type=int, default=3)
-    dialogue.add_argument('--human', action='store_true', help='the oracle asks you in this terminal')
-    dialogue.add_argument('--resolution', type=int, default=128)
-    dialogue.add_argument('--gif', help='also save the dialogue as a GIF of captioned frames to this path')
-    add_record_options(dialogue)
+    for name, (config_class, _) in JOBS.items():
+        summary = config_class.__doc__.split('\n\n')[0]
+        job = sub.add_parser(name, help=' '.join(summary.split()), description=summary)
+        add_fields(config_class, job)
+        job.set_defaults(config_parser=job)
     add_eval_parser(sub)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = make_parser().parse_args(argv)
     # Ctrl-C and SIGTERM both unwind through the Graph context, which stops every child.
     signal.signal(signal.SIGTERM, _interrupt)
     if args.command != 'nodes':
@@ -250,8 +284,10 @@ def main(argv=None) -> int:
         # in the caller's domain, for other terminals to reach.
         use_private_ros_domain()
     try:
-        jobs = {'demo': run_demo, 'explore': run_explore, 'nodes': run_nodes, 'dialogue': run_dialogue, 'eval': run_eval_command}
-        return jobs[args.command](args)
+        if args.command == 'eval':
+            return run_eval_command(args)
+        config_class, run = JOBS[args.command]
+        return run(from_args(config_class, args, args.config_parser))
     except KeyboardInterrupt:
         print('interrupted; nodes stopped', file=sys.stderr)
         return 130

@@ -26,6 +26,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+FOXGLOVE_PORT = 8765      # the Foxglove WebSocket port when --foxglove comes without one
+
 MAP_PX_PER_M = 48
 MAP_MARGIN = 12
 
@@ -79,7 +81,7 @@ class RoomMap:
 class LiveView:
     """The Foxglove server and its channels; `task`, `frame`, `qa`, `action`, `result` feed it."""
 
-    def __init__(self, workers: int, port: int = 8765, host: str = '127.0.0.1', total: int = 0):
+    def __init__(self, workers: int, port: int = FOXGLOVE_PORT, host: str = '127.0.0.1', total: int = 0):
         import foxglove
         from foxglove.channels import LogChannel, PoseInFrameChannel, RawImageChannel
         self.context = foxglove.Context()

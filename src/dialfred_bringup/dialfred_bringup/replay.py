@@ -6,12 +6,16 @@ contact sheet from the bag alone, or a stream into the live view.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 from dialfred_sim.bag import STEP_NS, BagError, RecordedEpisode, read_episode
+from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
+
+from .live import FOXGLOVE_PORT
 
 # --------------------------------------------------------------------------------------------- replay
 
@@ -83,19 +87,25 @@ def replay_bag(view, path, worker: str = 'w0', speed: float = 1.0) -> None:
         view.result(worker, t['task_id'], r['success'], r['end_reason'], r['steps'], r['questions'])
 
 
+@dataclass
+class ReplayConfig:
+    """Print an episode bag's dialogue and actions and render it as a captioned GIF and a contact sheet
+    (no simulator)."""
+
+    bag: Path = arg(REQUIRED, 'a bag folder written with --record (or its .mcap file)', positional=True)
+    gif: Optional[Path] = arg(None, 'the captioned GIF (none: <bag>.gif beside the bag)', metavar='PATH')
+    sheet: Optional[Path] = arg(None, 'the contact sheet PNG (none: <bag>_sheet.png beside the bag)', metavar='PATH')
+    pictures: bool = arg(True, 'write the GIF and the contact sheet (--no-pictures: only print the transcript)')
+    foxglove: Optional[int] = arg(None, 'also stream the episode to the Foxglove app (a Foxglove WebSocket server on '
+                                  f'PORT; the flag alone: {FOXGLOVE_PORT}) at --speed times the simulator clock, then '
+                                  'keep serving until Ctrl-C', const=FOXGLOVE_PORT, metavar='PORT')
+    speed: float = arg(1.0, 'replay speed for --foxglove (1 = 10 steps/s)')
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog='dialfred replay', description='Print an episode bag\'s dialogue and actions '
-                                 'and render it as a captioned GIF and a contact sheet (no simulator).')
-    ap.add_argument('bag', help='a bag folder written with --record (or its .mcap file)')
-    ap.add_argument('--gif', default=None, help='captioned GIF (default <bag>.gif beside the bag; "" = none)')
-    ap.add_argument('--sheet', default=None, help='contact sheet PNG (default <bag>_sheet.png; "" = none)')
-    ap.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
-                    help='also stream the episode to the Foxglove app (a Foxglove WebSocket server on PORT, default '
-                         '8765) at --speed times the simulator clock, then keep serving until Ctrl-C')
-    ap.add_argument('--speed', type=float, default=1.0, help='replay speed for --foxglove (1 = 10 steps/s)')
-    args = ap.parse_args(argv)
+    args = parse(ReplayConfig, argv, prog='dialfred replay', description=' '.join(ReplayConfig.__doc__.split()))
     try:
-        ep = read_episode(Path(args.bag))
+        ep = read_episode(args.bag)
     except BagError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
@@ -104,12 +114,11 @@ def main(argv=None) -> int:
         print('(no camera frames in this bag: no pictures)', file=sys.stderr)
         return 0
     from .film import save_captioned_gif, save_contact_sheet
-    gif = Path(args.gif) if args.gif else ep.path.parent / f'{ep.path.name}.gif'
-    sheet = Path(args.sheet) if args.sheet else ep.path.parent / f'{ep.path.name}_sheet.png'
-    if args.gif != '':
+    gif = args.gif or ep.path.parent / f'{ep.path.name}.gif'
+    sheet = args.sheet or ep.path.parent / f'{ep.path.name}_sheet.png'
+    if args.pictures:
         save_captioned_gif(film(ep), gif)
         print(f'GIF: {gif}')
-    if args.sheet != '':
         save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
         print(f'contact sheet: {sheet}')
     if args.foxglove is not None:

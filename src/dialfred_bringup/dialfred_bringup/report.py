@@ -21,7 +21,6 @@ cannot be read is shown without a GIF, saying why, and the problem is reported o
 
 from __future__ import annotations
 
-import argparse
 import base64
 import json
 import os
@@ -35,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
+from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
 from .report_page import OUTCOME_LABELS, render_page
 
@@ -306,27 +306,31 @@ def build_report(results_path: Path, bags: Optional[Path] = None, out: Optional[
     return page, report, counts
 
 
+@dataclass
+class ReportConfig:
+    """Write one static HTML page of an evaluation: its summary with 95% intervals, SR per task type, and
+    every episode with its outcome, dialogue and GIF (from its bag), filterable by type and outcome."""
+
+    results: Path = arg(REQUIRED, 'a results file of `launch eval` (its .summary.json beside it is read too)',
+                        positional=True)
+    bags: Optional[Path] = arg(None, 'the folder given to `launch eval --record` (GIFs of its bags)', metavar='DIR')
+    out: Optional[Path] = arg(None, 'the page (none: beside the results, <stem>.html)', metavar='PATH')
+    embed: bool = arg(False, 'GIFs inside the page as data URIs (one file), not in <page stem>_media/')
+    gif_width: int = arg(GIF_WIDTH, 'GIF width in pixels')
+    workers: int = arg(1, 'processes rendering GIFs')
+    resamples: int = arg(2000, 'bootstrap resamples of the intervals')
+    seed: int = arg(0, 'seed of the bootstrap')
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog='dialfred report', description='Write one static HTML page of an evaluation: '
-                                 'its summary with 95%% intervals, SR per task type, and every episode with its '
-                                 'outcome, dialogue and GIF (from its bag), filterable by type and outcome.')
-    ap.add_argument('results', help='a results file of `launch eval` (its .summary.json beside it is read too)')
-    ap.add_argument('--bags', default=None, help='the folder given to `launch eval --record` (GIFs of its bags)')
-    ap.add_argument('--out', default=None, help='the page (default: beside the results, <stem>.html)')
-    ap.add_argument('--embed', action='store_true', help='GIFs inside the page as data URIs (one file), not in '
-                    '<page stem>_media/')
-    ap.add_argument('--gif-width', type=int, default=GIF_WIDTH, help=f'GIF width in pixels (default {GIF_WIDTH})')
-    ap.add_argument('--workers', type=int, default=1, help='processes rendering GIFs (default 1)')
-    ap.add_argument('--resamples', type=int, default=2000, help='bootstrap resamples of the intervals (default 2000)')
-    ap.add_argument('--seed', type=int, default=0, help='seed of the bootstrap (default 0)')
-    args = ap.parse_args(argv)
+    args = parse(ReportConfig, argv, prog='dialfred report',
+                 description=' '.join(ReportConfig.__doc__.split()))
 
     def say(text: str) -> None:
         print(f'[report] {text}', file=sys.stderr, flush=True)
 
     try:
-        page, report, counts = build_report(Path(args.results), Path(args.bags) if args.bags else None,
-                                            Path(args.out) if args.out else None, args.embed, args.gif_width,
+        page, report, counts = build_report(args.results, args.bags, args.out, args.embed, args.gif_width,
                                             max(1, args.workers), args.resamples, args.seed, say)
     except (ReportError, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)

@@ -18,7 +18,6 @@ task order, and the summary's `summary` and `failures` are `metrics.summarize` a
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import sys
@@ -27,6 +26,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional, Sequence
 
+from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
                       summarize, write_text_atomically)
 
@@ -56,6 +56,11 @@ def parse_shard(text: str) -> tuple[int, int]:
         raise ValueError(f'a shard is K/N with integers 0 <= K < N (e.g. 0/2), got {text!r}') from None
     check_shard((k, n))
     return k, n
+
+
+def show_shard(shard: tuple[int, int]) -> str:
+    """(K, N) -> 'K/N', as --shard takes it."""
+    return f'{shard[0]}/{shard[1]}'
 
 
 def shard_suffix(shard) -> str:
@@ -322,24 +327,27 @@ def check_out(out: Path, inputs: Sequence[Path]) -> None:
                                    'choose another --out, or remove it')
 
 
+@dataclass
+class MergeConfig:
+    """Join the results files of `launch eval --shard K/N` into the results of one run."""
+
+    shards: list[Path] = arg(REQUIRED, 'the results files of `launch eval --shard K/N` (each with its .summary.json '
+                             'beside it)', positional=True, metavar='SHARD.jsonl')
+    out: Optional[Path] = arg(None, 'merged results file (none: the shards\' name without _shardKofN); its summary '
+                              'goes to <out without .jsonl>.summary.json', metavar='PATH')
+    partial: bool = arg(False, 'write the merge even if tasks are missing (listed in the summary\'s "missing")')
+    tasks: Optional[Path] = arg(None, 'shards run with --tasks: that file here (none: the path the shards recorded)',
+                                metavar='PATH')
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog='./dialfred merge', description=__doc__.split('\n\n')[0],
-                                     epilog='docs/scaling.md: evaluating on several hosts')
-    parser.add_argument('shards', nargs='+', metavar='SHARD.jsonl',
-                        help='the results files of `launch eval --shard K/N` (each with its .summary.json beside it)')
-    parser.add_argument('--out', default=None,
-                        help='merged results file (default: the shards\' name without _shardKofN); its summary '
-                             'goes to <out without .jsonl>.summary.json')
-    parser.add_argument('--partial', action='store_true',
-                        help='write the merge even if tasks are missing (listed in the summary\'s "missing")')
-    parser.add_argument('--tasks', default=None, metavar='PATH',
-                        help='shards run with --tasks: that file here (default: the path the shards recorded)')
-    args = parser.parse_args(argv)
-    paths = [Path(p) for p in args.shards]
+    args = parse(MergeConfig, argv, prog='./dialfred merge',
+                 epilog='docs/scaling.md: evaluating on several hosts')
+    paths = args.shards
     try:
-        out = Path(args.out) if args.out else default_out(paths[0])
+        out = args.out or default_out(paths[0])
         check_out(out, paths)
-        merged = merge_shards(paths, out, partial=args.partial, tasks_path=Path(args.tasks) if args.tasks else None)
+        merged = merge_shards(paths, out, partial=args.partial, tasks_path=args.tasks)
         write_merged(merged, out)
     except (ResultsFileError, FileNotFoundError) as exc:
         print(f'error: {exc}', file=sys.stderr)

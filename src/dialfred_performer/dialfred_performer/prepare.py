@@ -33,7 +33,7 @@ from typing import Optional
 from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations, probe_values
 from dialfred_sim.tasks.splits import SPLIT_SIZES
 
-from .cli import arg, parse
+from dialfred_sim.dataclass_cli import arg, parse
 from .malloc import ensure_malloc_settings
 from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
 from .preprocess import Vocabulary

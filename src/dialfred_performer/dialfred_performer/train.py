@@ -49,7 +49,7 @@ import torch
 
 from dialfred_sim.tasks.demonstrations import default_dir
 
-from .cli import arg, command_line, config_changes, parse
+from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
 from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts

@@ -42,7 +42,7 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_performer.cli import arg, config_changes, parse
+from dialfred_sim.dataclass_cli import arg, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit
 
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED

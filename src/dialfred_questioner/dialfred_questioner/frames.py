@@ -17,15 +17,17 @@ reset; seconds instead of about 10 min for train, and the same bytes: tested).
 
 from __future__ import annotations
 
-import argparse
 import multiprocessing
 import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
+
+from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
 CACHE_ENV = 'DIALFRED_QUESTIONER_CACHE'
 CHUNK = 64
@@ -124,19 +126,24 @@ class FirstFrames:
         self.index = {t: k for k, t in enumerate(self.task_ids)}
 
 
+@dataclass
+class FirstFramesConfig:
+    """The first frame of every task of a split, for the questioner's pre-training."""
+
+    split: str = arg(REQUIRED, 'the split', positional=True)
+    resolution: int = arg(64, 'camera pixels')
+    workers: int = arg(1, 'processes rendering')
+    limit: int = arg(0, 'only the first N tasks (0: all)', metavar='N')
+    out: Optional[Path] = arg(None, 'the file (none: <cache>/<split>_first_<resolution>.npz)', metavar='PATH')
+    demonstrations: Optional[Path] = arg(None, 'copy the first frames out of this finished demonstrations build '
+                                         'instead of rendering', metavar='DIR')
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    ap.add_argument('split')
-    ap.add_argument('--resolution', type=int, default=64)
-    ap.add_argument('--workers', type=int, default=1)
-    ap.add_argument('--limit', type=int, default=0, help='only the first N tasks (0: all)')
-    ap.add_argument('--out', default=None, help=f'file (default {cache_dir()}/<split>_first_<resolution>.npz)')
-    ap.add_argument('--demonstrations', default=None,
-                    help='copy the first frames out of this finished demonstrations build instead of rendering')
-    args = ap.parse_args(argv)
+    args = parse(FirstFramesConfig, argv, description=__doc__.split('\n\n')[0])
     try:
-        path = build_first_frames(args.split, args.resolution, Path(args.out) if args.out else None, args.workers,
-                                  args.limit, demonstrations=Path(args.demonstrations) if args.demonstrations else None)
+        path = build_first_frames(args.split, args.resolution, args.out, args.workers, args.limit,
+                                  demonstrations=args.demonstrations)
     except (FileNotFoundError, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2

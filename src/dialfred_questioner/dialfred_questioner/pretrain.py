@@ -29,7 +29,7 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_performer.cli import arg, command_line, config_changes, parse
+from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_performer.train import held_out

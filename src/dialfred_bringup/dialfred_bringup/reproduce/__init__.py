@@ -54,7 +54,7 @@ import json
 import sys
 from typing import Optional
 
-from dialfred_performer.cli import parse
+from dialfred_sim.dataclass_cli import parse
 
 from .document import copy_doc, draw_frontier, render, why_lines, write_outputs
 from .plan import (EXTRA, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Optional
 
 
-from dialfred_performer.cli import arg
+from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.protocol import QUESTION_TYPES
 
 from ..baselines import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4

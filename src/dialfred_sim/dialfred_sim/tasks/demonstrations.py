@@ -25,7 +25,6 @@ finished build.
 
 from __future__ import annotations
 
-import argparse
 import json
 import multiprocessing
 import os
@@ -37,6 +36,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from ..dataclass_cli import REQUIRED, arg, from_args, parser_for
 from .splits import SPLIT_SIZES, load_split
 
 CACHE_ENV = 'DIALFRED_DEMO_DIR'
@@ -278,19 +278,25 @@ def load_demonstrations(path: Path) -> Demonstrations:
     return Demonstrations(frames, tasks, meta)
 
 
+@dataclass
+class DemonstrationsConfig:
+    """Render the expert demonstrations of a split (frames + actions)."""
+
+    split: str = arg(REQUIRED, 'the split', choices=sorted(SPLIT_SIZES), positional=True)
+    resolution: int = arg(128, 'camera pixels')
+    workers: int = arg(1, 'processes, each playing every n-th task')
+    limit: Optional[int] = arg(None, 'only the first N tasks of the split (none: all)', metavar='N')
+    out: Optional[Path] = arg(None, 'output folder (none: ~/.cache/dialfred/demonstrations/<split>_<resolution>, '
+                              'or $DIALFRED_DEMO_DIR/...)', metavar='DIR')
+    progress: bool = arg(True, 'a progress bar on stderr')
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description='Render the expert demonstrations of a split (frames + actions).')
-    ap.add_argument('split', choices=sorted(SPLIT_SIZES))
-    ap.add_argument('--resolution', type=int, default=128)
-    ap.add_argument('--workers', type=int, default=1, help='processes, each playing every n-th task')
-    ap.add_argument('--limit', type=int, default=None, help='only the first N tasks of the split')
-    ap.add_argument('--out', default=None, help='output folder (default: ~/.cache/dialfred/demonstrations/'
-                                                 '<split>_<resolution>, or $DIALFRED_DEMO_DIR/...)')
-    ap.add_argument('--no-progress', action='store_true')
-    args = ap.parse_args(argv)
+    ap = parser_for(DemonstrationsConfig)
+    args = from_args(DemonstrationsConfig, ap.parse_args(argv), ap)
     try:
-        meta = build_demonstrations(args.split, args.resolution, Path(args.out) if args.out else None,
-                                    args.workers, args.limit, progress=not args.no_progress)
+        meta = build_demonstrations(args.split, args.resolution, args.out, args.workers, args.limit,
+                                    progress=args.progress)
     except ValueError as exc:
         ap.error(str(exc))
     except KeyboardInterrupt:

@@ -13,7 +13,6 @@ everything that reads splits; this module makes them):
 
 from __future__ import annotations
 
-import argparse
 import gzip
 import hashlib
 import json
@@ -21,11 +20,13 @@ import os
 import sys
 import time
 from collections import deque
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, Optional
 
 import numpy as np
 
+from ..dataclass_cli import REQUIRED, arg, from_args, parser_for
 from .generator import cut_tasks, generate_episode
 # Reading the split files and looking tasks up live in split_files (the environment uses them, and
 # this module plays episodes in the environment); the names stay importable from here.
@@ -176,15 +177,15 @@ def write_split(split: str, path: Path, size: Optional[int] = None, split_seed: 
     return report
 
 
-def _test_split_out(out: Optional[str], force: bool) -> Path:
+def _test_split_out(out: Optional[Path], force: bool) -> Path:
     """The --out of a test split, checked before anything is generated or written."""
     if not out:
         raise ValueError(f'{TEST_SPLIT} needs --out PATH (a .jsonl.gz file of your own)')
     path = Path(out).expanduser()
     if not path.name.endswith('.jsonl.gz'):
-        raise ValueError(f'--out must name a .jsonl.gz file, got {out!r}')
+        raise ValueError(f"--out must name a .jsonl.gz file, got '{out}'")
     if path.is_dir():
-        raise ValueError(f'--out {out!r} is a directory')
+        raise ValueError(f"--out '{out}' is a directory")
     if path.exists() and not force:
         raise ValueError(f'{out} exists; pass --force to replace it (it is replaced only once the new split '
                          'is complete)')
@@ -197,34 +198,37 @@ def _test_split_out(out: Optional[str], force: bool) -> Path:
     return path
 
 
+@dataclass
+class SplitConfig:
+    """Generate a DialFRED split. test_unseen makes a sealed test split of your own: tasks in ALFRED's
+    held-out test rooms, from your seed, with the generator and checks of the other splits."""
+
+    split: str = arg(REQUIRED, 'the split', choices=[*sorted(SPLIT_SIZES), TEST_SPLIT], positional=True)
+    seed: Optional[int] = arg(None, f'{TEST_SPLIT} only, and required there: the seed its episodes come from (>= 0)')
+    size: Optional[int] = arg(None, f'number of tasks (none: the split size; {TEST_SPLIT}: '
+                              f'{SPLIT_SIZES["valid_unseen"]:,}, as valid_unseen)')
+    out: Optional[Path] = arg(None, f'output file (.jsonl.gz; required for {TEST_SPLIT}; none for the others: '
+                              'where load_split reads them)', metavar='PATH')
+    workers: int = arg(1, 'processes playing episodes ahead (the file is the same with any number)')
+    force: bool = arg(False, f'{TEST_SPLIT}: replace an existing --out (without it, an existing file is refused)')
+    progress: bool = arg(True, 'a progress bar on stderr')
+
+    def __post_init__(self):
+        check_split_seed(self.split, self.seed)
+        if self.size is not None and self.size < 1:
+            raise ValueError(f'--size must be a number of tasks >= 1, got {self.size}')
+        if self.workers < 1:
+            raise ValueError(f'--workers must be >= 1, got {self.workers}')
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
-        prog='python -m dialfred_sim.tasks.splits',
-        description='Generate a DialFRED split. test_unseen makes a sealed test split of your own: tasks in '
-                    "ALFRED's held-out test rooms (FloorPlan" + ', '.join(map(str, TEST_UNSEEN_SCENES))
-                    + '), from your seed, with the generator and checks of the other splits.',
-        epilog=f'example: python -m dialfred_sim.tasks.splits {TEST_SPLIT} --seed 7 --size 1363 '
-               '--out out/test_unseen_s7.jsonl.gz --workers 2')
-    ap.add_argument('split', choices=[*sorted(SPLIT_SIZES), TEST_SPLIT])
-    ap.add_argument('--seed', type=int, default=None,
-                    help=f'{TEST_SPLIT} only, and required there: the seed its episodes come from (>= 0)')
-    ap.add_argument('--size', type=int, default=None,
-                    help=f'number of tasks (default: the split size; {TEST_SPLIT}: '
-                         f'{SPLIT_SIZES["valid_unseen"]:,}, as valid_unseen)')
-    ap.add_argument('--out', default=None, help=f'output file (.jsonl.gz; required for {TEST_SPLIT}; '
-                                                'default for the others: where load_split reads them)')
-    ap.add_argument('--workers', type=int, default=1,
-                    help='processes playing episodes ahead (the file is the same with any number)')
-    ap.add_argument('--force', action='store_true',
-                    help=f'{TEST_SPLIT}: replace an existing --out (without it, an existing file is refused)')
-    ap.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
-    args = ap.parse_args(argv)
+    ap = parser_for(SplitConfig, prog='python -m dialfred_sim.tasks.splits',
+                    description=' '.join(SplitConfig.__doc__.split()) + ' (The test rooms: FloorPlan'
+                    + ', '.join(map(str, TEST_UNSEEN_SCENES)) + '.)',
+                    epilog=f'example: python -m dialfred_sim.tasks.splits {TEST_SPLIT} --seed 7 --size 1363 '
+                           '--out out/test_unseen_s7.jsonl.gz --workers 2')
+    args = from_args(SplitConfig, ap.parse_args(argv), ap)
     try:
-        check_split_seed(args.split, args.seed)
-        if args.size is not None and args.size < 1:
-            raise ValueError(f'--size must be a number of tasks >= 1, got {args.size}')
-        if args.workers < 1:
-            raise ValueError(f'--workers must be >= 1, got {args.workers}')
         if args.split == TEST_SPLIT:
             out = _test_split_out(args.out, args.force)
             size = args.size or SPLIT_SIZES['valid_unseen']
@@ -238,7 +242,7 @@ def main(argv=None) -> int:
     except ValueError as exc:
         ap.error(str(exc))      # exit 2, nothing written
     try:
-        report = write_split(args.split, out, size, args.seed, args.workers, not args.no_progress)
+        report = write_split(args.split, out, size, args.seed, args.workers, args.progress)
     except OSError as exc:      # e.g. the disk filled up: the half-written file is gone, `out` untouched
         print(f'error: cannot write {out}: {exc}', file=sys.stderr)
         return 1
