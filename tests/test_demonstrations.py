@@ -73,7 +73,7 @@ def test_an_interrupted_build_resumes_without_replaying_finished_tasks(built, tm
     import dialfred_sim.tasks.demonstrations as demonstrations
     played = []
     real = demonstrations.play_demonstration
-    monkeypatch.setattr(demonstrations, 'play_demonstration', lambda env, t, f: played.append(t.task_id) or real(env, t, f))
+    monkeypatch.setattr(demonstrations, 'play_demonstration', lambda env, t, f, *a, **kw: played.append(t.task_id) or real(env, t, f, *a, **kw))
     build_demonstrations('valid_unseen', RES, tmp_path, workers=1, limit=N, progress=False)
     assert played == [t.task_id for t in load_split('valid_unseen')[2:N]]
     assert (tmp_path / 'frames.npy').read_bytes() == (out / 'frames.npy').read_bytes()
@@ -99,3 +99,37 @@ def test_an_unfinished_or_bad_build_is_refused_clearly(tmp_path):
                            '--resolution', '4', '--limit', '1', '--out', str(tmp_path)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and 'at least 16' in proc.stderr
+
+
+def test_labels_say_what_each_pixel_is_and_leave_the_frames_alone(built, tmp_path):
+    from dialfred_sim.tasks.demonstrations import DEPTH_STEP, label_classes
+    out, _ = built
+    build_demonstrations('valid_unseen', RES, tmp_path, workers=2, limit=N, progress=False, labels=True)
+    assert (tmp_path / 'frames.npy').read_bytes() == (out / 'frames.npy').read_bytes()
+    demo = load_demonstrations(tmp_path)
+    assert load_demonstrations(out).labels is None
+    classes, depth, targets = demo.labels['classes'], demo.labels['depth'], demo.labels['targets']
+    names = label_classes()
+    assert classes.shape == depth.shape == demo.frames.shape[:3] and targets.shape == (len(demo.frames), RES * RES // 8)
+    env = DialfredEnv(resolution=RES)
+    interactions = 0
+    for t, rec in zip(load_split('valid_unseen')[:N], demo.tasks):
+        obs, _ = env.reset(options={'task': t})
+        for step, (name, x, y, target) in enumerate(rec['actions']):
+            row = rec['first_frame'] + step
+            mask = np.unpackbits(targets[row])[:RES * RES].reshape(RES, RES).astype(bool)
+            assert np.allclose(depth[row] * DEPTH_STEP, np.minimum(obs['depth'], 255 * DEPTH_STEP), atol=DEPTH_STEP)
+            assert {names[c] for c in np.unique(classes[row][obs['segmentation'] < 0])} <= {''}
+            if target:
+                interactions += 1
+                assert mask[y, x]                                     # the expert's pixel is on its target
+                assert {names[c] for c in np.unique(classes[row][mask])} == {target}
+                assert mask.sum() == (obs['segmentation'] == env.world.objects[t.expert_actions[step].target].body).sum()
+            else:
+                assert not mask.any()
+            obs = env.step({'action': name, 'pixel': (x, y)})[0]
+    env.close()
+    assert interactions >= N
+    # a build without labels in the same folder is made again, not mixed
+    build_demonstrations('valid_unseen', RES, tmp_path, workers=1, limit=N, progress=False)
+    assert load_demonstrations(tmp_path).labels is None and not (tmp_path / 'classes.npy').exists()

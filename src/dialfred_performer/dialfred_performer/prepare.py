@@ -56,6 +56,8 @@ class PrepareConfig:
     progress: bool = arg(True, 'progress bars on stderr')
     annotate: bool = arg(False, 'also make the synthetic annotators\' rows of every task while rendering '
                                 '(scripts/annotate_dialogues.py --from-demonstrations then writes them)')
+    labels: bool = arg(False, 'also write each frame\'s labels (classes, depth, the target\'s pixels) for training '
+                              'perception (dialfred_sim.tasks.demonstrations)')
 
     def __post_init__(self):
         if self.split not in SPLIT_SIZES:
@@ -197,7 +199,7 @@ def prepare(config: PrepareConfig) -> dict:
     c0 = _clock()
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
                                 limit=config.limit or None, progress=config.progress,
-                                probe=ANNOTATING_PROBE if config.annotate else ORACLE_PROBE)
+                                probe=ANNOTATING_PROBE if config.annotate else ORACLE_PROBE, labels=config.labels)
     c1 = _clock()
     write_dialogues(folder, config.workers, config.progress)
     c2 = _clock()

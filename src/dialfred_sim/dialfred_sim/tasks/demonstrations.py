@@ -14,6 +14,11 @@ replays every task's expert in `DialfredEnv` at the given resolution and writes 
   `[name, x, y, target type]` with x, y = -1 and target '' for moves. It also holds `success` (the
   task's goal held at the end) and `failed_actions`.
 - `meta.json`: split, resolution, tasks, frames, success rate and build time.
+- with `--labels`, what the simulator knows about each frame, for training perception (never shown to
+  an agent at evaluation): `classes.npy` uint8 [F, R, R], the class of each pixel (`LABEL_CLASSES`:
+  0 nothing, then Floor, Wall, Ceiling and the object types); `depth.npy` uint8 [F, R, R], depth in
+  steps of `DEPTH_STEP` m (255: that far or farther); `targets.npy` uint8 [F, ceil(R * R / 8)], the pixels of
+  the expert's target on an interaction frame (np.packbits of the R x R mask; all zero otherwise).
 
 The expert's pixels were chosen in 128x128 frames. At another resolution each pixel is scaled, and
 if the scaled pixel misses the expert's target, the nearest pixel that shows the target is used
@@ -41,6 +46,36 @@ from .splits import SPLIT_SIZES, load_split
 
 CACHE_ENV = 'DIALFRED_DEMO_DIR'
 SYNC_EVERY = 25        # tasks between pushes of frames, then their done records, to disk
+DEPTH_STEP = 0.04      # metres per unit of depth.npy (255 units = 10.2 m and beyond)
+LABEL_FILES = ('classes.npy', 'depth.npy', 'targets.npy')
+
+
+def label_classes() -> tuple[str, ...]:
+    """The classes of classes.npy: '' (nothing), the room's structure, then every object type."""
+    from ..world.catalog import load_catalog
+    return ('', 'Floor', 'Wall', 'Ceiling', *sorted(load_catalog()))
+
+
+class FrameLabels:
+    """Writes the labels of frames into the rows of classes/depth/targets views (see the module)."""
+
+    def __init__(self, classes: np.ndarray, depth: np.ndarray, targets: np.ndarray):
+        self.classes, self.depth, self.targets = classes, depth, targets
+        self.class_id = {name: k for k, name in enumerate(label_classes())}
+
+    def write(self, k: int, env, obs: dict, target: str = '') -> None:
+        """Row k: the labels of observation `obs` of `env`; `target` the object id of the action taken
+        from it (its pixels go to targets.npy)."""
+        seg = obs['segmentation']
+        ids, names = env.world.instance_table()
+        table = np.zeros(max(ids, default=0) + 2, np.uint8)       # body id + 1 -> class; -1 (no body) -> 0
+        for body, name in zip(ids, names):
+            obj = env.world.objects.get(name)
+            table[body + 1] = self.class_id.get(obj.type_name if obj is not None else name, 0)
+        self.classes[k] = table[np.clip(seg, -1, len(table) - 2) + 1]
+        self.depth[k] = np.minimum(np.round(obs['depth'] / DEPTH_STEP), 255).astype(np.uint8)
+        obj = env.world.objects.get(target) if target else None
+        self.targets[k] = np.packbits(seg == obj.body) if obj is not None else 0
 
 
 def default_dir(split: str, resolution: int) -> Path:
@@ -72,14 +107,18 @@ def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) ->
     return int(xs[k]), int(ys[k])
 
 
-def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable] = None) -> dict:
+def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable] = None,
+                       labels: Optional[FrameLabels] = None) -> dict:
     """Replay `task`'s expert in `env`, writing its len(actions) + 1 frames into `frames` (a view of that
     many rows); the task's record for tasks.jsonl. `observe(env, k)`, if given, is called at every step
-    k with the env as frame k shows it (before action k; k = len(actions) after the last)."""
+    k with the env as frame k shows it (before action k; k = len(actions) after the last). `labels`, if
+    given, writes each frame's labels into the same rows of its views."""
     obs, _ = env.reset(options={'task': task})
     actions, failed, success = [], 0, False
     for k, a in enumerate(task.expert_actions):
         frames[k] = obs['rgb']
+        if labels is not None:
+            labels.write(k, env, obs, a.target)
         if observe is not None:
             observe(env, k)
         x, y = expert_pixel(env, a, task.resolution, obs['segmentation'])
@@ -91,6 +130,8 @@ def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable
         if terminated or truncated:     # the goal held early (the rows left over stay zero)
             break
     frames[len(actions)] = obs['rgb']
+    if labels is not None:
+        labels.write(len(actions), env, obs)
     if observe is not None:
         observe(env, len(actions))
     return {'task_id': task.task_id, 'task_type': task.task_type, 'instruction': task.instruction,
@@ -134,7 +175,7 @@ def load_probe(name: str):
 
 
 def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int,
-            probe: str = '') -> None:
+            probe: str = '', labels: bool = False) -> None:
     from ..env import DialfredEnv
     out = Path(out)
     tasks = load_split(split)[:limit]
@@ -142,6 +183,7 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
     done = _done_records(out)
     watcher = load_probe(probe)() if probe else None
     frames = np.load(out / 'frames.npy', mmap_mode='r+')
+    label_maps = [np.load(out / name, mmap_mode='r+') for name in LABEL_FILES] if labels else []
     env = DialfredEnv(resolution=resolution)
     pending = []
     log_path = out / f'done-{shard}.txt'
@@ -151,6 +193,8 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
             log.write('\n')            # never glue a record onto a line an interruption cut off
         def sync() -> None:
             frames.flush()                      # the frames first, then the records that vouch for them
+            for m in label_maps:
+                m.flush()
             log.writelines(json.dumps(row, separators=(',', ':')) + '\n' for row in pending)
             log.flush()
             os.fsync(log.fileno())
@@ -159,12 +203,14 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
         for k in range(shard, len(tasks), shards):
             if k in done:
                 continue
+            rows = slice(offsets[k], offsets[k + 1])
+            task_labels = FrameLabels(*(m[rows] for m in label_maps)) if labels else None
             if watcher is None:
-                record = play_demonstration(env, tasks[k], frames[offsets[k]:offsets[k + 1]])
+                record = play_demonstration(env, tasks[k], frames[rows], labels=task_labels)
                 pending.append({'index': k, 'record': record})
             else:
                 watcher.begin(tasks[k])
-                record = play_demonstration(env, tasks[k], frames[offsets[k]:offsets[k + 1]], watcher)
+                record = play_demonstration(env, tasks[k], frames[rows], watcher, labels=task_labels)
                 pending.append({'index': k, 'record': record, 'probe': watcher.end(record)})
             if len(pending) >= SYNC_EVERY:
                 sync()
@@ -173,7 +219,8 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
 
 
 def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] = None, workers: int = 1,
-                         limit: Optional[int] = None, progress: bool = True, probe: str = '') -> dict:
+                         limit: Optional[int] = None, progress: bool = True, probe: str = '',
+                         labels: bool = False) -> dict:
     """Render the expert demonstrations of `split` (its first `limit` tasks) into `out`; resumes a build
     that was interrupted. Returns the contents of meta.json.
 
@@ -182,7 +229,8 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     task, `probe(env, k)` at each of its steps (play_demonstration's `observe`) and `end(record)`
     after it, and keeps what `end` returns (JSON, or None for nothing) beside the task's record;
     `probe_values(out)` reads them back. A probe must leave the env as it found it: the frames and
-    records are the same with or without one."""
+    records are the same with or without one. `labels` also writes each frame's labels (the module's
+    classes.npy, depth.npy, targets.npy); the frames are the same with or without them."""
     t0 = time.monotonic()
     if resolution < 16:
         raise ValueError(f'resolution must be at least 16, got {resolution}')
@@ -194,15 +242,22 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     frames_path = out / 'frames.npy'
     started = (out / 'build.json').exists() and json.loads((out / 'build.json').read_text())
     plan = {'split': split, 'resolution': resolution, 'tasks': len(tasks), 'frames': offsets[-1]}
+    if labels:
+        plan['labels'] = True         # a build without labels is not one with them: it is made again
     if started != plan or not frames_path.exists():
-        for stale in [frames_path, out / 'meta.json', out / 'tasks.jsonl', *out.glob('done-*.txt')]:
+        for stale in [frames_path, out / 'meta.json', out / 'tasks.jsonl', *out.glob('done-*.txt'),
+                      *(out / name for name in LABEL_FILES)]:
             stale.unlink(missing_ok=True)
         np.lib.format.open_memmap(frames_path, mode='w+', dtype=np.uint8, shape=shape).flush()
+        if labels:
+            for name, row in zip(LABEL_FILES, [(resolution, resolution), (resolution, resolution),
+                                               ((resolution * resolution + 7) // 8,)]):
+                np.lib.format.open_memmap(out / name, mode='w+', dtype=np.uint8, shape=(offsets[-1], *row)).flush()
         (out / 'build.json').write_text(json.dumps(plan) + '\n')
     elif (out / 'meta.json').exists():
         return json.loads((out / 'meta.json').read_text())       # already complete
     workers = max(1, min(workers, len(tasks)))
-    args = [(split, resolution, str(out), limit, k, workers, probe) for k in range(workers)]
+    args = [(split, resolution, str(out), limit, k, workers, probe, labels) for k in range(workers)]
     if workers == 1:
         _run_with_progress(None, args, out, len(tasks), progress)
     else:
@@ -254,6 +309,7 @@ class Demonstrations:
     frames: np.ndarray
     tasks: list[dict]
     meta: dict
+    labels: Optional[dict] = None      # {'classes', 'depth', 'targets'}: read-only memmaps of a --labels build
 
     def __len__(self) -> int:
         return len(self.tasks)
@@ -275,7 +331,12 @@ def load_demonstrations(path: Path) -> Demonstrations:
     frames = np.load(path / 'frames.npy', mmap_mode='r')
     if len(tasks) != meta['tasks'] or frames.shape[0] != meta['frames']:
         raise ValueError(f'{path}: tasks.jsonl or frames.npy do not match meta.json')
-    return Demonstrations(frames, tasks, meta)
+    labels = None
+    if meta.get('labels'):
+        labels = {name[:-4]: np.load(path / name, mmap_mode='r') for name in LABEL_FILES}
+        if any(m.shape[0] != meta['frames'] for m in labels.values()):
+            raise ValueError(f'{path}: the label files do not match meta.json')
+    return Demonstrations(frames, tasks, meta, labels)
 
 
 @dataclass
@@ -289,6 +350,8 @@ class DemonstrationsConfig:
     out: Optional[Path] = arg(None, 'output folder (none: ~/.cache/dialfred/demonstrations/<split>_<resolution>, '
                               'or $DIALFRED_DEMO_DIR/...)', metavar='DIR')
     progress: bool = arg(True, 'a progress bar on stderr')
+    labels: bool = arg(False, 'also write each frame\'s labels (classes.npy, depth.npy, targets.npy) for training '
+                       'perception')
 
 
 def main(argv=None) -> int:
@@ -296,7 +359,7 @@ def main(argv=None) -> int:
     args = from_args(DemonstrationsConfig, ap.parse_args(argv), ap)
     try:
         meta = build_demonstrations(args.split, args.resolution, args.out, args.workers, args.limit,
-                                    progress=args.progress)
+                                    progress=args.progress, labels=args.labels)
     except ValueError as exc:
         ap.error(str(exc))
     except KeyboardInterrupt:
