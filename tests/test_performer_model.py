@@ -48,9 +48,21 @@ def test_one_action_distribution_and_one_heatmap_per_step(demo):
         out = model_for(vocab)(batch)
     G = RES // 8
     assert out['action_logits'].shape == (B, T, len(ACTIONS)) == (3, T, 13)
-    assert out['pointer_logits'].shape == (B, T, G * G)
+    K = int((batch['target_cells'] >= 0).sum())
+    assert K > 0 and out['pointer_logits'].shape == (K, G * G) == batch['target_masks'].shape    # at target steps
     assert torch.isfinite(out['action_logits']).all() and torch.isfinite(out['pointer_logits']).all()
     assert pixel_cell(*cell_centre_pixel(27, G, RES), G, RES) == 27 and pixel_cell(-1, -1, G, RES) == -1
+
+
+def every_step(model, batch) -> dict:
+    """Action and pointer logits at every step [B, T, ...] (the agent's path: encode_frames, decode)."""
+    frames = batch['frames']
+    B, T = frames.shape[:2]
+    emb, grid = model.encode_frames(frames.reshape(B * T, *frames.shape[2:]))
+    action, pointer = model.decode(batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
+                                   emb.view(B, T, -1), grid.view(B, T, grid.shape[1], -1), batch['previous_actions'],
+                                   batch['step_valid'])
+    return {'action_logits': action, 'pointer_logits': pointer}
 
 
 def test_the_decision_at_a_step_never_sees_a_later_frame_action_or_qa(demo):
@@ -65,13 +77,13 @@ def test_the_decision_at_a_step_never_sees_a_later_frame_action_or_qa(demo):
         batch['lang_steps'][0, -3:] = t + 1
         later_qa = batch['lang_steps'][0] > t
     with torch.no_grad():
-        ref = model(batch)
+        ref = every_step(model, batch)
         changed = {k: v.clone() if torch.is_tensor(v) else v for k, v in batch.items()}
         changed['frames'][0, t + 1:] = torch.rand_like(changed['frames'][0, t + 1:])
         changed['previous_actions'][0, t + 1:] = (changed['previous_actions'][0, t + 1:] + 3) % len(ACTIONS)
         changed['lang_ids'][0, later_qa] = 1                        # <unk>
         changed['lang_types'][0, later_qa] = 1
-        out = model(changed)
+        out = every_step(model, changed)
     for key in ('action_logits', 'pointer_logits'):
         assert torch.allclose(out[key][0, :t + 1], ref[key][0, :t + 1], atol=1e-5), key
         assert not torch.allclose(out[key][0, t + 1:], ref[key][0, t + 1:], atol=1e-5), key   # it does see them later
@@ -113,7 +125,8 @@ def test_a_tiny_training_run_overfits_three_episodes(demo):
     valid = batch['step_valid']
     assert (out['action_logits'].argmax(-1)[valid] == batch['actions'][valid]).all()
     has = batch['target_cells'] >= 0
-    assert has.any() and (out['pointer_logits'].argmax(-1)[has] == batch['target_cells'][has]).all()
+    assert has.any() and (out['pointer_logits'].argmax(-1) == batch['target_cells'][has]).all()
+    assert torch.allclose(every_step(model, batch)['pointer_logits'][has], out['pointer_logits'], atol=1e-5)
 
 
 def test_checkpoint_round_trip_carries_config_vocab_commit_and_command(demo, tmp_path):

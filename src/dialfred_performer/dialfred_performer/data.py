@@ -20,6 +20,7 @@ by replaying the expert's recorded actions in `DialfredEnv` and asking the real 
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 from pathlib import Path
@@ -40,6 +41,12 @@ COMBINATIONS: tuple[tuple[str, ...], ...] = tuple(
 DIALOGUES_FILE = 'dialogues.jsonl'
 STOP = ACTIONS.index('Stop')
 START = len(ACTIONS)          # the "previous action" of step 0 (ActionEmbedding's <start>)
+
+
+def held_out(task_id: str, fraction: float) -> bool:
+    """Whether a task is in the validation part: its id's hash (stable across runs) below `fraction`
+    (the performer's training and the perception's hold out the same tasks)."""
+    return int(hashlib.sha256(task_id.encode()).hexdigest()[:12], 16) / 16 ** 12 < fraction
 
 
 def load_dialogues(path: Path) -> dict[str, list[AskedQA]]:
@@ -70,13 +77,19 @@ class DemonstrationDataset(Dataset):
 
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
                  combinations: Sequence[tuple[str, ...]] = COMBINATIONS, seed: int = 0,
-                 only_successful: bool = True):
+                 only_successful: bool = True, grid_size: int = 0):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
         self.combinations = tuple(combinations) if self.dialogues else ((),)
         self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
         self.frame_size = self.demo.meta['resolution']
+        self.grid_size = grid_size or resolution // 8      # the pointer's cells per side
+        # A pointer over every pixel learns from every pixel of the target (the build's labels).
+        self.pixel_targets = self.grid_size == self.resolution and self.demo.labels is not None
+        if self.pixel_targets and self.frame_size != resolution:
+            raise ValueError(f'a pixel pointer at {resolution} px needs demonstrations at {resolution} px, '
+                             f'not {self.frame_size}')
 
     def __len__(self) -> int:
         return len(self.task_indices) * len(self.combinations)
@@ -104,12 +117,19 @@ class DemonstrationDataset(Dataset):
         names = [a[0] for a in task['actions']] + (['Stop'] if task['success'] else [])
         frames = np.asarray(self.demo.frames_of(k)[:len(names)])
         actions = torch.tensor([ACTIONS.index(a) for a in names], dtype=torch.long)
-        grid = self.resolution // 8
+        grid = self.grid_size
         cells = [pixel_cell(x, y, grid, self.frame_size) for _, x, y, _ in task['actions']] + [-1] * (len(names) - n)
+        masks = torch.zeros(sum(c >= 0 for c in cells), grid * grid, dtype=torch.bool)
+        for row, step in enumerate(t for t, c in enumerate(cells) if c >= 0):
+            if self.pixel_targets:
+                packed = self.demo.labels['targets'][task['first_frame'] + step]
+                masks[row] = torch.from_numpy(np.unpackbits(packed)[:grid * grid].astype(bool))
+            if not masks[row].any():              # no labels, or the target is not in view: the expert's cell
+                masks[row, cells[step]] = True
         lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens)
         return {'task_id': task['task_id'], 'frames': frame_tensor(frames, self.resolution), 'actions': actions,
                 'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),
-                'target_cells': torch.tensor(cells, dtype=torch.long),
+                'target_cells': torch.tensor(cells, dtype=torch.long), 'target_masks': masks,
                 'lang_ids': torch.tensor(lang.ids, dtype=torch.long),
                 'lang_types': torch.tensor(lang.types, dtype=torch.long),
                 'lang_steps': torch.tensor(lang.steps, dtype=torch.long)}
@@ -118,7 +138,8 @@ class DemonstrationDataset(Dataset):
 def collate(items: Sequence[dict]) -> dict:
     """Pad items to a batch: frames [B, T, 3, R, R], actions / previous_actions / target_cells [B, T]
     (padding: Stop / <start> / -1), step_valid [B, T]; lang_ids / types / steps [B, L] (padding 0),
-    lang_valid [B, L]."""
+    lang_valid [B, L]; target_masks [K, C], the target's cells at each of the K steps with a target
+    (row-major over [B, T], as `tensor[target_cells >= 0]` orders them)."""
     B = len(items)
     T = max(len(it['actions']) for it in items)
     L = max(max(len(it['lang_ids']) for it in items), 1)
@@ -129,7 +150,8 @@ def collate(items: Sequence[dict]) -> dict:
            'target_cells': torch.full((B, T), -1, dtype=torch.long),
            'step_valid': torch.zeros(B, T, dtype=torch.bool),
            'lang_ids': torch.zeros(B, L, dtype=torch.long), 'lang_types': torch.zeros(B, L, dtype=torch.long),
-           'lang_steps': torch.zeros(B, L, dtype=torch.long), 'lang_valid': torch.zeros(B, L, dtype=torch.bool)}
+           'lang_steps': torch.zeros(B, L, dtype=torch.long), 'lang_valid': torch.zeros(B, L, dtype=torch.bool),
+           'target_masks': torch.cat([it['target_masks'] for it in items])}
     for b, it in enumerate(items):
         t, n = len(it['actions']), len(it['lang_ids'])
         out['frames'][b, :t] = it['frames']

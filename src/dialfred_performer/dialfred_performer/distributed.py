@@ -122,12 +122,12 @@ def sharded_loss(outputs: dict, batch: dict, pointer_weight: float, steps: float
     global targets). Summed over the ranks and divided by `world`, it is the single process's loss (and
     its gradient the update's). Every output takes part in the graph (DDP expects a gradient for each
     parameter), whatever this rank's share holds."""
-    valid, has_target = batch['step_valid'], batch['target_cells'] >= 0
+    from .model import pointer_ce
+    valid, masks = batch['step_valid'], batch['target_masks']
     action = F.cross_entropy(outputs['action_logits'][valid], batch['actions'][valid], reduction='sum') / max(steps, 1.0)
     pointer = outputs['pointer_logits'].sum() * 0.0
-    if targets > 0 and has_target.any():
-        pointer = pointer + F.cross_entropy(outputs['pointer_logits'][has_target], batch['target_cells'][has_target],
-                                            reduction='sum') / targets
+    if targets > 0 and len(masks):
+        pointer = pointer + pointer_ce(outputs['pointer_logits'], masks, reduction='sum') / targets
     return (action + pointer_weight * pointer) * (world * weight)
 
 

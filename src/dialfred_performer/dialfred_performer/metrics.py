@@ -16,17 +16,20 @@ STAT_KEYS = ('steps', 'targets', 'action_ce', 'pointer_ce', 'action_correct', 'p
 
 
 def batch_stats(outputs: dict, batch: dict) -> dict:
-    """Sums over a batch: cross-entropies and correct predictions (action over valid steps, pointer
-    over steps with a target)."""
+    """Sums over a batch: cross-entropies and correct predictions (action over valid steps; pointer
+    over steps with a target, right when its best cell is one of the target's)."""
     import torch.nn.functional as F
-    valid, has = batch['step_valid'], batch['target_cells'] >= 0
-    a_logits, p_logits = outputs['action_logits'].detach()[valid], outputs['pointer_logits'].detach()[has]
-    a_target, p_target = batch['actions'][valid], batch['target_cells'][has]
-    return {'steps': int(valid.sum()), 'targets': int(has.sum()),
+
+    from .model import pointer_ce
+    valid = batch['step_valid']
+    a_logits, p_logits = outputs['action_logits'].detach()[valid], outputs['pointer_logits'].detach()
+    a_target, masks = batch['actions'][valid], batch['target_masks']
+    best = p_logits.argmax(-1) if len(masks) else None
+    return {'steps': int(valid.sum()), 'targets': len(masks),
             'action_ce': float(F.cross_entropy(a_logits, a_target, reduction='sum')),
-            'pointer_ce': float(F.cross_entropy(p_logits, p_target, reduction='sum')) if len(p_target) else 0.0,
+            'pointer_ce': float(pointer_ce(p_logits, masks, reduction='sum')) if len(masks) else 0.0,
             'action_correct': int((a_logits.argmax(-1) == a_target).sum()),
-            'pointer_correct': int((p_logits.argmax(-1) == p_target).sum()) if len(p_target) else 0,
+            'pointer_correct': int(masks[torch.arange(len(masks)), best].sum()) if len(masks) else 0,
             'episodes': int(valid.shape[0])}
 
 

@@ -11,6 +11,7 @@ The agent (`agent.py`) calls the same `encode_frames` and `decode` one step at a
 from __future__ import annotations
 
 import dataclasses
+import json
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -23,7 +24,8 @@ from torch import nn
 
 from dialfred_sim.protocol import ACTIONS
 
-from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PointerHead, VisualEncoder
+from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
+from .perception import PerceptionNetConfig
 from .preprocess import N_TOKEN_TYPES, Vocabulary
 
 # Actions that name a target pixel (the pointer is trained and used on these only).
@@ -47,10 +49,22 @@ class PerformerConfig:
     dropout: float = 0.1
     max_tokens: int = 256          # language tokens: instruction + every QA
     max_steps: int = 1000          # frames of one episode (the simulator truncates at 1000 steps)
+    visual: str = 'cnn'            # 'cnn': three convolutions learnt through the action loss, a pointer over
+                                   # 8 x 8-pixel cells; 'perception': the pretrained Perception network
+                                   # (dialfred_performer.perception), frozen, and a pointer over every pixel
+    perception_net: str = ''       # visual='perception': the network's sizes (JSON of PerceptionNetConfig)
+    pointer_key: int = 32          # visual='perception': the size of each pixel's pointer key
+
+    def __post_init__(self):
+        if self.visual not in ('cnn', 'perception'):
+            raise ValueError(f"visual must be 'cnn' or 'perception', got {self.visual!r}")
+        if self.visual == 'perception' and not self.perception_net:
+            raise ValueError("visual='perception' needs perception_net (train with --perception PATH)")
 
     @property
     def grid_size(self) -> int:
-        return self.resolution // 8
+        """The pointer's cells per side: 8 x 8-pixel cells (cnn) or every pixel (perception)."""
+        return self.resolution if self.visual == 'perception' else self.resolution // 8
 
 
 class Performer(nn.Module):
@@ -60,22 +74,31 @@ class Performer(nn.Module):
         self.vocab_size = vocab_size
         d = config.d_model
         self.language = LanguageEncoder(vocab_size, d, config.max_tokens, N_TOKEN_TYPES, config.dropout)
-        self.visual = VisualEncoder(d, config.resolution)
+        if config.visual == 'perception':
+            self.visual = PerceivedFrames(d, config.pointer_key, PerceptionNetConfig(**json.loads(config.perception_net)))
+            self.pointer_head = PointerHead(d, config.pointer_key, project_keys=False)
+        else:
+            self.visual = VisualEncoder(d, config.resolution)
+            self.pointer_head = PointerHead(d)
         self.actions = ActionEmbedding(len(ACTIONS), d)
         self.encoder = MultimodalEncoder(d, config.heads, config.layers, config.ff, config.max_steps, config.dropout)
         self.action_head = ActionHead(d, len(ACTIONS))
-        self.pointer_head = PointerHead(d)
 
     def encode_frames(self, frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """frames [N, 3, R, R] -> (embedding [N, d], grid [N, C, d])."""
+        """frames [N, 3, R, R] -> (embedding [N, d], grid [N, C, k]: a key per pointer cell)."""
         return self.visual(frames)
+
+    def hidden(self, lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions,
+               step_valid) -> torch.Tensor:
+        """The multimodal encoder's output [B, T, d] (see decode)."""
+        lang = self.language(lang_ids, lang_types)
+        return self.encoder(lang, lang_steps, lang_valid, frame_embedding, self.actions(previous_actions), step_valid)
 
     def decode(self, lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, grid, previous_actions,
                step_valid) -> tuple[torch.Tensor, torch.Tensor]:
-        """Language [B, L], frame embeddings [B, T, d] with grids [B, T, C, d], previous actions
+        """Language [B, L], frame embeddings [B, T, d] with grids [B, T, C, k], previous actions
         [B, T] and valid steps [B, T] -> (action logits [B, T, 13], pointer logits [B, T, C])."""
-        lang = self.language(lang_ids, lang_types)
-        h = self.encoder(lang, lang_steps, lang_valid, frame_embedding, self.actions(previous_actions), step_valid)
+        h = self.hidden(lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions, step_valid)
         return self.action_head(h), self.pointer_head(h, grid)
 
     @torch.no_grad()
@@ -92,24 +115,37 @@ class Performer(nn.Module):
 
     def forward(self, batch: dict) -> dict:
         """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],
-        'pointer_logits' [B, T, C]}."""
+        'pointer_logits' [K, C]: at the K steps with a target (batch['target_cells'] >= 0), in order}."""
         frames = batch['frames']
         B, T = frames.shape[:2]
-        emb, grid = self.encode_frames(frames.reshape(B * T, *frames.shape[2:]))
-        action_logits, pointer_logits = self.decode(
-            batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
-            emb.view(B, T, -1), grid.view(B, T, grid.shape[1], -1), batch['previous_actions'], batch['step_valid'])
-        return {'action_logits': action_logits, 'pointer_logits': pointer_logits}
+        has_target = batch['target_cells'] >= 0
+        flat = frames.reshape(B * T, *frames.shape[2:])
+        if isinstance(self.visual, PerceivedFrames):       # keys only for the frames that need them
+            emb, keys = self.visual(flat, keys_for=has_target.reshape(-1))
+        else:
+            emb, grid = self.visual(flat)
+            keys = grid.view(B, T, grid.shape[1], -1)[has_target]
+        h = self.hidden(batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
+                        emb.view(B, T, -1), batch['previous_actions'], batch['step_valid'])
+        return {'action_logits': self.action_head(h), 'pointer_logits': self.pointer_head(h[has_target], keys)}
+
+
+def pointer_ce(logits: torch.Tensor, targets: torch.Tensor, reduction: str = 'mean') -> torch.Tensor:
+    """Cross-entropy of pointer logits [K, C] against target masks [K, C] (bool): -log of the
+    probability the pointer gives to all of the target's cells together (every cell of the target is
+    a right answer; a mask of one cell is the usual cross-entropy)."""
+    ce = torch.logsumexp(logits, -1) - torch.logsumexp(logits.masked_fill(~targets, float('-inf')), -1)
+    return ce.mean() if reduction == 'mean' else ce.sum()
 
 
 def performer_loss(outputs: dict, batch: dict, pointer_weight: float = 1.0) -> tuple[torch.Tensor, dict]:
-    """Cross-entropy of the expert's actions over valid steps + `pointer_weight` x cross-entropy of
-    the target cell over interaction steps (target_cells >= 0). Returns (loss, {'action', 'pointer'})."""
+    """Cross-entropy of the expert's actions over valid steps + `pointer_weight` x the pointer's
+    cross-entropy against the target's cells (batch['target_masks'] [K, C]) over the interaction
+    steps. Returns (loss, {'action', 'pointer'})."""
     valid = batch['step_valid']
     action = F.cross_entropy(outputs['action_logits'][valid], batch['actions'][valid])
-    has_target = batch['target_cells'] >= 0
-    if has_target.any():
-        pointer = F.cross_entropy(outputs['pointer_logits'][has_target], batch['target_cells'][has_target])
+    if len(batch['target_masks']):
+        pointer = pointer_ce(outputs['pointer_logits'], batch['target_masks'])
     else:
         pointer = outputs['pointer_logits'].sum() * 0.0
     loss = action + pointer_weight * pointer

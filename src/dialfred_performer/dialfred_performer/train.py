@@ -52,7 +52,7 @@ from dialfred_sim.tasks.demonstrations import default_dir
 from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
 from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .curves import draw_curves
-from .data import DIALOGUES_FILE, DemonstrationDataset, collate, vocabulary_texts
+from .data import DIALOGUES_FILE, DemonstrationDataset, collate, held_out, vocabulary_texts
 from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,
                           rank_seed, rank_share, reduce_stats, sharded_loss, zero_stats)
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
@@ -80,6 +80,8 @@ class TrainConfig:
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
     out: str = arg('out/performer', 'folder for checkpoints, metrics.jsonl and curves.png')
     model: PerformerConfig = field(default_factory=PerformerConfig)
+    perception: str = arg('', 'a perception checkpoint (python -m dialfred_performer.perception): the performer sees '
+                              'through it, frozen, and points at pixels; \'\' = the small CNN learnt with the actions')
     epochs: int = arg(10, 'passes over the training episodes (each task once per question-type combination)')
     max_updates: int = arg(0, 'stop after this many optimiser updates in all (0: epochs x updates per epoch)')
     batch_size: int = arg(16, 'episodes per update')
@@ -121,6 +123,8 @@ class TrainConfig:
         if not (self.device in ('auto', 'cpu', 'cuda') or self.device.startswith('cuda:')):
             raise ValueError(f"device must be 'auto', 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
         m = self.model
+        if m.visual != 'cnn' or m.perception_net:
+            raise ValueError('--visual and --perception-net come from the perception checkpoint: give --perception PATH')
         if m.resolution < 8 or m.resolution % 8:
             raise ValueError(f'resolution must be a positive multiple of 8, got {m.resolution}')
         if m.d_model < 8 or m.d_model % 8 or m.heads < 1 or m.d_model % m.heads:
@@ -162,11 +166,6 @@ def check_folder(path: Path, what: str, need_dialogues: bool) -> None:
                                 '(or train on instructions only with --no-dialogues)')
 
 
-def held_out(task_id: str, fraction: float) -> bool:
-    """Whether a task is in the validation part: its id's hash (stable across runs) below `fraction`."""
-    return int(hashlib.sha256(task_id.encode()).hexdigest()[:12], 16) / 16 ** 12 < fraction
-
-
 @dataclass
 class Data:
     train: DemonstrationDataset
@@ -181,15 +180,31 @@ class Data:
         return [len(tasks[ds.task_indices[i // combos]]['actions']) + 1 for i in items]
 
 
+def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:
+    """(the performer's config, the perception weights or None): with --perception, the model sees
+    through that network (its sizes go into the config, its weights into the performer)."""
+    if not cfg.perception:
+        return cfg.model, None
+    from .perception import load_perception
+    net, _ = load_perception(Path(cfg.perception))
+    if net.config.resolution != cfg.model.resolution:
+        raise ValueError(f'the perception network reads {net.config.resolution} px frames, the performer '
+                         f'{cfg.model.resolution} px (--resolution)')
+    sizes = json.dumps(dataclasses.asdict(net.config), sort_keys=True)
+    return dataclasses.replace(cfg.model, visual='perception', perception_net=sizes), net.state_dict()
+
+
 def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
-    m = cfg.model
-    train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed)
+    m, _ = model_config(cfg)
+    train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
+                                 grid_size=m.grid_size)
     if not cfg.dialogues:
         train.combinations = ((),)
     combos = len(train.combinations)
     every = list(range(len(train)))
     if cfg.validation:
-        val = DemonstrationDataset(Path(cfg.validation), vocab, m.resolution, m.max_tokens, seed=cfg.seed)
+        val = DemonstrationDataset(Path(cfg.validation), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
+                                   grid_size=m.grid_size)
         if not cfg.dialogues:
             val.combinations = ((),)
         return Data(train, every, val, list(range(len(val))))
@@ -247,8 +262,9 @@ def lr_factor(update: int, warmup: int, total: int, final: float) -> float:
 
 
 def make_optimizer(model: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
-    decay = [p for n, p in model.named_parameters() if p.ndim >= 2 and 'norm' not in n]
-    rest = [p for n, p in model.named_parameters() if not (p.ndim >= 2 and 'norm' not in n)]
+    learnt = [(n, p) for n, p in model.named_parameters() if p.requires_grad]      # not a frozen perception
+    decay = [p for n, p in learnt if p.ndim >= 2 and 'norm' not in n]
+    rest = [p for n, p in learnt if not (p.ndim >= 2 and 'norm' not in n)]
     return torch.optim.AdamW([{'params': decay, 'weight_decay': cfg.weight_decay},
                               {'params': rest, 'weight_decay': 0.0}], lr=cfg.lr)
 
@@ -353,7 +369,11 @@ def train(cfg: TrainConfig, ranks: Optional[Ranks] = None) -> dict:
     data = load_data(cfg, vocab)
     per_epoch = math.ceil(len(epoch_items(data, cfg, 0)) / cfg.batch_size)
     total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
-    model = Performer(cfg.model, len(vocab)).to(device)
+    model_cfg, perception_weights = model_config(cfg)
+    model = Performer(model_cfg, len(vocab))
+    if perception_weights is not None:
+        model.visual.net.load_state_dict(perception_weights)
+    model = model.to(device)
     optimizer = make_optimizer(model, cfg)
     scheduler = torch.optim.lr_scheduler.LambdaLR(
         optimizer, lambda u: lr_factor(u, cfg.warmup_updates, total, cfg.final_lr_fraction))

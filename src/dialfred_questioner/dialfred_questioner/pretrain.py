@@ -32,7 +32,7 @@ import torch
 from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
-from dialfred_performer.train import held_out
+from dialfred_performer.data import held_out
 
 from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
 from .model import Questioner, QuestionerConfig

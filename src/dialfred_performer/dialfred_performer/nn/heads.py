@@ -29,11 +29,14 @@ class ActionHead(nn.Module):
 
 
 class PointerHead(nn.Module):
-    def __init__(self, d_model: int):
+    def __init__(self, d_model: int, d_key: int = 0, project_keys: bool = True):
+        """Queries of size `d_key` (default d_model) from the step's output; the cells' keys projected
+        by a linear layer, or taken as they come (`project_keys=False`: made already)."""
         super().__init__()
-        self.query = nn.Linear(d_model, d_model)
-        self.key = nn.Linear(d_model, d_model)
-        self.scale = 1.0 / math.sqrt(d_model)
+        d_key = d_key or d_model
+        self.query = nn.Linear(d_model, d_key)
+        self.key = nn.Linear(d_key, d_key) if project_keys else nn.Identity()
+        self.scale = 1.0 / math.sqrt(d_key)
 
     def forward(self, h: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
         """h: [..., d_model] (the step's output), grid: [..., C, d_model] (its frame's cells) ->

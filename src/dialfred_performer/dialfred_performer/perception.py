@@ -1,0 +1,347 @@
+"""Perception trained on our own world: a small convolutional network that learns what every pixel of a
+frame is from the labels the simulator gives for free at training time (no ROS).
+
+    ./dialfred prepare-performer --split train --labels          # frames with classes, depth, targets
+    ./dialfred env python -m dialfred_performer.perception --out out/perception
+
+E.T. (the paper's performer) did not learn to see from its action loss: it used visual features
+trained elsewhere and a Mask R-CNN trained on AI2-THOR's frames. No pretrained weights can be had
+here, so this is the honest equivalent: `Perception` reads an RGB frame only, and is trained on the
+demonstrations' frames to predict, at 2 x 2-pixel cells, the class of what is there (`LABEL_CLASSES`:
+nothing, floor, wall, ceiling and the 117 object types; object pixels weigh `object_weight` times a
+structure pixel), its depth (metres), and its colour (so that the features keep what an appearance
+answer talks about). The labels exist in training only; the performer that uses the features sees RGB.
+
+Its outputs (`PerceptionOutput`): `coarse` [N, c3, R/8, R/8] (what the transformer's frame embedding
+is made from), `fine` [N, c, R/2, R/2] (the decoder's map) and `stem` [N, c1, R, R] (full-resolution
+edges and colours); the performer's pointer scores every pixel from `fine` and `stem`.
+
+Written to --out: `perception.pt` (a `save_perception` file: config + weights; the best validation
+loss), `last.pt` (with the optimiser and RNG state, for --resume), `metrics.jsonl`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple, Optional
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
+from dialfred_sim.tasks.demonstrations import DEPTH_STEP, default_dir, label_classes, load_demonstrations
+
+from .data import held_out
+from .malloc import ensure_malloc_settings
+
+MODULE = 'dialfred_performer.perception'
+PERCEPTION_FORMAT = 'dialfred-perception/1'
+FIRST_OBJECT_CLASS = 4            # classes below are nothing, Floor, Wall, Ceiling
+
+
+@dataclass(frozen=True)
+class PerceptionNetConfig:
+    """Sizes of the perception network."""
+
+    resolution: int = 64
+    c1: int = 32            # channels at R/2 (and of the full-resolution stem)
+    c2: int = 64            # at R/4
+    c3: int = 128           # at R/8
+    decoder: int = 64       # channels of the decoder's R/2 map
+    classes: int = 0        # set from label_classes() when 0
+
+
+class PerceptionOutput(NamedTuple):
+    coarse: torch.Tensor      # [N, c3, R/8, R/8]
+    fine: torch.Tensor        # [N, decoder, R/2, R/2]
+    stem: torch.Tensor        # [N, c1, R, R]
+
+
+def _conv(cin: int, cout: int, stride: int = 1, dilation: int = 1) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(cin, cout, 3, stride=stride, padding=dilation, dilation=dilation, bias=False),
+                         nn.GroupNorm(8, cout), nn.ReLU(inplace=True))
+
+
+class Perception(nn.Module):
+    """RGB [N, 3, R, R] in [0, 1] -> PerceptionOutput; `heads(fine)` -> class logits, depth, colour at
+    R/2 (training only)."""
+
+    def __init__(self, config: PerceptionNetConfig):
+        super().__init__()
+        if config.resolution % 8:
+            raise ValueError(f'the resolution must be a multiple of 8, got {config.resolution}')
+        c = config
+        self.config = config
+        n_classes = c.classes or len(label_classes())
+        self.stem = _conv(3, c.c1)                                               # R
+        self.down1 = nn.Sequential(_conv(c.c1, c.c1, 2), _conv(c.c1, c.c1))      # R/2
+        self.down2 = nn.Sequential(_conv(c.c1, c.c2, 2), _conv(c.c2, c.c2))      # R/4
+        self.down3 = nn.Sequential(_conv(c.c2, c.c3, 2), _conv(c.c3, c.c3), _conv(c.c3, c.c3, dilation=2))  # R/8
+        self.top = nn.Conv2d(c.c3, c.decoder, 1)
+        self.lateral2 = nn.Conv2d(c.c2, c.decoder, 1)
+        self.lateral1 = nn.Conv2d(c.c1, c.decoder, 1)
+        self.smooth2 = _conv(c.decoder, c.decoder)
+        self.smooth1 = _conv(c.decoder, c.decoder)
+        self.class_head = nn.Conv2d(c.decoder, n_classes, 1)
+        self.depth_head = nn.Conv2d(c.decoder, 1, 1)
+        self.colour_head = nn.Conv2d(c.decoder, 3, 1)
+        self.register_buffer('mean', torch.tensor([0.5, 0.5, 0.5]).view(1, 3, 1, 1), persistent=False)
+
+    def forward(self, frames: torch.Tensor) -> PerceptionOutput:
+        stem = self.stem(frames - self.mean)
+        f1 = self.down1(stem)
+        f2 = self.down2(f1)
+        f3 = self.down3(f2)
+        up = F.interpolate(self.top(f3), scale_factor=2, mode='nearest') + self.lateral2(f2)
+        up = F.interpolate(self.smooth2(up), scale_factor=2, mode='nearest') + self.lateral1(f1)
+        return PerceptionOutput(f3, self.smooth1(up), stem)
+
+    def heads(self, fine: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """fine [N, c, R/2, R/2] -> (class logits [N, K, R/2, R/2], depth m [N, R/2, R/2], colour [N, 3, R/2, R/2])."""
+        return self.class_head(fine), F.softplus(self.depth_head(fine))[:, 0], torch.sigmoid(self.colour_head(fine))
+
+
+# ---------------------------------------------------------------------- labels -> targets
+
+def cell_targets(classes: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor, n_classes: int):
+    """Per-pixel labels [N, R, R] (uint8 classes, uint8 depth) and frames [N, 3, R, R] -> the targets at
+    2 x 2 cells: class distribution [N, K, R/2, R/2] (the share of each class in the cell), depth in
+    metres [N, R/2, R/2], mean colour [N, 3, R/2, R/2], object share [N, R/2, R/2]."""
+    one_hot = F.one_hot(classes.long(), n_classes).permute(0, 3, 1, 2).float()
+    share = F.avg_pool2d(one_hot, 2)
+    metres = F.avg_pool2d(depth.float()[:, None] * DEPTH_STEP, 2)[:, 0]
+    colour = F.avg_pool2d(rgb, 2)
+    objects = share[:, FIRST_OBJECT_CLASS:].sum(1)
+    return share, metres, colour, objects
+
+
+def perception_loss(net: Perception, out: PerceptionOutput, frames, classes, depth, object_weight: float):
+    """(loss, stats): class cross-entropy against each cell's class shares (object cells weigh
+    `object_weight`), L1 of depth in metres, L1 of colour."""
+    logits, metres, colour = net.heads(out.fine)
+    share, true_metres, true_colour, objects = cell_targets(classes, depth, frames, logits.shape[1])
+    weight = 1.0 + (object_weight - 1.0) * objects
+    ce = -(share * F.log_softmax(logits, 1)).sum(1)
+    class_loss = (ce * weight).sum() / weight.sum()
+    depth_loss = (metres - true_metres).abs().mean()
+    colour_loss = (colour - true_colour).abs().mean()
+    loss = class_loss + 0.5 * depth_loss + colour_loss
+    with torch.no_grad():
+        predicted = logits.argmax(1)
+        majority = share.argmax(1)
+        on_object = majority >= FIRST_OBJECT_CLASS
+        stats = {'loss': float(loss), 'class': float(class_loss), 'depth_m': float(depth_loss),
+                 'colour': float(colour_loss), 'cells': int(majority.numel()),
+                 'cell_accuracy': float((predicted == majority).float().sum()),
+                 'object_cells': int(on_object.sum()),
+                 'object_accuracy': float((predicted == majority)[on_object].float().sum())}
+    return loss, stats
+
+
+# ---------------------------------------------------------------------- checkpoints
+
+class PerceptionCheckpointError(ValueError):
+    """A perception checkpoint that cannot be loaded, with why."""
+
+
+def save_perception(path: Path, net: Perception, extra: Optional[dict] = None) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + '.tmp')
+    torch.save({'format': PERCEPTION_FORMAT, 'config': dataclasses.asdict(net.config),
+                'state_dict': net.state_dict(), 'extra': extra or {}}, tmp)
+    tmp.replace(path)
+
+
+def load_perception(path: Path) -> tuple[Perception, dict]:
+    """(network in eval mode, extra) of a save_perception file (weights_only: no pickled code runs)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f'no perception checkpoint at {path} (made by python -m {MODULE})')
+    try:
+        state = torch.load(path, map_location='cpu', weights_only=True)
+        if state.get('format') != PERCEPTION_FORMAT:
+            raise PerceptionCheckpointError(f'{path}: format {state.get("format")!r}, not {PERCEPTION_FORMAT!r}')
+        net = Perception(PerceptionNetConfig(**state['config']))
+        net.load_state_dict(state['state_dict'])
+    except PerceptionCheckpointError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged or foreign file raises many kinds
+        raise PerceptionCheckpointError(f'{path} is not a perception checkpoint ({type(exc).__name__}: {exc})') from exc
+    net.eval()
+    return net, state.get('extra', {})
+
+
+# ---------------------------------------------------------------------- training
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """Train the perception network on labelled demonstrations (prepare-performer --labels)."""
+
+    demonstrations: str = arg(str(default_dir('train', 64)), 'a demonstrations folder built with --labels')
+    val_fraction: float = arg(0.05, 'hold out the frames of the tasks whose id hashes below this (the performer\'s '
+                                    'held-out tasks too)')
+    out: str = arg('out/perception', 'where perception.pt, last.pt and metrics.jsonl go')
+    c1: int = arg(32, 'channels at R/2 and of the stem')
+    c2: int = arg(64, 'channels at R/4')
+    c3: int = arg(128, 'channels at R/8')
+    decoder: int = arg(64, 'channels of the decoder map')
+    frames: int = arg(200_000, 'training frames to show in all (a frame may be shown again)')
+    batch_size: int = arg(64, 'frames per update')
+    lr: float = arg(2e-3, 'peak learning rate (AdamW, warm-up then cosine)')
+    weight_decay: float = arg(1e-4, 'AdamW weight decay')
+    object_weight: float = arg(4.0, 'weight of a cell of an object against one of floor, wall or nothing')
+    val_frames: int = arg(4000, 'held-out frames evaluated at each validation')
+    validate_every: int = arg(500, 'updates between validations (and last.pt)')
+    seed: int = arg(0, 'the seed of the initial weights and of the frames drawn')
+    threads: int = arg(2, 'torch threads')
+    resume: bool = arg(False, 'go on from --out/last.pt')
+    progress: bool = arg(True, 'a progress bar on stderr')
+
+    def __post_init__(self):
+        for name in ('frames', 'batch_size', 'val_frames', 'validate_every', 'threads'):
+            if getattr(self, name) < 1:
+                raise ValueError(f'--{name.replace("_", "-")} must be >= 1, got {getattr(self, name)}')
+        if not 0 < self.val_fraction < 1:
+            raise ValueError(f'--val-fraction must be in (0, 1), got {self.val_fraction}')
+        if not math.isfinite(self.lr) or self.lr <= 0:
+            raise ValueError(f'--lr must be a positive number, got {self.lr}')
+
+
+def frame_split(demo, fraction: float) -> tuple[np.ndarray, np.ndarray]:
+    """(training frame rows, held-out frame rows) of a demonstrations build, by task."""
+    train, val = [], []
+    for t in demo.tasks:
+        rows = range(t['first_frame'], t['first_frame'] + len(t['actions']) + 1)
+        (val if held_out(t['task_id'], fraction) else train).extend(rows)
+    return np.asarray(train, np.int64), np.asarray(val, np.int64)
+
+
+def load_batch(demo, rows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    rows = np.sort(rows)                   # memmap reads in order
+    frames = torch.from_numpy(np.ascontiguousarray(demo.frames[rows])).permute(0, 3, 1, 2).float() / 255.0
+    classes = torch.from_numpy(np.ascontiguousarray(demo.labels['classes'][rows]))
+    depth = torch.from_numpy(np.ascontiguousarray(demo.labels['depth'][rows]))
+    return frames, classes, depth
+
+
+def sum_stats(total: dict, stats: dict) -> None:
+    for k, v in stats.items():
+        total[k] = total.get(k, 0) + (v if k in ('cells', 'object_cells', 'cell_accuracy', 'object_accuracy')
+                                      else v * stats['cells'])
+
+
+def finish_stats(total: dict) -> dict:
+    cells = max(total.get('cells', 0), 1)
+    out = {k: round(total[k] / cells, 5) for k in ('loss', 'class', 'depth_m', 'colour') if k in total}
+    out['cell_accuracy'] = round(total.get('cell_accuracy', 0) / cells, 5)
+    out['object_accuracy'] = round(total.get('object_accuracy', 0) / max(total.get('object_cells', 0), 1), 5)
+    return out
+
+
+@torch.no_grad()
+def validate(net: Perception, demo, rows: np.ndarray, cfg: PerceptionConfig) -> dict:
+    net.eval()
+    total: dict = {}
+    for k in range(0, len(rows), cfg.batch_size):
+        frames, classes, depth = load_batch(demo, rows[k:k + cfg.batch_size])
+        _, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight)
+        sum_stats(total, stats)
+    net.train()
+    return finish_stats(total)
+
+
+def train_perception(cfg: PerceptionConfig) -> dict:
+    from tqdm import tqdm
+    torch.set_num_threads(cfg.threads)
+    demo = load_demonstrations(Path(cfg.demonstrations).expanduser())
+    if demo.labels is None:
+        raise ValueError(f'{cfg.demonstrations} has no labels: build it with prepare-performer --labels')
+    train_rows, val_rows = frame_split(demo, cfg.val_fraction)
+    val_rows = val_rows[np.random.default_rng([cfg.seed, 1]).permutation(len(val_rows))[:cfg.val_frames]]
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(cfg.seed)
+    net = Perception(PerceptionNetConfig(demo.meta['resolution'], cfg.c1, cfg.c2, cfg.c3, cfg.decoder,
+                                         len(label_classes())))
+    optimizer = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    updates = math.ceil(cfg.frames / cfg.batch_size)
+    warmup = min(200, updates // 10 + 1)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(
+        optimizer, lambda u: min(1.0, (u + 1) / warmup) * 0.5 * (1 + math.cos(math.pi * min(u, updates) / updates)))
+    update, best = 0, float('inf')
+    if cfg.resume and (out / 'last.pt').exists():
+        state = torch.load(out / 'last.pt', map_location='cpu', weights_only=True)
+        changes = config_changes(state['train_config'], cfg, ('resume', 'progress', 'threads'))
+        if changes:
+            raise ValueError(f'--resume with another config: {changes}')
+        net.load_state_dict(state['state_dict'])
+        optimizer.load_state_dict(state['optimizer'])
+        scheduler.load_state_dict(state['scheduler'])
+        update, best = int(state['update']), float(state['best'])
+        torch.set_rng_state(state['torch_rng'])
+    log = open(out / 'metrics.jsonl', 'a')
+    total: dict = {}
+    t0 = time.monotonic()
+    net.train()
+    with tqdm(total=updates, initial=update, unit='update', file=sys.stderr, disable=not cfg.progress,
+              dynamic_ncols=True) as bar:
+        while update < updates:
+            rng = np.random.default_rng([cfg.seed, update])        # the frames of update u depend on u only
+            frames, classes, depth = load_batch(demo, train_rows[rng.integers(len(train_rows), size=cfg.batch_size)])
+            if rng.random() < 0.5:                                  # a mirrored room is a room too
+                frames, classes, depth = frames.flip(-1), classes.flip(-1), depth.flip(-1)
+            loss, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+            optimizer.step()
+            scheduler.step()
+            update += 1
+            sum_stats(total, stats)
+            bar.update(1)
+            if update % cfg.validate_every == 0 or update == updates:
+                val = validate(net, demo, val_rows, cfg)
+                row = {'update': update, 'frames': update * cfg.batch_size, 'train': finish_stats(total),
+                       'val': val, 'lr': scheduler.get_last_lr()[0], 'seconds': round(time.monotonic() - t0, 1)}
+                total = {}
+                log.write(json.dumps(row) + '\n')
+                log.flush()
+                bar.set_postfix(val_loss=val['loss'], objects=val['object_accuracy'])
+                if val['loss'] < best:
+                    best = val['loss']
+                    save_perception(out / 'perception.pt', net, {'update': update, 'val': val,
+                                                                'command': command_line(MODULE, cfg)})
+                tmp = out / 'last.pt.tmp'
+                torch.save({'state_dict': net.state_dict(), 'optimizer': optimizer.state_dict(),
+                            'scheduler': scheduler.state_dict(), 'update': update, 'best': best,
+                            'torch_rng': torch.get_rng_state(), 'train_config': dataclasses.asdict(cfg)}, tmp)
+                tmp.replace(out / 'last.pt')
+    log.close()
+    _, extra = load_perception(out / 'perception.pt')
+    return {'perception': str(out / 'perception.pt'), 'updates': update, 'best': extra.get('val'),
+            'train_frames': len(train_rows), 'val_frames': len(val_rows),
+            'seconds': round(time.monotonic() - t0, 1)}
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    cfg = parse(PerceptionConfig, argv, prog=f'python -m {MODULE}')
+    try:
+        print(json.dumps(train_perception(cfg)))
+    except (ValueError, FileNotFoundError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == '__main__':
+    ensure_malloc_settings(MODULE)
+    sys.exit(main())

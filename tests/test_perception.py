@@ -1,0 +1,147 @@
+"""Perception trained on our own frames (dialfred_performer.perception) and the performer that sees
+through it: labels become the right targets, training resumes to the same weights, the performer
+keeps the network frozen and points at single pixels, and the agent reads RGB only."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+import torch.nn.functional as F
+
+from dialfred_performer.model import load_checkpoint, pointer_ce
+from dialfred_performer.perception import (FIRST_OBJECT_CLASS, Perception, PerceptionNetConfig, cell_targets,
+                                          load_perception, main as perception_main)
+from dialfred_sim.tasks.demonstrations import DEPTH_STEP, label_classes
+
+TINY = ['--c1', '8', '--c2', '8', '--c3', '16', '--decoder', '8']
+
+
+@pytest.fixture(scope='module')
+def prepared(tmp_path_factory):
+    """A labelled, prepared slice of valid_unseen and a perception network trained on it briefly."""
+    from dialfred_performer.prepare import PrepareConfig, prepare
+    root = tmp_path_factory.mktemp('perception')
+    folder = root / 'demos'
+    prepare(PrepareConfig(split='valid_unseen', resolution=32, workers=1, limit=10, out=str(folder),
+                          progress=False, labels=True))
+    out = root / 'perception'
+    assert perception_main(['--demonstrations', str(folder), '--out', str(out), '--frames', '96',
+                            '--batch-size', '16', '--validate-every', '3', '--val-fraction', '0.3',
+                            '--val-frames', '32', '--no-progress', *TINY]) == 0
+    return folder, out
+
+
+def test_cell_targets_are_each_cells_class_shares_depth_and_colour():
+    classes = torch.zeros(1, 4, 4, dtype=torch.uint8)
+    classes[0, :2, :2] = FIRST_OBJECT_CLASS                  # one whole cell of an object
+    classes[0, 2, 2] = 1                                     # a quarter of a cell of floor
+    depth = torch.full((1, 4, 4), 25, dtype=torch.uint8)     # 1 m
+    rgb = torch.rand(1, 3, 4, 4)
+    share, metres, colour, objects = cell_targets(classes, depth, rgb, len(label_classes()))
+    assert share.shape == (1, len(label_classes()), 2, 2) and torch.allclose(share.sum(1), torch.ones(1, 2, 2))
+    assert share[0, FIRST_OBJECT_CLASS, 0, 0] == 1 and share[0, 1, 1, 1] == 0.25 and share[0, 0, 1, 1] == 0.75
+    assert torch.allclose(metres, torch.full((1, 2, 2), 25 * DEPTH_STEP))
+    assert torch.allclose(colour, F.avg_pool2d(rgb, 2)) and objects[0, 0, 0] == 1 and objects[0, 1, 1] == 0
+
+
+def test_the_pointer_loss_counts_every_cell_of_the_target():
+    logits = torch.randn(5, 16)
+    target = torch.randint(16, (5,))
+    one_hot = F.one_hot(target, 16).bool()
+    assert torch.allclose(pointer_ce(logits, one_hot), F.cross_entropy(logits, target), atol=1e-6)
+    wider = one_hot.clone()
+    wider[:, (target + 1) % 16] = True
+    assert pointer_ce(logits, wider, 'sum') < pointer_ce(logits, one_hot, 'sum')
+
+
+def test_perception_outputs_three_maps_at_their_resolutions():
+    net = Perception(PerceptionNetConfig(resolution=32, c1=8, c2=8, c3=16, decoder=8))
+    out = net(torch.rand(2, 3, 32, 32))
+    assert out.coarse.shape == (2, 16, 4, 4) and out.fine.shape == (2, 8, 16, 16) and out.stem.shape == (2, 8, 32, 32)
+    logits, metres, colour = net.heads(out.fine)
+    assert logits.shape == (2, len(label_classes()), 16, 16) and (metres >= 0).all() and colour.shape == (2, 3, 16, 16)
+    with pytest.raises(ValueError, match='multiple of 8'):
+        Perception(PerceptionNetConfig(resolution=30))
+
+
+def test_training_writes_a_checkpoint_and_metrics_and_the_same_seed_gives_the_same_weights(prepared, tmp_path):
+    folder, out = prepared
+    net, extra = load_perception(out / 'perception.pt')
+    rows = [json.loads(line) for line in (out / 'metrics.jsonl').read_text().splitlines()]
+    assert [r['update'] for r in rows] == [3, 6] and 0 <= rows[-1]['val']['object_accuracy'] <= 1
+    assert extra['command'].startswith('python -m dialfred_performer.perception')
+    args = ['--demonstrations', str(folder), '--frames', '96', '--batch-size', '16', '--validate-every', '3',
+            '--val-fraction', '0.3', '--val-frames', '32', '--no-progress', *TINY]
+    assert perception_main([*args, '--out', str(tmp_path / 'a'), '--frames', '48']) == 0
+    assert perception_main([*args, '--out', str(tmp_path / 'a'), '--resume', '--lr', '0.1']) == 2  # another config
+    assert perception_main([*args, '--out', str(tmp_path / 'b')]) == 0
+    first = torch.load(tmp_path / 'b' / 'last.pt', weights_only=True)['state_dict']
+    again = torch.load(out / 'last.pt', weights_only=True)['state_dict']
+    assert all(torch.equal(first[k], again[k]) for k in first)          # the same seed, the same weights
+
+
+def test_a_damaged_perception_checkpoint_is_refused(tmp_path):
+    from dialfred_performer.perception import PerceptionCheckpointError
+    (tmp_path / 'p.pt').write_bytes(b'not a checkpoint')
+    with pytest.raises(PerceptionCheckpointError, match='is not a perception checkpoint'):
+        load_perception(tmp_path / 'p.pt')
+    with pytest.raises(FileNotFoundError):
+        load_perception(tmp_path / 'missing.pt')
+
+
+@pytest.fixture(scope='module')
+def performer(prepared, tmp_path_factory):
+    from dialfred_performer.train import main as train_main
+    folder, perception = prepared
+    out = tmp_path_factory.mktemp('performer')
+    assert train_main(['--demonstrations', str(folder), '--out', str(out), '--perception',
+                       str(perception / 'perception.pt'), '--resolution', '32', '--max-updates', '3',
+                       '--batch-size', '4', '--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '32',
+                       '--val-fraction', '0.3', '--no-progress', '--threads', '1']) == 0
+    return out / 'last.pt', perception / 'perception.pt'
+
+
+def test_the_performer_keeps_the_perception_network_as_trained_and_points_at_pixels(performer):
+    checkpoint, perception = performer
+    model, _, info = load_checkpoint(checkpoint)
+    assert info['config'].visual == 'perception' and model.config.grid_size == 32
+    net, _ = load_perception(perception)
+    trained = net.state_dict()
+    assert all(torch.equal(v, trained[k]) for k, v in model.visual.net.state_dict().items())
+    assert not any(p.requires_grad for p in model.visual.net.parameters())
+    emb, keys = model.encode_frames(torch.rand(2, 3, 32, 32))
+    assert emb.shape == (2, 32) and keys.shape == (2, 32 * 32, model.config.pointer_key)
+    model.train()
+    assert not model.visual.net.training              # frozen means its norms never switch to training either
+
+
+def test_the_agent_reads_rgb_only(performer):
+    """No label reaches the agent: with the simulator's depth and segmentation removed from every
+    observation, it takes the same actions at the same pixels."""
+    from dialfred_performer.agent import PerformerAgent
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+    checkpoint, _ = performer
+    task = load_split('valid_unseen')[0]
+    runs = []
+    for strip in (False, True):
+        env = DialfredEnv(resolution=32)
+        agent = PerformerAgent.from_checkpoint(checkpoint)
+        obs, _ = env.reset(options={'task': task})
+        agent.reset(task)
+        actions = []
+        for _ in range(12):
+            name, x, y = agent.act({'rgb': obs['rgb']} if strip else obs)
+            actions.append((name, x, y))
+            assert name == 'Stop' or x < 32 and y < 32
+            if name == 'Stop':
+                break
+            obs, _, done, truncated, _ = env.step({'action': name, 'pixel': (max(x, 0), max(y, 0))}
+                                                  if x >= 0 else {'action': name})
+            if done or truncated:
+                break
+        env.close()
+        runs.append(actions)
+    assert runs[0] == runs[1]
