@@ -95,7 +95,9 @@ def test_cancel_a_refused_second_goal_and_bad_goals_while_the_node_keeps_serving
                 'no performer checkpoint at'),
                (RunTask.Goal(task_id='valid_unseen/000000', seed=1, checkpoint=str(corrupt)),
                 'is not a readable checkpoint'),
-               (RunTask.Goal(task_id='valid_unseen/000000', seed=-1), 'seed must be a non-negative integer')]
+               (RunTask.Goal(task_id='valid_unseen/000000', seed=-1), 'seed must be a non-negative integer'),
+               (RunTask.Goal(task_id='', seed=1), 'task_id is empty'),
+               (RunTask.Goal(task_id='  ', seed=1), 'task_id is empty')]
         for goal, said in bad:
             done = wait(graph, run(goal).get_result_async())
             assert done.status == GoalStatus.STATUS_ABORTED and done.result.end_reason == 'error'

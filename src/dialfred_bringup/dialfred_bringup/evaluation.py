@@ -36,6 +36,7 @@ from typing import Optional
 
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
+from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the et performer (its checkpoint's)
 from dialfred_sim.metrics import ResultsFileError
 from dialfred_sim.protocol import QUESTION_TYPES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
@@ -49,7 +50,6 @@ from .workers import (LiveHook, PerformerWorker, SimWorker, Supervisor, play_epi
 
 use_project_environment(REPO)
 
-DEFAULT_RESOLUTION = 128      # camera pixels, for every agent but the et performer (its checkpoint's)
 
 
 def record_field():

@@ -36,7 +36,8 @@ from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
-from dialfred_sim.ros_util import SERVICE_QOS, make_executor, run_node
+from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, make_executor, run_node
 
 from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, question_text, situation_key
 
@@ -91,13 +92,15 @@ class OracleNode(Node):
 
     def __init__(self):
         super().__init__('dialfred_oracle')
-        self.declare_parameter('perturb_type', '')
-        self.declare_parameter('perturb_probability', 0.0)
-        self.declare_parameter('seed', 0)
-        self.declare_parameter('human', False)
-        self.declare_parameter('log_file', '')
-        self.declare_parameter('sim_timeout', 5.0)
-        self.declare_parameter('cache_ground_truth', True)
+        declare_parameters(self, [
+            Param('perturb_type', '', "the paper's ablation: withhold answers of this type ('' = none)",
+                  choices=('', *QUESTION_TYPES)),
+            Param('perturb_probability', 0.0, 'how often a withheld type is withheld', span=(0.0, 1.0)),
+            Param('seed', 0, 'the seed of the withholding draws', span=(0, MAX_SEED)),
+            Param('human', False, 'a person answers in the terminal instead of the rules'),
+            Param('log_file', '', "append every question and answer to this JSON-lines file ('' = none)"),
+            Param('sim_timeout', 5.0, 'seconds to wait for sim/ground_truth', span=(0.01, 3600.0)),
+            Param('cache_ground_truth', True, 'reuse the ground truth of an unchanged world')])
         p = self.get_parameter
         self.perturbation = Perturbation(p('perturb_type').value, float(p('perturb_probability').value),
                                          int(p('seed').value))

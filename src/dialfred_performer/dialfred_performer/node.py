@@ -31,7 +31,6 @@ import traceback
 from pathlib import Path
 
 import torch
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
@@ -44,7 +43,7 @@ from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play
 from dialfred_sim.messages import qa_msg, sim_reply, task_description_msg
 from dialfred_sim.protocol import QA, Question, top2_gap
 from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
-from dialfred_sim.ros_util import SERVICE_QOS, refused_request, run_node
+from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, refused_request, run_node
 
 from .agent import PerformerAgent
 from .model import SHIPPED_CHECKPOINT, CheckpointError
@@ -64,27 +63,23 @@ class GoalCanceled(Exception):
 class PerformerNode(Node):
     def __init__(self):
         super().__init__('dialfred_performer')
-        ro = dict(read_only=True)
-        self.declare_parameter('checkpoint', str(SHIPPED_CHECKPOINT), ParameterDescriptor(
-            description="the performer checkpoint (dialfred_performer.model.save_checkpoint; default the one "
-                        "shipped in the package; '' = none); a goal may name another", **ro))
-        self.declare_parameter('questioner', False, ParameterDescriptor(
-            description='ask questioner/ask before every action (and oracle/answer what it asks)', **ro))
-        self.declare_parameter('request_timeout', 60.0, ParameterDescriptor(
-            description='seconds one reset, step, question or answer may take before the goal fails'))
-        self.declare_parameter('max_questions', 20, ParameterDescriptor(
-            description='questions in a row without acting before the goal fails'))
-        self.declare_parameter('torch_threads', 1, ParameterDescriptor(
-            description='torch intra-op threads (1: the simulators and other workers share the cores)', **ro))
-        self.declare_parameter('record_dir', '', ParameterDescriptor(
-            description="write each goal's episode as a rosbag2/MCAP bag into this folder ('' = no recording)", **ro))
-        self.declare_parameter('record_format', 'raw', ParameterDescriptor(
-            description='camera frames in the bags: raw (sensor_msgs/Image), png or jpeg (CompressedImage)', **ro))
+        declare_parameters(self, [
+            Param('checkpoint', str(SHIPPED_CHECKPOINT), 'the performer checkpoint (dialfred_performer.model.'
+                  "save_checkpoint; default the one shipped in the package; '' = none); a goal may name another"),
+            Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
+            Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
+                  'fails', span=(0.1, 86_400.0), dynamic=True),
+            Param('max_questions', 20, 'questions in a row without acting before the goal fails', span=(1, 1000),
+                  dynamic=True),
+            Param('torch_threads', 1, 'torch intra-op threads (1: the simulators and other workers share the cores)',
+                  span=(1, 256)),
+            Param('record_dir', '', "write each goal's episode as a rosbag2/MCAP bag into this folder ('' = no "
+                  'recording)'),
+            Param('record_format', 'raw', 'camera frames in the bags: raw (sensor_msgs/Image), png or jpeg '
+                  '(CompressedImage)', choices=IMAGE_FORMATS)])
         p = self.get_parameter
         self.record_dir = str(p('record_dir').value)
         self.record_format = str(p('record_format').value)
-        if self.record_format not in IMAGE_FORMATS:
-            raise ValueError(f'record_format must be one of {", ".join(IMAGE_FORMATS)}, got {self.record_format!r}')
         self.recorder = None       # the running goal's EpisodeRecorder, when recording
         torch.set_num_threads(max(1, int(p('torch_threads').value)))
         self.checkpoint = p('checkpoint').value
@@ -162,6 +157,10 @@ class PerformerNode(Node):
         """Play the goal's task to its end (the episode loop, `dialfred_sim.episode.play`, its requests
         served by this node's clients), filling `result` as it goes."""
         goal = goal_handle.request
+        if not goal.task_id.strip():
+            # An empty id would reset the simulator into free exploration: no instruction to follow.
+            raise GoalFailed('task_id is empty: a goal names a task of the simulator\'s splits, e.g. '
+                             'valid_unseen/000012')
         if goal.seed < 0:
             raise GoalFailed(f'seed must be a non-negative integer, got {goal.seed}')
         try:

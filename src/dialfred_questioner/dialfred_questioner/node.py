@@ -28,14 +28,13 @@ from __future__ import annotations
 
 import sys
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from dialfred_msgs.msg import Observation, QAPair
 from dialfred_msgs.srv import QuestionerAsk
 from dialfred_sim.protocol import QA
 from dialfred_sim.messages import public_task_from_msg, qa_from_msg, qa_msg
-from dialfred_sim.ros_util import SERVICE_QOS, error_reply, run_node
+from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 
 from .baselines import QUESTIONERS, ModelConfusionQuestioner
 from .questioners import make_questioner
@@ -44,24 +43,18 @@ from .questioners import make_questioner
 class QuestionerNode(Node):
     def __init__(self):
         super().__init__('dialfred_questioner')
-        ro = dict(read_only=True)
-        self.declare_parameter('questioner', 'random', ParameterDescriptor(
-            description='random, all, confusion (needs the confusion_gap of each request), a shipped learned '
-                        'questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
-                        'rl-anytime-withhold-<type>, rl-anytime-no-dialogue), learned (with `checkpoint`), '
-                        'learned:PATH, or '
-                        'package.module:ClassName', **ro))
-        self.declare_parameter('checkpoint', '', ParameterDescriptor(
-            description='for questioner=learned: the questioner checkpoint file', **ro))
-        self.declare_parameter('timing', '', ParameterDescriptor(
-            description="a learned questioner's timing: begin, anytime or confusion ('' = its checkpoint's)", **ro))
-        self.declare_parameter('gap', 0, ParameterDescriptor(
-            description="the anytime timing's gap in steps (0 = the checkpoint's)", **ro))
-        self.declare_parameter('epsilon', -1.0, ParameterDescriptor(
-            description="the confusion threshold on the top-2 gap (< 0 = the checkpoint's, or 0.5 for confusion)",
-            **ro))
-        self.declare_parameter('torch_threads', 1, ParameterDescriptor(
-            description='torch intra-op threads of a learned questioner', **ro))
+        declare_parameters(self, [
+            Param('questioner', 'random', 'random, all, confusion (needs the confusion_gap of each request), a '
+                  'shipped learned questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
+                  'rl-anytime-withhold-<type>, rl-anytime-no-dialogue), learned (with `checkpoint`), learned:PATH, '
+                  'or package.module:ClassName'),
+            Param('checkpoint', '', 'for questioner=learned: the questioner checkpoint file'),
+            Param('timing', '', "a learned questioner's timing ('' = its checkpoint's)",
+                  choices=('', 'begin', 'anytime', 'confusion')),
+            Param('gap', 0, "the anytime timing's gap in steps (0 = the checkpoint's)", span=(0, 1000)),
+            Param('epsilon', -1.0, "the confusion threshold on the top-2 gap (< 0 = the checkpoint's, or 0.5 for "
+                  'confusion)', span=(-1.0, 1.0)),
+            Param('torch_threads', 1, 'torch intra-op threads of a learned questioner', span=(1, 256))])
         p = self.get_parameter
         name, checkpoint = p('questioner').value, p('checkpoint').value
         if name == 'learned':

@@ -11,7 +11,6 @@ import array as pyarray
 import sys
 import time
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -24,7 +23,7 @@ from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
 from .protocol import fill_image, image_bytes
-from .ros_util import SERVICE_QOS, error_reply, run_node
+from .ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 
 # Observations: every one matters to a recorder, only the newest to a controller.
 OBSERVATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
@@ -69,15 +68,15 @@ class SimNode(Node):
 
     def __init__(self):
         super().__init__('dialfred_sim')
-        self.declare_parameter('resolution', DEFAULT_RESOLUTION)
-        self.declare_parameter('seed', 0)
-        self.declare_parameter('scene', '')
-        self.declare_parameter('max_steps', 1000)
-        self.declare_parameter('max_failures', 10)
-        self.declare_parameter('publish_observations', True)
-        self.declare_parameter('tasks_file', '', ParameterDescriptor(
-            description='a split file of your own (e.g. a test_unseen split): /sim/reset task ids are looked up '
-                        "there first, then in the shipped splits; '' = shipped splits only", read_only=True))
+        declare_parameters(self, [
+            Param('resolution', DEFAULT_RESOLUTION, 'camera pixels per side', span=(16, 1024)),
+            Param('seed', 0, 'the seed of a reset whose request gives none', span=(0, MAX_SEED)),
+            Param('scene', '', "the room of a reset that names none ('' = FloorPlan1)"),
+            Param('max_steps', 1000, 'an episode ends after this many actions', span=(1, 100_000)),
+            Param('max_failures', 10, 'an episode ends after this many failed actions', span=(1, 100_000)),
+            Param('publish_observations', True, 'publish each reset and step observation on sim/observation'),
+            Param('tasks_file', '', 'a split file of your own (e.g. a test_unseen split): /sim/reset task ids are '
+                  "looked up there first, then in the shipped splits; '' = shipped splits only")])
         p = self.get_parameter
         # Read once, at start: a missing or malformed file stops the node here with the reason.
         try:

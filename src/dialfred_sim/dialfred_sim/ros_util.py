@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import functools
+import math
+import sys
 import traceback
+from dataclasses import dataclass
+from typing import Any, Optional
 
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -79,12 +83,16 @@ def run_node(make_node, args=None, executor_factory=None) -> None:
     import rclpy
     from rclpy.executors import ExternalShutdownException
     rclpy.init(args=args)
-    node = None
+    node, refused = None, None
     executor = (executor_factory or make_executor)()
     try:
-        node = make_node()
-        executor.add_node(node)
-        spin_forever(executor)
+        try:
+            node = make_node()
+        except ValueError as exc:     # a parameter out of range, an unknown name: one line, not a traceback
+            refused = f'{getattr(make_node, "__name__", "node")}: {exc}'
+        else:
+            executor.add_node(node)
+            spin_forever(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
@@ -92,3 +100,76 @@ def run_node(make_node, args=None, executor_factory=None) -> None:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if refused:
+        print(refused, file=sys.stderr)
+        sys.exit(1)
+
+
+# ---------------------------------------------------------------------- parameters
+
+MAX_SEED = 2 ** 31 - 1
+
+
+@dataclass(frozen=True)
+class Param:
+    """A node parameter: its default, what it means, the values it takes (an inclusive `span` for a
+    number, `choices` for a string) and whether it may change while the node runs."""
+
+    name: str
+    default: Any
+    description: str
+    span: Optional[tuple] = None
+    choices: Optional[tuple] = None
+    dynamic: bool = False
+
+    def problem(self, value) -> Optional[str]:
+        """Why `value` is not acceptable, or None."""
+        if isinstance(self.default, bool) != isinstance(value, bool) or (
+                isinstance(self.default, (int, float)) and not isinstance(value, (int, float))) or (
+                isinstance(self.default, str) and not isinstance(value, str)):
+            return f'{self.name} takes a {type(self.default).__name__}, got {value!r}'
+        if isinstance(value, float) and not math.isfinite(value):
+            return f'{self.name} must be a finite number, got {value}'
+        if self.span is not None and not self.span[0] <= value <= self.span[1]:
+            return f'{self.name} must be in [{self.span[0]}, {self.span[1]}], got {value}'
+        if self.choices is not None and value not in self.choices:
+            return f'{self.name} must be one of {", ".join(repr(c) for c in self.choices)}, got {value!r}'
+        return None
+
+    def descriptor(self):
+        from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+        text = self.description + ('' if self.dynamic else ' (read only: set when the node starts)')
+        d = ParameterDescriptor(description=text, read_only=not self.dynamic)
+        if self.span is not None and isinstance(self.default, float):
+            d.floating_point_range = [FloatingPointRange(from_value=float(self.span[0]), to_value=float(self.span[1]))]
+        elif self.span is not None and isinstance(self.default, int) and not isinstance(self.default, bool):
+            d.integer_range = [IntegerRange(from_value=int(self.span[0]), to_value=int(self.span[1]), step=1)]
+        return d
+
+
+def declare_parameters(node, params) -> None:
+    """Declare `params` (each with its description, range and read_only flag), check the values the
+    node was started with (ValueError naming the parameter: the node does not start), and refuse a
+    later change that breaks a Param's rules with the reason (NaN and infinity included, which
+    ROS's own range check lets through)."""
+    from rcl_interfaces.msg import SetParametersResult
+    from rclpy.exceptions import InvalidParameterValueException
+    by_name = {p.name: p for p in params}
+    for p in params:
+        try:
+            node.declare_parameter(p.name, p.default, p.descriptor())
+        except InvalidParameterValueException as exc:
+            raise ValueError(f'parameter {p.name}: {exc}') from None
+        problem = p.problem(node.get_parameter(p.name).value)
+        if problem:
+            raise ValueError(f'parameter {problem}')
+
+    def check(changes):
+        for change in changes:
+            rule = by_name.get(change.name)
+            problem = rule.problem(change.value) if rule is not None else None
+            if problem:
+                return SetParametersResult(successful=False, reason=problem)
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(check)
