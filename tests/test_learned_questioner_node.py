@@ -291,6 +291,14 @@ def test_the_node_serves_a_learned_questioner_refuses_a_request_without_a_gap_an
         assert not no_frame.ok and 'rgb8' in no_frame.error
 
         anytime = graph.client(QuestionerAsk, '/la/questioner/ask')
+        # Refused requests change nothing: the good request at step 0 still has its chance to ask.
+        cut = Image(height=rgb.height, width=rgb.width, encoding='rgb8', step=rgb.step, data=frame.tobytes()[:-7])
+        for bad, said in [(QuestionerAsk.Request(task=task, seed=1, step=0, rgb=cut), 'rgb: a 128x128 rgb8 image has'),
+                          (QuestionerAsk.Request(task=task, seed=-5, step=0, rgb=rgb), 'seed must be a non-negative'),
+                          (QuestionerAsk.Request(task=task, seed=1, step=0, rgb=rgb, confusion_gap=float('nan')),
+                           'confusion_gap must be a number')]:
+            reply = graph.call(anytime, bad)
+            assert not reply.ok and said in reply.error and 'internal error' not in reply.error, reply.error
         local = LearnedQuestioner.from_checkpoint(checkpoint)
         local.reset(task, 1)
         replies = []

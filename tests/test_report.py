@@ -241,17 +241,40 @@ def test_a_missing_results_file_is_exit_2_with_a_message_and_no_page(tmp_path, c
 
 
 @pytest.mark.parametrize('content, message', [(b'', 'holds no episode results'),
-                                              (b'{"task_id": "x"', 'holds no episode results'),
-                                              (None, 'corrupt result line')])
-def test_an_empty_or_corrupt_results_file_is_exit_2_and_no_page(tmp_path, capsys, content, message):
+                                              (b'{"task_id": "x"', 'holds no episode results')])
+def test_an_empty_results_file_is_exit_2_and_no_page(tmp_path, capsys, content, message):
     path = tmp_path / 'r.jsonl'
-    if content is None:      # a bad line in the middle is corruption, not a cut-off write
-        lines = [r.to_json() for r in synthetic_results()]
-        content = '\n'.join(lines[:2] + ['{"task_id": 7}'] + lines[2:]).encode() + b'\n'
     path.write_bytes(content)
     assert report_main([str(path)]) == 2
     assert message in capsys.readouterr().err
     assert not path.with_suffix('.html').exists()
+
+
+def test_malformed_lines_are_said_and_skipped_and_the_others_reported(tmp_path, capsys):
+    path = tmp_path / 'r.jsonl'
+    lines = [r.to_json() for r in synthetic_results()]
+    odd_dialogue = json.loads(lines[3])
+    odd_dialogue['dialogue'] = ['where is it?', 7]                  # entries that are not objects
+    path.write_text('\n'.join(lines[:2] + ['{"task_id": 7}'] + lines[2:3] + [json.dumps(odd_dialogue)]
+                              + lines[4:]) + '\n')
+    before = path.read_bytes()
+    assert report_main([str(path)]) == 0
+    err = capsys.readouterr().err
+    assert err.count('skipped 1 malformed line') == 2 and ':3:' in err and ':5:' in err and 'a dialogue entry is' in err
+    assert path.with_suffix('.html').read_text().count('<article class="episode') == len(lines) - 1
+    assert path.read_bytes() == before                               # the report only reads its input
+
+
+@pytest.mark.parametrize('name, out', [('run.html', None), ('r.jsonl', 'r.jsonl'), ('r.jsonl', 'r.summary.json')])
+def test_the_page_is_never_written_over_an_input(tmp_path, capsys, name, out):
+    path = write_results(tmp_path)
+    if name != path.name:
+        path = path.rename(tmp_path / name)
+    summary = path.with_suffix('.summary.json')
+    inputs = {p: p.read_bytes() for p in (path, summary) if p.exists()}
+    assert report_main([str(path)] + (['--out', str(tmp_path / out)] if out else [])) == 2
+    assert 'would be written over an input' in capsys.readouterr().err
+    assert {p: p.read_bytes() for p in inputs} == inputs
 
 
 def test_a_cut_off_last_line_is_skipped_with_a_warning_on_stderr_and_on_the_page(tmp_path, capsys):

@@ -98,7 +98,7 @@ def read_results(path: Path) -> tuple[list[EpisodeResult], list[str]]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always', TruncatedResultsWarning)
         try:
-            results = load_results(path)
+            results = load_results(path, skip_bad=True)
         except ValueError as exc:
             raise ReportError(str(exc)) from None
     notes = [str(w.message) for w in caught if issubclass(w.category, TruncatedResultsWarning)]
@@ -269,6 +269,11 @@ def build_report(results_path: Path, bags: Optional[Path] = None, out: Optional[
     Returns (page path, Report, GIF counts). ReportError (nothing written) for unusable input."""
     results_path = Path(results_path)
     page = Path(out) if out else results_path.with_suffix('.html')
+    inputs = [results_path, results_path.with_suffix('.summary.json'), results_path.with_suffix('.tasks.json')]
+    if page.resolve() in {p.resolve() for p in inputs} or (
+            bags is not None and page.resolve().is_relative_to(Path(bags).resolve())):
+        raise ReportError(f'the page {page} would be written over an input of the report ({results_path}, its '
+                          'summary or its bags): choose another --out')
     if bags is not None and not Path(bags).is_dir():
         raise ReportError(f'--bags {bags} is not a folder (record one with `launch eval ... --record DIR`)')
     if gif_width < 32:

@@ -93,12 +93,37 @@ class QuestionerNode(Node):
         elif mode or gap or epsilon >= 0:
             raise ValueError('the timing, gap and epsilon parameters are for a learned questioner')
 
+    def refusal(self, request: QuestionerAsk.Request) -> str:
+        """Why the request cannot be served ('' if it can), found before any state changes."""
+        import math
+        if request.seed < 0:
+            return f'seed must be a non-negative integer, got {request.seed}'
+        if math.isnan(request.confusion_gap):
+            return 'confusion_gap must be a number (< 0 = unknown), got nan'
+        needs_gap = hasattr(self.questioner, 'ask_given_gap') or getattr(self.questioner, 'needs_gap', False)
+        if needs_gap and request.confusion_gap < 0:
+            return f'the {self.name!r} questioner needs the performer\'s confusion_gap (>= 0) in the request'
+        from .policy import LearnedQuestioner
+        if isinstance(self.questioner, LearnedQuestioner):
+            from dialfred_sim.protocol import image_array
+            try:
+                rgb = image_array(request.rgb, 'rgb8')
+            except ValueError as exc:
+                return f'rgb: {exc}'
+            if rgb.size == 0:
+                return 'rgb: the learned questioner needs the current frame; this one is empty'
+        return ''
+
     @error_reply()
     def on_ask(self, request: QuestionerAsk.Request, response: QuestionerAsk.Response) -> QuestionerAsk.Response:
         episode = (request.task.task_id, int(request.seed))
         key = (episode, int(request.step), len(request.dialogue), float(request.confusion_gap))
         if self.last is not None and self.last[0] == key:
             response.ok, response.ask, response.question_type, response.object_noun = self.last[1]
+            return response
+        refusal = self.refusal(request)            # checked before anything changes
+        if refusal:
+            response.ok, response.error = False, refusal
             return response
         if episode != self.episode or (request.step == 0 and not request.dialogue):
             self.questioner.reset(public_task_from_msg(request.task), int(request.seed))
@@ -112,10 +137,6 @@ class QuestionerNode(Node):
         self.heard = len(request.dialogue)
         ask_given_gap = getattr(self.questioner, 'ask_given_gap', None)
         needs_gap = ask_given_gap is not None or getattr(self.questioner, 'needs_gap', False)
-        if needs_gap and request.confusion_gap < 0:
-            response.ok, response.error = False, (f'the {self.name!r} questioner needs the performer\'s '
-                                                  'confusion_gap (>= 0) in the request')
-            return response
         if ask_given_gap is not None:
             question = ask_given_gap(float(request.confusion_gap), int(request.step))
         elif needs_gap:

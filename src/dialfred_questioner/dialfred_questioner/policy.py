@@ -167,8 +167,11 @@ class LearnedQuestioner:
             chance = self.timing.chance(step, None, None)
         if not chance:
             return None
+        # The frame is read (and a bad one refused) before the step is marked: a refused request
+        # leaves this step's chance to ask as it was.
+        question = self.decide(observation_rgb(observation), self.task.instruction, self.dialogue, step)[0]
         self._asked_at, self._step = step, step
-        return self.decide(observation_rgb(observation), self.task.instruction, self.dialogue, step)[0]
+        return question
 
     def hear(self, qa: QA) -> None:
         self.dialogue.append(AskedQA(qa, self._step))

@@ -113,6 +113,10 @@ class EpisodeResult:
             want = _FIELD_TYPES[name]
             if not _has_type(value, want):
                 raise ValueError(f'episode result field {name!r} should be {want.__name__}, got {value!r}')
+        for entry in data.get('dialogue', []):
+            if not (isinstance(entry, dict) and set(entry) == set(_DIALOGUE_TYPES)
+                    and all(_has_type(entry[k], t) for k, t in _DIALOGUE_TYPES.items())):
+                raise ValueError(f'a dialogue entry is {{"type", "noun", "valid", "answer"}}, got {entry!r:.80}')
         return cls(**data)
 
 
@@ -121,6 +125,7 @@ def dialogue_entry(question_type: str, object_noun: str, valid: bool, answer: st
     return {'type': question_type, 'noun': object_noun, 'valid': bool(valid), 'answer': answer if valid else ''}
 
 
+_DIALOGUE_TYPES = {'type': str, 'noun': str, 'valid': bool, 'answer': str}
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
@@ -272,12 +277,13 @@ def append_result(path: Union[str, Path], result: EpisodeResult) -> None:
         os.fsync(f.fileno())
 
 
-def load_results(path: Union[str, Path], drop_truncated: bool = False) -> list[EpisodeResult]:
+def load_results(path: Union[str, Path], drop_truncated: bool = False, skip_bad: bool = False) -> list[EpisodeResult]:
     """Every result in a JSON-lines file ([] if there is none).
 
     A bad final line (a write cut off by a crash) is skipped with a TruncatedResultsWarning; with
     `drop_truncated` it is also cut from the file, so that the next append starts on a clean line.
-    A bad line anywhere else is corruption: ValueError naming the file and line.
+    A bad line anywhere else is corruption: ValueError naming the file and line (with `skip_bad`, for
+    readers that only look, it is skipped with a TruncatedResultsWarning saying which and why).
     """
     path = Path(path)
     if not path.exists():
@@ -291,6 +297,11 @@ def load_results(path: Union[str, Path], drop_truncated: bool = False) -> list[E
             try:
                 results.append(EpisodeResult.from_json(line.decode('utf-8', errors='replace')))
             except ValueError as exc:
+                if number != last_number and skip_bad:
+                    warnings.warn(f'{path}:{number}: skipped 1 malformed line ({exc})', TruncatedResultsWarning,
+                                  stacklevel=2)
+                    good_end += len(line) + 1
+                    continue
                 if number != last_number:
                     raise ValueError(f'{path}:{number}: corrupt result line: {exc}') from None
                 warnings.warn(f'{path}:{number}: skipped 1 truncated final line ({exc})', TruncatedResultsWarning,

@@ -146,8 +146,13 @@ def image_array(msg, encoding: Optional[str] = None) -> np.ndarray:
         raise ValueError(f'expected an {encoding} image, got encoding {msg.encoding!r}')
     if msg.encoding not in IMAGE_DTYPES:
         raise ValueError(f'unknown image encoding {msg.encoding!r}; expected one of {", ".join(IMAGE_DTYPES)}')
-    arr = np.frombuffer(bytes(msg.data), dtype=IMAGE_DTYPES[msg.encoding])
-    return arr.reshape(msg.height, msg.width, 3) if msg.encoding == 'rgb8' else arr.reshape(msg.height, msg.width)
+    shape = (msg.height, msg.width, 3) if msg.encoding == 'rgb8' else (msg.height, msg.width)
+    dtype = np.dtype(IMAGE_DTYPES[msg.encoding])
+    data = bytes(msg.data)
+    if len(data) != int(np.prod(shape)) * dtype.itemsize:
+        raise ValueError(f'a {msg.width}x{msg.height} {msg.encoding} image has {int(np.prod(shape)) * dtype.itemsize} '
+                         f'bytes of data, this one {len(data)}')
+    return np.frombuffer(data, dtype=dtype).reshape(shape)
 
 
 def image_buffer(array: np.ndarray) -> memoryview:
