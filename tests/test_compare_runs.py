@@ -96,7 +96,7 @@ def test_a_results_file_in_one_run_only_is_a_difference(runs):
 def test_a_changed_tensor_is_found(runs):
     a, b = runs
     path = b / 'questioner' / 'rl_anytime' / 'final.pt'
-    ckpt = torch.load(path, weights_only=False)
+    ckpt = torch.load(path, weights_only=True)
     ckpt['state_dict']['w'][0, 0] += 1e-6
     torch.save(ckpt, path)
     report = compare_runs.compare(a, b)

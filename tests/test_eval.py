@@ -481,3 +481,19 @@ def test_the_et_performer_is_evaluated_at_its_training_resolution_unless_told_ot
     assert config('--agent', 'et', '--resolution', '128').resolution == 128
     assert config('--agent', 'expert').resolution == 128
     assert config('--agent', 'et', '--checkpoint', '/nonexistent.pt').resolution == 128   # check() reports it
+
+
+def test_a_second_run_into_the_same_results_file_is_refused_naming_the_first(tmp_path):
+    from dialfred_sim.metrics import ResultsFileError, results_lock
+    out = tmp_path / 'shared.jsonl'
+    with results_lock(out):                       # a run of this process owns the file
+        with pytest.raises(ResultsFileError, match=f'being written by another run .*"pid": {os.getpid()}'):
+            with results_lock(out):
+                pass
+        done = subprocess.run([sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', SPLIT, '--agent',
+                               'random', '--limit', '2', '--local', '--workers', '1', '--out', str(out),
+                               '--no-progress'], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 1 and 'is being written by another run' in done.stderr, done.stderr
+        assert not out.exists()
+    report = run_eval(EvalConfig(split=SPLIT, agent='random', limit=2, workers=1, local=True, out=out), progress=False)
+    assert report.ran == 2 and len(out.read_text().splitlines()) == 2       # free again once the owner is done

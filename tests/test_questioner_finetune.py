@@ -46,7 +46,7 @@ def config(setup, out, **changes) -> FinetuneConfig:
 
 
 def weights(path):
-    return torch.load(path, weights_only=False)['state_dict']
+    return torch.load(path, weights_only=True)['state_dict']
 
 
 def same(a, b) -> bool:
@@ -61,7 +61,7 @@ def test_a_tiny_run_writes_its_curves_and_checkpoints_and_learns_something(setup
         assert l['episodes'] == 4 and 0.0 <= l['sr'] <= 1.0 and l['nq'] >= 0 and l['decisions'] >= 4 * 1
         assert set(l['mix']) == {'location', 'appearance', 'direction'} and l['critic'] >= 0
     assert (tmp_path / 'one' / 'curves.png').stat().st_size > 1000
-    final = torch.load(tmp_path / 'one' / 'final.pt', weights_only=False)
+    final = torch.load(tmp_path / 'one' / 'final.pt', weights_only=True)
     assert final['timing'] == {'mode': 'anytime', 'gap': 3, 'epsilon': 0.5}
     assert 'dialfred_questioner.finetune' in final['command']
     assert not same(final['state_dict'], weights(setup[0]))
@@ -76,7 +76,7 @@ def test_the_instruction_only_ablation_is_stored_and_read_without_the_dialogue(s
     from dialfred_performer.preprocess import AskedQA
     finetune(config(setup, tmp_path / 'blind', updates=1, dialogue=False))
     q = LearnedQuestioner.from_checkpoint(tmp_path / 'blind' / 'final.pt')
-    assert not q.reads_dialogue and not torch.load(tmp_path / 'blind' / 'final.pt', weights_only=False)['reads_dialogue']
+    assert not q.reads_dialogue and not torch.load(tmp_path / 'blind' / 'final.pt', weights_only=True)['reads_dialogue']
     import numpy as np
     rgb = np.zeros((64, 64, 3), np.uint8)
     said = [AskedQA(QA(Question('location', 'apple'), True, 'the apple is in the fridge'), 0)]

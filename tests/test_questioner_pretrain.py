@@ -58,8 +58,8 @@ def test_a_tiny_run_learns_and_a_resumed_run_ends_with_the_same_weights(setup, t
     assert (tmp_path / 'full' / 'best.pt').is_file()
     pretrain(config(setup, tmp_path / 'split', epochs=1))
     pretrain(config(setup, tmp_path / 'split', resume=True))
-    a = torch.load(tmp_path / 'full' / 'last.pt', weights_only=False)['state_dict']
-    b = torch.load(tmp_path / 'split' / 'last.pt', weights_only=False)['state_dict']
+    a = torch.load(tmp_path / 'full' / 'last.pt', weights_only=True)['state_dict']
+    b = torch.load(tmp_path / 'split' / 'last.pt', weights_only=True)['state_dict']
     assert all(torch.equal(a[k], b[k]) for k in a)
     with pytest.raises(ValueError, match='batch_size'):
         pretrain(config(setup, tmp_path / 'split', resume=True, batch_size=4))

@@ -148,14 +148,13 @@ MODEL_KEYS = ('format', 'config', 'vocab', 'nouns', 'state_dict', 'visual', 'vis
 
 
 def compare_weights(a: Path, b: Path, show: int) -> dict:
-    import torch
+    from dialfred_performer.model import read_state
     ca, cb = checkpoints(a), checkpoints(b)
     models, only = {}, sorted(set(ca) ^ set(cb))
     for name in sorted(set(ca) & set(cb)):
         try:
-            ma = torch.load(ca[name], map_location='cpu', weights_only=False)
-            mb = torch.load(cb[name], map_location='cpu', weights_only=False)
-        except (OSError, RuntimeError, EOFError) as exc:
+            ma, mb = read_state(ca[name]), read_state(cb[name])
+        except (OSError, ValueError) as exc:
             raise MissingPart(f'{name}: cannot load its checkpoint: {exc}') from None
         keys = [k for k in MODEL_KEYS if k in ma or k in mb]
         bad = [k for k in keys if not same_value(ma.get(k), mb.get(k))]

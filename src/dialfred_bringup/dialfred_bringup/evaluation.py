@@ -372,12 +372,18 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
     Results go to the JSON-lines file as each episode ends; tasks already there are skipped (resume).
     Writes the summary JSON next to it and returns the report of every selected task. `traces`: a
     dict to fill with each played task's actions, {task_id: [(name, x, y), ...]} (the performer path
-    takes them from the goals' feedback).
+    takes them from the goals' feedback). The results file is this run's alone while it runs
+    (`metrics.results_lock`: a second run into it is refused, naming this one).
     """
+    from dialfred_sim.metrics import results_lock
+    config.check()    # an unknown agent or questioner, or a bad setting, fails here before any node starts
+    with results_lock(config.results_path):
+        return _run_eval(config, progress, traces)
+
+
+def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> EvalReport:
     from dialfred_sim.metrics import append_result, summarize, write_text_atomically
     from dialfred_sim.tasks import load_split
-
-    config.check()    # an unknown agent or questioner, or a bad setting, fails here before any node starts
 
     t0 = time.monotonic()
     tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]

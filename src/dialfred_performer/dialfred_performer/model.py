@@ -191,6 +191,22 @@ def save_checkpoint(path: Path, model: Performer, vocab: Vocabulary, command: Op
 REQUIRED_KEYS = ('format', 'config', 'vocab', 'state_dict', 'git_commit', 'command')
 
 
+def read_state(path: Path) -> dict:
+    """The dict a training run saved with torch.save, loaded with weights_only=True: tensors and plain
+    values only, so a crafted file's pickled code never runs. FileNotFoundError if there is none;
+    CheckpointError saying why for a damaged, foreign or crafted file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f'no checkpoint at {path}')
+    try:
+        state = torch.load(path, map_location='cpu', weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - torch raises many kinds for a damaged or crafted file
+        raise CheckpointError(f'{path} is not a readable checkpoint ({type(exc).__name__}: {str(exc)[:300]})') from None
+    if not isinstance(state, dict):
+        raise CheckpointError(f'{path}: expected a dict, found {type(state).__name__}')
+    return state
+
+
 def load_checkpoint(path: Path) -> tuple[Performer, Vocabulary, dict]:
     """(model in eval mode, vocabulary, {'git_commit', 'command', 'extra', 'config'}) from a checkpoint
     of `save_checkpoint`. FileNotFoundError if there is none; CheckpointError saying what is wrong if
@@ -198,12 +214,7 @@ def load_checkpoint(path: Path) -> tuple[Performer, Vocabulary, dict]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f'no performer checkpoint at {path}')
-    try:
-        state = torch.load(path, map_location='cpu', weights_only=True)
-    except Exception as exc:  # noqa: BLE001 - torch raises many kinds for a damaged file
-        raise CheckpointError(f'{path} is not a readable checkpoint ({type(exc).__name__}: {exc})') from exc
-    if not isinstance(state, dict):
-        raise CheckpointError(f'{path}: expected a dict, found {type(state).__name__}')
+    state = read_state(path)
     missing = [k for k in REQUIRED_KEYS if k not in state]
     if missing:
         raise CheckpointError(f'{path}: missing {missing} (a performer checkpoint has {list(REQUIRED_KEYS)})')

@@ -43,7 +43,7 @@ import numpy as np
 import torch
 
 from dialfred_sim.dataclass_cli import arg, config_changes, parse
-from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit
+from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
 
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 
@@ -271,7 +271,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
     init = LearnedQuestioner.from_checkpoint(Path(cfg.init))
     model = init.model
     model.eval()
-    base = torch.load(Path(cfg.init), map_location='cpu', weights_only=True)
+    base = read_state(Path(cfg.init))
     _, _, performer_info = load_checkpoint(Path(cfg.performer))
     performer_info = dict(performer_info, path=str(cfg.performer))
     if base.get('performer') and Path(base['performer']).name != Path(cfg.performer).name:
@@ -284,7 +284,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
     update = 0
     log_path = out / 'metrics.jsonl'
     if cfg.resume:
-        state = torch.load(out / 'last.pt', map_location='cpu', weights_only=False)
+        state = read_state(out / 'last.pt')
         saved = json.loads(state['extra']['config'])
         differ = sorted(config_changes(saved, cfg, RESUMABLE_CHANGES))
         if differ:

@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
-from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
+from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint, read_state
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_performer.data import held_out
 
@@ -153,7 +153,7 @@ def pretrain(cfg: PretrainConfig) -> dict:
     epoch, best = 0, math.inf
     log_path = out / 'metrics.jsonl'
     if cfg.resume:
-        state = torch.load(out / 'last.pt', map_location='cpu', weights_only=False)
+        state = read_state(out / 'last.pt')
         saved = json.loads(state['extra']['config'])
         differ = sorted(config_changes(saved, cfg, RESUMABLE_CHANGES))
         if differ:

@@ -16,6 +16,7 @@ episode by episode so that an interrupted evaluation loses nothing and can resum
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import warnings
@@ -259,6 +260,34 @@ def write_text_atomically(path: Union[str, Path], text: str) -> None:
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def results_lock(path: Union[str, Path]):
+    """Own the results file `path` for one run: an exclusive OS lock (flock) on `<path>.lock`, held
+    while the block runs and released when it ends or its process dies. ResultsFileError naming the
+    owner (pid, host, command) when another run holds it: two runs never append to one file."""
+    import fcntl
+    import socket
+    import sys
+    import time
+    lock = Path(str(path) + '.lock')
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        owner = os.pread(fd, 4096, 0).decode('utf-8', errors='replace').strip() or 'another process'
+        os.close(fd)
+        raise ResultsFileError(f'{path} is being written by another run ({owner}): wait for it to end, or choose '
+                               'another --out') from None
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps({'pid': os.getpid(), 'host': socket.gethostname(), 'since': time.strftime('%FT%T'),
+                                  'command': ' '.join(sys.argv)[:300]}).encode(), 0)
+        yield
+    finally:
+        os.close(fd)
 
 
 def append_result(path: Union[str, Path], result: EpisodeResult) -> None:

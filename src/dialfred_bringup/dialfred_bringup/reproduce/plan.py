@@ -3,7 +3,6 @@
 from __future__ import annotations
 import hashlib
 import json
-import pickle
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -277,9 +276,11 @@ def weights_sha256(path: Path) -> str:
     name order). Two runs that train the same model get the same digest even though their files differ:
     a checkpoint also records the command and git commit that made it."""
     import torch
+
+    from dialfred_performer.model import read_state
     try:
-        state = torch.load(path, map_location='cpu', weights_only=False)['state_dict']
-    except (OSError, RuntimeError, EOFError, KeyError, TypeError, pickle.UnpicklingError) as exc:
+        state = read_state(path)['state_dict']
+    except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f'{path}: not a checkpoint with a state_dict ({exc})') from None
     h = hashlib.sha256()
     for name in sorted(state):
