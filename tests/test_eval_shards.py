@@ -73,6 +73,7 @@ def test_a_run_namespace_names_the_host_where_discovery_reaches_other_hosts(monk
     from dialfred_bringup.graph import host_token
     monkeypatch.setattr('socket.gethostname', lambda: 'gpu-07.lab.example')
     assert host_token() == 'gpu_07_lab_example'
+    monkeypatch.delenv('DIALFRED_NETWORK', raising=False)       # as in a process the caller starts afresh
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
     assert run_namespace() == f'/eval_{os.getpid()}'          # pids are unique on this host

@@ -128,7 +128,9 @@ def test_the_node_runs_in_this_sessions_own_ros_domain(sim, ros_domain_id):
     assert 1 <= ros_domain_id <= 101
     environ = Path(f'/proc/{sim.node.proc.pid}/environ').read_bytes().split(b'\0')
     assert f'ROS_DOMAIN_ID={ros_domain_id}'.encode() in environ
-    assert b'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST' in environ
+    assert b'DIALFRED_NETWORK=local' in environ and b'ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT' in environ
+    assert any(e.startswith(b'FASTRTPS_DEFAULT_PROFILES_FILE=') and e.endswith(b'config/fastdds_profiles.xml')
+               for e in environ)                    # the loopback-only profile (tests/test_network.py)
 
 
 def test_an_unknown_package_is_reported_clearly():
@@ -412,7 +414,7 @@ def test_a_node_that_dies_at_start_is_reported_with_its_exit_code(other_ros_doma
         with pytest.raises(NodeDied, match=rf'dialfred_sim node died with exit code {code}') as err:
             graph.check()
         time.sleep(0.2)      # let the output thread read the last lines
-        with pytest.raises(NodeDied, match='resolution must be an integer in 16-1024'):
+        with pytest.raises(NodeDied, match='parameter resolution: .*out of range. Min: 16, Max: 1024'):
             graph.check()
         assert 'last output' in str(err.value)
     finally:

@@ -16,7 +16,7 @@ every simulator node reads that file (its `tasks_file` parameter), and <out with
 records the file's path and sha256: results of another file are refused, never mixed in.
 
 With `--shard K/N`, only the tasks whose index in the split is K modulo N are played (seeded by that
-index, as in a whole run) into <out>_shardKofN.jsonl; `./dialfred merge` joins the shards' files
+index, as in a whole run) into <default name>_shardKofN.jsonl (or --out as given); `./dialfred merge` joins the shards' files
 (dialfred_bringup/shards.py, docs/scaling.md).
 """
 

@@ -21,23 +21,59 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+from .paths import REPO
+
 SERVICE_SETTLE_S = 0.2   # see Graph.client
 RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again (see Graph.call)
 
 
+def _spans_hosts(env) -> bool:
+    if env.get('DIALFRED_NETWORK') in ('local', 'hosts'):      # decided already, by a parent process
+        return env['DIALFRED_NETWORK'] == 'hosts'
+    reach = env.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '').strip().upper()
+    peers = [p.strip() for p in env.get('ROS_STATIC_PEERS', '').split(';') if p.strip()]
+    return reach not in ('', 'LOCALHOST', 'OFF') or any(not (p.startswith('127.') or p == 'localhost') for p in peers)
+
+
+def network_environment(env, repo: Path) -> dict:
+    """The DDS settings the graph's processes run with, given the caller's environment `env`.
+
+    On one machine (the default; also a caller's LOCALHOST): config/fastdds_profiles.xml, which keeps
+    UDP on the loopback interface and discovers by unicast to 127.0.0.1, with the discovery range
+    SYSTEM_DEFAULT so that ROS leaves discovery to that file: no socket listens outside 127.0.0.0/8
+    (Jazzy's LOCALHOST range opens sockets on every interface). Across hosts (a caller's SUBNET or
+    SYSTEM_DEFAULT range, or static peers on other hosts: docs/scaling.md):
+    config/fastdds_profiles_hosts.xml, UDP on every interface. A profile file the caller chose is
+    kept. DIALFRED_NETWORK records the choice for the processes this one starts."""
+    config = Path(repo) / 'config'
+    if _spans_hosts(env):
+        return {'DIALFRED_NETWORK': 'hosts', 'FASTRTPS_DEFAULT_PROFILES_FILE': env.get('FASTRTPS_DEFAULT_PROFILES_FILE')
+                or str(config / 'fastdds_profiles_hosts.xml')}
+    return {'DIALFRED_NETWORK': 'local', 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT',
+            'FASTRTPS_DEFAULT_PROFILES_FILE': env.get('FASTRTPS_DEFAULT_PROFILES_FILE')
+            or str(config / 'fastdds_profiles.xml')}
+
+
 def use_project_environment(repo: Path) -> None:
-    """Defaults every process of the graph (this one and its children) shares: the project's Fast DDS
-    profile (a shared-memory segment large enough for whole observations, config/fastdds_profiles.xml
-    of `repo`) and discovery on this host only."""
-    os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(Path(repo) / 'config' / 'fastdds_profiles.xml'))
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    """Apply `network_environment` to this process (and so to the nodes it starts). A run whose
+    discovery reaches other hosts says so once, on stderr."""
+    os.environ.update(network_environment(os.environ, repo))
+    if discovery_spans_hosts() and not os.environ.get('DIALFRED_SAID_HOSTS'):
+        os.environ['DIALFRED_SAID_HOSTS'] = '1'
+        print(f'dialfred: DDS discovery reaches other hosts (ROS_AUTOMATIC_DISCOVERY_RANGE='
+              f'{os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")!r}, ROS_STATIC_PEERS='
+              f'{os.environ.get("ROS_STATIC_PEERS", "")!r}): the nodes listen on every interface', file=sys.stderr)
 
 
 def discovery_spans_hosts() -> bool:
     """Whether this process's DDS discovery reaches other hosts: a range other than LOCALHOST or OFF
-    (Jazzy's default when unset is SUBNET), or static peers (docs/scaling.md)."""
-    reach = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SUBNET').strip().upper()
-    return reach not in ('LOCALHOST', 'OFF') or bool(os.environ.get('ROS_STATIC_PEERS', '').strip(' ;'))
+    (Jazzy's default when unset is SUBNET), or static peers off this host (docs/scaling.md)."""
+    env = dict(os.environ)
+    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SUBNET')      # Jazzy's default
+    return _spans_hosts(env)
+
+
+use_project_environment(REPO)      # this process, the nodes it starts, and what they start
 
 
 def host_token() -> str:

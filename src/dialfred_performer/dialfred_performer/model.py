@@ -25,7 +25,7 @@ from torch import nn
 from dialfred_sim.protocol import ACTIONS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
-from .perception import PerceptionNetConfig
+from .perception import Perception, PerceptionNetConfig
 from .preprocess import N_TOKEN_TYPES, Vocabulary
 
 # Actions that name a target pixel (the pointer is trained and used on these only).
@@ -75,7 +75,8 @@ class Performer(nn.Module):
         d = config.d_model
         self.language = LanguageEncoder(vocab_size, d, config.max_tokens, N_TOKEN_TYPES, config.dropout)
         if config.visual == 'perception':
-            self.visual = PerceivedFrames(d, config.pointer_key, PerceptionNetConfig(**json.loads(config.perception_net)))
+            self.visual = PerceivedFrames(d, config.pointer_key,
+                                          Perception(PerceptionNetConfig(**json.loads(config.perception_net))))
             self.pointer_head = PointerHead(d, config.pointer_key, project_keys=False)
         else:
             self.visual = VisualEncoder(d, config.resolution)

@@ -279,8 +279,10 @@ def train_perception(cfg: PerceptionConfig) -> dict:
         optimizer, lambda u: min(1.0, (u + 1) / warmup) * 0.5 * (1 + math.cos(math.pi * min(u, updates) / updates)))
     update, best = 0, float('inf')
     if cfg.resume and (out / 'last.pt').exists():
-        from .model import read_state
-        state = read_state(out / 'last.pt')
+        try:
+            state = torch.load(out / 'last.pt', map_location='cpu', weights_only=True)
+        except Exception as exc:  # noqa: BLE001 - a damaged or crafted file raises many kinds
+            raise ValueError(f'{out / "last.pt"} cannot be resumed from ({type(exc).__name__}: {exc})') from None
         changes = config_changes(state['train_config'], cfg, ('resume', 'progress', 'threads'))
         if changes:
             raise ValueError(f'--resume with another config: {changes}')

@@ -21,12 +21,12 @@ POOLED = 4          # the coarse map is pooled to POOLED x POOLED cells for the 
 
 
 class PerceivedFrames(nn.Module):
-    def __init__(self, d_model: int, d_key: int, net_config):
+    def __init__(self, d_model: int, d_key: int, net: nn.Module):
+        """`net`: a dialfred_performer.perception.Perception (its weights are loaded into it later)."""
         super().__init__()
-        from ..perception import Perception
-        self.net = Perception(net_config)
+        self.net = net
         self.net.requires_grad_(False)
-        c = net_config
+        c = net.config
         self.embed = nn.Sequential(nn.Linear(c.c3 * POOLED * POOLED, d_model), nn.LayerNorm(d_model))
         self.key = nn.Conv2d(c.decoder + c.c1, d_key, 1)
 
