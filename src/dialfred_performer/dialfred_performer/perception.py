@@ -115,8 +115,10 @@ def cell_targets(classes: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor, 
     """Per-pixel labels [N, R, R] (uint8 classes, uint8 depth) and frames [N, 3, R, R] -> the targets at
     2 x 2 cells: class distribution [N, K, R/2, R/2] (the share of each class in the cell), depth in
     metres [N, R/2, R/2], mean colour [N, 3, R/2, R/2], object share [N, R/2, R/2]."""
-    one_hot = F.one_hot(classes.long(), n_classes).permute(0, 3, 1, 2).float()
-    share = F.avg_pool2d(one_hot, 2)
+    N, R = classes.shape[0], classes.shape[-1]
+    cells = classes.long().view(N, R // 2, 2, R // 2, 2).permute(0, 1, 3, 2, 4).reshape(-1, 4)   # 4 pixels per cell
+    share = torch.zeros(cells.shape[0], n_classes).scatter_add_(1, cells, torch.full(cells.shape, 0.25))
+    share = share.view(N, R // 2, R // 2, n_classes).permute(0, 3, 1, 2)
     metres = F.avg_pool2d(depth.float()[:, None] * DEPTH_STEP, 2)[:, 0]
     colour = F.avg_pool2d(rgb, 2)
     objects = share[:, FIRST_OBJECT_CLASS:].sum(1)
@@ -190,11 +192,11 @@ class PerceptionConfig:
     val_fraction: float = arg(0.05, 'hold out the frames of the tasks whose id hashes below this (the performer\'s '
                                     'held-out tasks too)')
     out: str = arg('out/perception', 'where perception.pt, last.pt and metrics.jsonl go')
-    c1: int = arg(32, 'channels at R/2 and of the stem')
-    c2: int = arg(64, 'channels at R/4')
-    c3: int = arg(128, 'channels at R/8')
-    decoder: int = arg(64, 'channels of the decoder map')
-    frames: int = arg(200_000, 'training frames to show in all (a frame may be shown again)')
+    c1: int = arg(24, 'channels at R/2 and of the stem')
+    c2: int = arg(48, 'channels at R/4')
+    c3: int = arg(96, 'channels at R/8')
+    decoder: int = arg(32, 'channels of the decoder map')
+    frames: int = arg(250_000, 'training frames to show in all (a frame may be shown again)')
     batch_size: int = arg(64, 'frames per update')
     lr: float = arg(2e-3, 'peak learning rate (AdamW, warm-up then cosine)')
     weight_decay: float = arg(1e-4, 'AdamW weight decay')
