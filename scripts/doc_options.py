@@ -2,7 +2,9 @@
 
 A table sits between `<!-- options: package.module:Class -->` and `<!-- /options -->` in a page of
 docs/; this script replaces what is between the markers with `dialfred_sim.dataclass_cli.markdown_options`
-of that class (and the rows a job adds beside its fields, EXTRA below).
+of that class (and the rows a job adds beside its fields, EXTRA below). Between
+`<!-- parameters: package.module -->` and `<!-- /parameters -->` goes the table of a node module's
+PARAMETERS (`dialfred_sim.ros_util.Param`).
 
     ./dialfred env python scripts/doc_options.py          # rewrite the tables
     ./dialfred env python scripts/doc_options.py --check  # exit 1 naming each stale table
@@ -20,6 +22,7 @@ from dialfred_sim.dataclass_cli import markdown_options
 
 DOCS = Path(__file__).resolve().parents[1] / 'docs'
 BLOCK = re.compile(r'(<!-- options: (?P<target>[\w.]+:\w+) -->\n)(?P<table>.*?)(<!-- /options -->)', re.S)
+PARAMETER_BLOCK = re.compile(r'(<!-- parameters: (?P<target>[\w.]+) -->\n)(?P<table>.*?)(<!-- /parameters -->)', re.S)
 # Options a job's parser adds beside its config's fields: (flag, meaning, default).
 EXTRA = {'dialfred_bringup.evaluation:EvalConfig': [('--no-progress', 'no progress bar on stderr', '--progress')]}
 
@@ -29,8 +32,28 @@ def table(target: str) -> str:
     return markdown_options(getattr(importlib.import_module(module), name), EXTRA.get(target, ()))
 
 
+def parameter_table(module: str) -> str:
+    """A Markdown table of a node module's PARAMETERS: name, default, values, whether it may change
+    while the node runs, meaning."""
+    rows = ['| parameter | default | values | at run time | meaning |', '|---|---|---|---|---|']
+    repo = str(DOCS.parent)
+    for p in importlib.import_module(module).PARAMETERS:
+        values = (f'{p.span[0]} to {p.span[1]}' if p.span else
+                  ', '.join(f'`{c!r}`' if c == '' else f'`{c}`' for c in p.choices) if p.choices else
+                  '`true`, `false`' if isinstance(p.default, bool) else 'any')
+        default = p.default
+        if isinstance(default, str) and default.startswith(repo + '/'):
+            default = default[len(repo) + 1:]          # a file of the repository, wherever it is cloned
+        meaning = p.description.replace('|', '\\|')
+        shown = str(default).lower() if isinstance(default, bool) else repr(default)
+        rows.append(f'| `{p.name}` | `{shown}` | {values} | {"may change" if p.dynamic else "read-only"} | '
+                    f'{meaning} |')
+    return '\n'.join(rows) + '\n'
+
+
 def rewrite(text: str) -> str:
-    return BLOCK.sub(lambda m: m.group(1) + table(m.group('target')) + m.group(4), text)
+    text = BLOCK.sub(lambda m: m.group(1) + table(m.group('target')) + m.group(4), text)
+    return PARAMETER_BLOCK.sub(lambda m: m.group(1) + parameter_table(m.group('target')) + m.group(4), text)
 
 
 def stale_pages(docs: Path = DOCS) -> list[str]:

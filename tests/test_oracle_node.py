@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -225,6 +226,9 @@ def test_the_human_mode_asks_a_person_on_standard_input(tmp_path):
         person.proc.stdin.close()                         # nobody there any more
         reply = ask(g, 'location', task_noun(), cli)
         assert not reply.valid and 'no person' in reply.reason, (reply, list(person.tail))
+        deadline = time.monotonic() + 5                   # the node's output is read by a thread: give it a moment
+        while not any('Where is' in line for line in person.tail) and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert any('Where is' in line for line in person.tail), list(person.tail)   # the question was put to the person
     rows = [json.loads(line) for line in log.read_text().splitlines()]
     assert [r['answer'] for r in rows[:1]] == ['It is next to the toaster.'] and all(r['human'] for r in rows)

@@ -87,20 +87,26 @@ class WorldState:
         return replace(self.snapshot, appearances={object_id: look} if look is not None else {})
 
 
+# The node's parameters (ros_util.Param): declared with their ranges; docs tables are made from them.
+PARAMETERS = (
+    Param('perturb_type', '', "the paper's ablation: withhold answers of this type ('' = none)",
+          choices=('', *QUESTION_TYPES)),
+    Param('perturb_probability', 0.0, '... with this probability (the paper: 0.5)', span=(0.0, 1.0)),
+    Param('seed', 0, 'seeds which answers are withheld', span=(0, MAX_SEED)),
+    Param('human', False, 'ask a person in the terminal (see above)'),
+    Param('log_file', '', "append every question and answer as a JSON line (time, type, noun, valid, answer, "
+          "reason, human); '' = none"),
+    Param('sim_timeout', 5.0, 'seconds to wait for `sim/ground_truth`', span=(0.01, 3600.0)),
+    Param('cache_ground_truth', True, 'keep the state per version as above; false fetches the whole world for every '
+          'question (same answers)'))
+
+
 class OracleNode(Node):
     """Thin ROS adapter over answers.answer()."""
 
     def __init__(self):
         super().__init__('dialfred_oracle')
-        declare_parameters(self, [
-            Param('perturb_type', '', "the paper's ablation: withhold answers of this type ('' = none)",
-                  choices=('', *QUESTION_TYPES)),
-            Param('perturb_probability', 0.0, 'how often a withheld type is withheld', span=(0.0, 1.0)),
-            Param('seed', 0, 'the seed of the withholding draws', span=(0, MAX_SEED)),
-            Param('human', False, 'a person answers in the terminal instead of the rules'),
-            Param('log_file', '', "append every question and answer to this JSON-lines file ('' = none)"),
-            Param('sim_timeout', 5.0, 'seconds to wait for sim/ground_truth', span=(0.01, 3600.0)),
-            Param('cache_ground_truth', True, 'reuse the ground truth of an unchanged world')])
+        declare_parameters(self, PARAMETERS)
         p = self.get_parameter
         self.perturbation = Perturbation(p('perturb_type').value, float(p('perturb_probability').value),
                                          int(p('seed').value))

@@ -60,23 +60,26 @@ class GoalCanceled(Exception):
     pass
 
 
+# The node's parameters (ros_util.Param): declared with their ranges; docs tables are made from them.
+PARAMETERS = (
+    Param('checkpoint', str(SHIPPED_CHECKPOINT), "the policy (default: the shipped et.pt; '' = none); a goal may "
+          'name another; each file is loaded once, and again if it changes'),
+    Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
+    Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
+          'fails', span=(0.1, 86_400.0), dynamic=True),
+    Param('max_questions', 20, 'questions in a row without acting before the goal fails', span=(1, 1000),
+          dynamic=True),
+    Param('torch_threads', 1, 'torch intra-op threads (1: the simulators and other workers share the cores)',
+          span=(1, 256)),
+    Param('record_dir', '', "write each goal's episode as a rosbag2/MCAP bag into `<record_dir>/<split>_<number>/` "
+          "('' = no recording)"),
+    Param('record_format', 'raw', 'camera frames in the bags: raw (sensor_msgs/Image), png or jpeg '
+          '(CompressedImage)', choices=IMAGE_FORMATS))
+
 class PerformerNode(Node):
     def __init__(self):
         super().__init__('dialfred_performer')
-        declare_parameters(self, [
-            Param('checkpoint', str(SHIPPED_CHECKPOINT), 'the performer checkpoint (dialfred_performer.model.'
-                  "save_checkpoint; default the one shipped in the package; '' = none); a goal may name another"),
-            Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
-            Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
-                  'fails', span=(0.1, 86_400.0), dynamic=True),
-            Param('max_questions', 20, 'questions in a row without acting before the goal fails', span=(1, 1000),
-                  dynamic=True),
-            Param('torch_threads', 1, 'torch intra-op threads (1: the simulators and other workers share the cores)',
-                  span=(1, 256)),
-            Param('record_dir', '', "write each goal's episode as a rosbag2/MCAP bag into this folder ('' = no "
-                  'recording)'),
-            Param('record_format', 'raw', 'camera frames in the bags: raw (sensor_msgs/Image), png or jpeg '
-                  '(CompressedImage)', choices=IMAGE_FORMATS)])
+        declare_parameters(self, PARAMETERS)
         p = self.get_parameter
         self.record_dir = str(p('record_dir').value)
         self.record_format = str(p('record_format').value)

@@ -40,21 +40,24 @@ from .baselines import QUESTIONERS, ModelConfusionQuestioner
 from .questioners import make_questioner
 
 
+# The node's parameters (ros_util.Param): declared with their ranges; docs tables are made from them.
+PARAMETERS = (
+    Param('questioner', 'random', 'random, all, confusion (needs the confusion_gap of each request), a '
+          'shipped learned questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
+          'rl-anytime-withhold-<type>, rl-anytime-no-dialogue), learned (with `checkpoint`), learned:PATH, '
+          'or package.module:ClassName'),
+    Param('checkpoint', '', 'for questioner=learned: the questioner checkpoint file'),
+    Param('timing', '', "a learned questioner's timing ('' = its checkpoint's)",
+          choices=('', 'begin', 'anytime', 'confusion')),
+    Param('gap', 0, "the anytime timing's gap in steps (0 = the checkpoint's)", span=(0, 1000)),
+    Param('epsilon', -1.0, "the confusion threshold on the top-2 gap (< 0 = the checkpoint's, or 0.5 for "
+          'confusion)', span=(-1.0, 1.0)),
+    Param('torch_threads', 1, 'torch intra-op threads of a learned questioner', span=(1, 256)))
+
 class QuestionerNode(Node):
     def __init__(self):
         super().__init__('dialfred_questioner')
-        declare_parameters(self, [
-            Param('questioner', 'random', 'random, all, confusion (needs the confusion_gap of each request), a '
-                  'shipped learned questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
-                  'rl-anytime-withhold-<type>, rl-anytime-no-dialogue), learned (with `checkpoint`), learned:PATH, '
-                  'or package.module:ClassName'),
-            Param('checkpoint', '', 'for questioner=learned: the questioner checkpoint file'),
-            Param('timing', '', "a learned questioner's timing ('' = its checkpoint's)",
-                  choices=('', 'begin', 'anytime', 'confusion')),
-            Param('gap', 0, "the anytime timing's gap in steps (0 = the checkpoint's)", span=(0, 1000)),
-            Param('epsilon', -1.0, "the confusion threshold on the top-2 gap (< 0 = the checkpoint's, or 0.5 for "
-                  'confusion)', span=(-1.0, 1.0)),
-            Param('torch_threads', 1, 'torch intra-op threads of a learned questioner', span=(1, 256))])
+        declare_parameters(self, PARAMETERS)
         p = self.get_parameter
         name, checkpoint = p('questioner').value, p('checkpoint').value
         if name == 'learned':

@@ -23,7 +23,7 @@ from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
 from .protocol import fill_image, image_bytes
-from .ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, error_reply, run_node
+from .ros_util import SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 
 # Observations: every one matters to a recorder, only the newest to a controller.
 OBSERVATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
@@ -63,20 +63,22 @@ class TasksFileError(RuntimeError):
     """The tasks_file parameter names no readable split file."""
 
 
+# The node's parameters (ros_util.Param): declared with their ranges; docs tables are made from them.
+PARAMETERS = (
+    Param('resolution', DEFAULT_RESOLUTION, 'frame width and height in pixels', span=(16, 1024)),
+    Param('scene', '', "floor plan for resets that name none; '' draws one from the first reset's seed"),
+    Param('max_steps', 1000, 'an episode ends after this many actions', span=(1, 100_000)),
+    Param('max_failures', 10, 'an episode ends after this many failed actions', span=(1, 100_000)),
+    Param('publish_observations', True, 'publish the observation of every reset and step on `/sim/observation`'),
+    Param('tasks_file', '', 'a split file of your own (e.g. a test_unseen split): /sim/reset task ids are '
+          "looked up there first, then in the shipped splits; '' = shipped splits only"))
+
 class SimNode(Node):
     """Thin ROS adapter over DialfredEnv."""
 
     def __init__(self):
         super().__init__('dialfred_sim')
-        declare_parameters(self, [
-            Param('resolution', DEFAULT_RESOLUTION, 'camera pixels per side', span=(16, 1024)),
-            Param('seed', 0, 'the seed of a reset whose request gives none', span=(0, MAX_SEED)),
-            Param('scene', '', "the room of a reset that names none ('' = FloorPlan1)"),
-            Param('max_steps', 1000, 'an episode ends after this many actions', span=(1, 100_000)),
-            Param('max_failures', 10, 'an episode ends after this many failed actions', span=(1, 100_000)),
-            Param('publish_observations', True, 'publish each reset and step observation on sim/observation'),
-            Param('tasks_file', '', 'a split file of your own (e.g. a test_unseen split): /sim/reset task ids are '
-                  "looked up there first, then in the shipped splits; '' = shipped splits only")])
+        declare_parameters(self, PARAMETERS)
         p = self.get_parameter
         # Read once, at start: a missing or malformed file stops the node here with the reason.
         try:
@@ -84,7 +86,6 @@ class SimNode(Node):
         except (FileNotFoundError, ValueError) as exc:
             raise TasksFileError(str(exc)) from None
         scene = p('scene').value or None
-        self.default_seed = int(p('seed').value)
         self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
                                max_steps=int(p('max_steps').value), max_failures=int(p('max_failures').value))
         self.publish_observations = bool(p('publish_observations').value)
