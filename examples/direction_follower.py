@@ -16,13 +16,13 @@ agent protocol only, as your agent would be:
     ./dialfred launch eval --agent examples.direction_follower:DirectionFollower \\
         --questioner examples.direction_follower:AskForDirections
 
-The launcher lives at the repository's root, so this package is importable as it is. On valid_unseen
+Run from the repository's root, `examples` is importable as it is (with `--local` too). On valid_unseen
 it reaches the goal in 151 of the 163 Move tasks (92.6%). The random agent reaches 5.5% of them.
 """
 
 from __future__ import annotations
 
-from dialfred_sim.protocol import QA, Question
+from dialfred_sim.protocol import QA, Question, observation_field
 
 ADVICE = (('straight ahead', 'MoveAhead'), ('turn left', 'RotateLeft'), ('turn right', 'RotateRight'),
           ('turn around', 'RotateLeft'), ("don't need to move", 'Stop'))
@@ -66,7 +66,7 @@ class DirectionFollower:
 
     def act(self, observation):
         blocked = (self.last_action == 'MoveAhead' and observation is not None
-                   and not observation.last_action_success)
+                   and not observation_field(observation, 'last_action_success', True))
         action = next((a for words, a in ADVICE if words in self.advice), 'Stop')
         if blocked and action == 'MoveAhead':
             # Walk around the obstacle: alternate the side we turn to.

@@ -465,6 +465,11 @@ def test_the_example_agent_reaches_most_move_goals_by_following_the_oracles_dire
     assert sum(r.success for r in report.results) >= 4          # 151 of 163 on all of valid_unseen
     for r in report.results:
         assert r.questions == r.steps and r.invalid_questions == 0   # it asks before every action
+    # Without ROS the agent reads the same observation fields (last_action_success) and plays the same
+    local = evaluate(tmp_path / 'local.jsonl', agent='examples.direction_follower:DirectionFollower',
+                     questioner='examples.direction_follower:AskForDirections', limit=6, workers=1, local=True)
+    key = lambda r: (r.task_id, r.success, r.steps, r.questions, r.failed_actions, r.end_reason, r.dialogue)  # noqa: E731 - a sort key
+    assert [key(r) for r in local.results] == [key(r) for r in report.results]
 
 
 def test_the_et_performer_is_evaluated_at_its_training_resolution_unless_told_otherwise(tmp_path):

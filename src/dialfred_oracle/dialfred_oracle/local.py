@@ -66,6 +66,9 @@ class EnvServer:
 
     @staticmethod
     def _reply(obs, info: dict, terminated: bool = False, truncated: bool = False, task=None) -> SimReply:
+        # The agent's observation carries what the graph's Observation message does besides the images.
+        obs = {**obs, 'last_action_success': bool(info['last_action_success']),
+               'last_action_error': str(info['last_action_error']), 'step_count': int(info['step_count'])}
         return SimReply(observation=obs, step_count=int(info['step_count']), failed_actions=int(info['failed_actions']),
                         last_action_success=bool(info['last_action_success']),
                         last_action_error=str(info['last_action_error']),

@@ -138,6 +138,14 @@ def top2_gap(probabilities) -> float:
 IMAGE_DTYPES = {'rgb8': np.uint8, '32FC1': np.float32, '32SC1': np.int32}
 
 
+def observation_field(observation, name: str, default=None):
+    """A field of an agent's observation, whichever path gave it: the graph's Observation message
+    (an attribute) or the local path's dict (a key)."""
+    if isinstance(observation, dict):
+        return observation.get(name, default)
+    return getattr(observation, name, default)
+
+
 def image_array(msg, encoding: Optional[str] = None) -> np.ndarray:
     """The pixels of a sensor_msgs/Image (an rclpy message, a bag's message, anything with `encoding`,
     `height`, `width` and `data`) as an array: HxWx3 for rgb8, HxW for depth and segmentation.
