@@ -57,3 +57,14 @@ def test_the_shipped_checkpoint_plays_a_valid_unseen_task_the_same_way_twice():
     agent = PerformerAgent.from_checkpoint(SHIPPED_CHECKPOINT)
     first = play(agent, 'valid_unseen/000003')
     assert first and first == play(agent, 'valid_unseen/000003')
+
+
+def test_the_perception_candidate_loads_and_says_how_it_was_made():
+    """checkpoints/et_perception.pt: the performer that sees through the perception network (the
+    figures in docs/performer.md), shipped beside et.pt until the whole pipeline trains it."""
+    path = SHIPPED_CHECKPOINT.with_name('et_perception.pt')
+    assert path.stat().st_size <= MAX_BYTES
+    model, vocab, info = load_checkpoint(path)
+    assert info['config'].visual == 'perception' and model.config.grid_size == model.config.resolution
+    assert '--perception' in info['command'] and info['git_commit'] != 'unknown'
+    assert not any(p.requires_grad for p in model.visual.net.parameters())
