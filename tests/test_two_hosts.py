@@ -1,7 +1,7 @@
 """Two "hosts" on this machine, for real: two network namespaces joined by a veth pair, each with its
-own /dev/shm (so shared memory cannot carry DDS between them), run (a) an evaluation in two shards,
-one per host, in one ROS domain with discovery on the namespaces' subnet, merged into the very
-results of the same run on one host, with no socket on any address but the subnet's and loopback;
+own /dev/shm (so shared memory cannot carry DDS between them), run (a) a call from one host to a simulator
+node on the other (one ROS domain, discovery on the namespaces' subnet) and an evaluation in two
+shards, one per host, merged into the very results of the same run on one host, with no socket on any address but the subnet's and loopback;
 and (b) two torchrun ranks of the performer's training (gloo over the veth pair), which end with the
 weights of one process with the same global batch. The namespaces are removed whatever happens.
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -99,10 +99,17 @@ def test_an_evaluation_sharded_over_two_hosts_merges_into_the_one_host_run(hosts
     env = clean_env(ROS_DOMAIN_ID='42', ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET')
     eval_args = [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', 'valid_unseen', '--agent',
                  'expert', '--limit', str(TASKS), '--workers', '1', '--no-progress']
-    # A watcher on host A lists the ROS nodes it discovers while the shards run (it must see B's too)
-    watcher = subprocess.Popen(on_host(hosts[0], [sys.executable, '-c', WATCH, '60']), env=env, stdout=subprocess.PIPE,
+    # Discovery and calls across the hosts: host A resets the simulator node that host B runs
+    nodes_b = subprocess.Popen(on_host(hosts[1], [sys.executable, '-m', 'dialfred_bringup.launch', 'nodes',
+                                                  '--resolution', '32']), env=env, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, cwd=REPO)
-    assert watcher.stdout.readline().strip() == 'ready'          # it watches before the shards start
+    try:
+        probe = subprocess.run(on_host(hosts[0], [sys.executable, '-c', PROBE]), env=env, capture_output=True,
+                               text=True, cwd=REPO, timeout=180)
+    finally:
+        nodes_b.send_signal(signal.SIGINT)
+        nodes_b.communicate(timeout=60)
+    assert probe.stdout.strip().endswith('reset ok'), probe.stdout + probe.stderr
     shards = [subprocess.Popen(on_host(host, [*eval_args, '--shard', f'{k}/2', '--out', str(tmp_path / f'run_{k}.jsonl')]),
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
               for k, host in enumerate(hosts)]
@@ -118,9 +125,6 @@ def test_an_evaluation_sharded_over_two_hosts_merges_into_the_one_host_run(hosts
     for p, (out, err) in zip(shards, outs):
         assert p.returncode == 0, out[-2000:] + err[-2000:]
     assert 'DDS discovery reaches other hosts' in outs[0][1]                     # it said so
-    seen, _ = watcher.communicate(timeout=120)
-    namespaces = set(re.findall(r'/eval_\w+?_(\d+)/', seen))
-    assert len(namespaces) >= 2, seen                         # A discovered the nodes of both hosts' runs
     for host, address, line in sockets:                       # nothing bound to an address outside the subnet
         local = line.split()[3].rsplit(':', 1)[0]
         assert local in ('0.0.0.0', '*', address) or local.startswith(('127.', '239.')), (host, line)
@@ -134,19 +138,17 @@ def test_an_evaluation_sharded_over_two_hosts_merges_into_the_one_host_run(hosts
     assert without_wall(merged) == without_wall(one) and len(without_wall(one)) == TASKS
 
 
-WATCH = '''
-import sys, time, rclpy
+PROBE = '''
+import sys, rclpy
+from dialfred_msgs.srv import SimReset
 rclpy.init()
-node = rclpy.create_node('watcher')
-print('ready', flush=True)
-seen, end = set(), time.time() + float(sys.argv[1])
-while time.time() < end:
-    rclpy.spin_once(node, timeout_sec=0.2)
-    for name, ns in node.get_node_names_and_namespaces():
-        seen.add(ns + '/')
-    if len({s for s in seen if s.startswith('/eval_')}) >= 2:
-        break
-print(' '.join(sorted(seen)))
+node = rclpy.create_node('probe')
+client = node.create_client(SimReset, '/sim/reset')
+if not client.wait_for_service(timeout_sec=60):
+    sys.exit('no /sim/reset')
+future = client.call_async(SimReset.Request(scene='FloorPlan1', seed=0))
+rclpy.spin_until_future_complete(node, future, timeout_sec=60)
+print('reset ok' if future.result() is not None and future.result().ok else 'reset failed')
 '''
 
 
