@@ -41,14 +41,13 @@ from dialfred_sim.metrics import ResultsFileError
 from dialfred_sim.protocol import QUESTION_TYPES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
-from .graph import Graph, use_project_environment
+from .graph import Graph
 from .live import FOXGLOVE_PORT
 from .paths import REPO
 from .shards import check_shard, parse_shard, shard_suffix, shard_tasks, show_shard
 from .workers import (LiveHook, PerformerWorker, SimWorker, Supervisor, play_episodes, start_live_view,
                       worker_nodes)
 
-use_project_environment(REPO)
 
 
 

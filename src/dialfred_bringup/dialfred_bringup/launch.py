@@ -48,10 +48,8 @@ from .demo import DemoConfig, run_demo
 from .evaluation import (DEFAULT_RESOLUTION, ResultsFileError, add_eval_parser, record_field, record_format_field,
                          run_eval_command)
 from .film import save_captioned_gif
-from .graph import RESEND_AFTER_S, Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain, use_project_environment
-from .paths import REPO
+from .graph import RESEND_AFTER_S, Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain
 
-use_project_environment(REPO)
 
 @dataclass
 class ExploreConfig:

@@ -29,6 +29,7 @@ import torch
 import torch.nn.functional as F
 
 from .metrics import STAT_KEYS
+from .model import pointer_ce
 
 
 @dataclass(frozen=True)
@@ -122,7 +123,6 @@ def sharded_loss(outputs: dict, batch: dict, pointer_weight: float, steps: float
     global targets). Summed over the ranks and divided by `world`, it is the single process's loss (and
     its gradient the update's). Every output takes part in the graph (DDP expects a gradient for each
     parameter), whatever this rank's share holds."""
-    from .model import pointer_ce
     valid, masks = batch['step_valid'], batch['target_masks']
     action = F.cross_entropy(outputs['action_logits'][valid], batch['actions'][valid], reduction='sum') / max(steps, 1.0)
     pointer = outputs['pointer_logits'].sum() * 0.0

@@ -11,6 +11,7 @@ import numpy as np
 import torch
 
 from .data import collate
+from .model import pointer_ce
 
 STAT_KEYS = ('steps', 'targets', 'action_ce', 'pointer_ce', 'action_correct', 'pointer_correct', 'episodes')
 
@@ -19,8 +20,6 @@ def batch_stats(outputs: dict, batch: dict) -> dict:
     """Sums over a batch: cross-entropies and correct predictions (action over valid steps; pointer
     over steps with a target, right when its best cell is one of the target's)."""
     import torch.nn.functional as F
-
-    from .model import pointer_ce
     valid = batch['step_valid']
     a_logits, p_logits = outputs['action_logits'].detach()[valid], outputs['pointer_logits'].detach()
     a_target, masks = batch['actions'][valid], batch['target_masks']

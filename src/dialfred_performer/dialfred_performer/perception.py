@@ -52,10 +52,10 @@ class PerceptionNetConfig:
     """Sizes of the perception network."""
 
     resolution: int = 64
-    c1: int = 32            # channels at R/2 (and of the full-resolution stem)
-    c2: int = 64            # at R/4
-    c3: int = 128           # at R/8
-    decoder: int = 64       # channels of the decoder's R/2 map
+    c1: int = 24            # channels at R/2 (and of the full-resolution stem)
+    c2: int = 48            # at R/4
+    c3: int = 96            # at R/8
+    decoder: int = 32       # channels of the decoder's R/2 map
     classes: int = 0        # set from label_classes() when 0
 
 
@@ -192,10 +192,10 @@ class PerceptionConfig:
     val_fraction: float = arg(0.05, 'hold out the frames of the tasks whose id hashes below this (the performer\'s '
                                     'held-out tasks too)')
     out: str = arg('out/perception', 'where perception.pt, last.pt and metrics.jsonl go')
-    c1: int = arg(24, 'channels at R/2 and of the stem')
-    c2: int = arg(48, 'channels at R/4')
-    c3: int = arg(96, 'channels at R/8')
-    decoder: int = arg(32, 'channels of the decoder map')
+    c1: int = arg(PerceptionNetConfig.c1, 'channels at R/2 and of the stem')
+    c2: int = arg(PerceptionNetConfig.c2, 'channels at R/4')
+    c3: int = arg(PerceptionNetConfig.c3, 'channels at R/8')
+    decoder: int = arg(PerceptionNetConfig.decoder, 'channels of the decoder map')
     frames: int = arg(250_000, 'training frames to show in all (a frame may be shown again)')
     batch_size: int = arg(64, 'frames per update')
     lr: float = arg(2e-3, 'peak learning rate (AdamW, warm-up then cosine)')
