@@ -18,7 +18,7 @@ What is compared (each part says `same` true/false, with the first differences):
   the run times always differ.
 - `episodes`: every results file under `eval/` and `check/`, episode by episode, every field but the
   wall time and the agent's name (it carries the checkpoint's file hash, see above).
-- `weights`: the performer (`performer/best.pt`), the pre-trained questioner and every RL questioner:
+- `weights`: the perception network (`perception/perception.pt`), the performer (`performer/best.pt`), the pre-trained questioner and every RL questioner:
   each tensor of the state dict (and the questioner's frozen visual encoder), the config and the
   vocabularies.
 - `caches` (asked for with `--parts ...,caches`): the files of the demonstrations, dialogues and first-frames caches that
@@ -126,7 +126,7 @@ def compare_episodes(a: Path, b: Path, show: int) -> dict:
 
 def checkpoints(run: Path) -> dict:
     """{name: path} of the models a run has trained so far."""
-    out = {'performer': run / 'performer' / 'best.pt', 'pretrain': run / 'questioner' / 'pretrain' / 'best.pt'}
+    out = {'perception': run / 'perception' / 'perception.pt', 'performer': run / 'performer' / 'best.pt', 'pretrain': run / 'questioner' / 'pretrain' / 'best.pt'}
     for p in sorted((run / 'questioner').glob('*/final.pt')):
         out[p.parent.name] = p
     return {name: p for name, p in out.items() if p.is_file()}

@@ -67,6 +67,15 @@ class PerformerConfig:
         return self.resolution if self.visual == 'perception' else self.resolution // 8
 
 
+def build_visual(config: PerformerConfig) -> nn.Module:
+    """The frame encoder of a performer with `config` (untrained): a VisualEncoder, or PerceivedFrames
+    around a perception network. The questioner builds its frozen copy of a performer's encoder here too."""
+    if config.visual == 'perception':
+        return PerceivedFrames(config.d_model, config.pointer_key,
+                               Perception(PerceptionNetConfig(**json.loads(config.perception_net))))
+    return VisualEncoder(config.d_model, config.resolution)
+
+
 class Performer(nn.Module):
     def __init__(self, config: PerformerConfig, vocab_size: int):
         super().__init__()
@@ -74,12 +83,10 @@ class Performer(nn.Module):
         self.vocab_size = vocab_size
         d = config.d_model
         self.language = LanguageEncoder(vocab_size, d, config.max_tokens, N_TOKEN_TYPES, config.dropout)
+        self.visual = build_visual(config)
         if config.visual == 'perception':
-            self.visual = PerceivedFrames(d, config.pointer_key,
-                                          Perception(PerceptionNetConfig(**json.loads(config.perception_net))))
             self.pointer_head = PointerHead(d, config.pointer_key, project_keys=False)
         else:
-            self.visual = VisualEncoder(d, config.resolution)
             self.pointer_head = PointerHead(d)
         self.actions = ActionEmbedding(len(ACTIONS), d)
         self.encoder = MultimodalEncoder(d, config.heads, config.layers, config.ff, config.max_steps, config.dropout)

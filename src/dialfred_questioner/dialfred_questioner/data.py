@@ -70,10 +70,12 @@ def pretraining_examples(rows: Sequence, first_frame: dict, nouns: Sequence[str]
 
 @torch.no_grad()
 def frame_features(visual, frames: np.ndarray, resolution: int, batch: int = 512) -> torch.Tensor:
-    """The frame embeddings [N, d] of uint8 RGB frames [N, H, W, 3] by a (frozen) VisualEncoder."""
+    """The frame embeddings [N, d] of uint8 RGB frames [N, H, W, 3] by a performer's (frozen) frame encoder
+    (dialfred_performer.model.build_visual)."""
     visual.eval()
-    parts = [visual(frame_tensor(np.asarray(frames[k:k + batch]), resolution))[0] for k in range(0, len(frames), batch)]
-    return torch.cat(parts) if parts else torch.zeros(0, visual.project[0].out_features)
+    parts = [visual.embedding(frame_tensor(np.asarray(frames[k:k + batch]), resolution))
+             for k in range(0, len(frames), batch)]
+    return torch.cat(parts) if parts else torch.zeros(0, visual.d_model)
 
 
 def pad_language(ids: Sequence[Sequence[int]], types: Sequence[Sequence[int]]) -> tuple:

@@ -29,6 +29,7 @@ from typing import Any, Optional, Sequence
 
 import torch
 
+from dialfred_performer.model import PerformerConfig, build_visual
 from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 from dialfred_sim.protocol import QA, Question, top2_gap
@@ -103,7 +104,10 @@ class LearnedQuestioner:
             vocab = Vocabulary.from_json(state['vocab'])
             model = Questioner(config, len(vocab), state['nouns'])
             model.load_state_dict(state['state_dict'])
-            visual = VisualEncoder(config.image, int(state['visual_resolution']))
+            if state.get('visual_config'):         # the performer's config: its kind of frame encoder
+                visual = build_visual(PerformerConfig(**state['visual_config']))
+            else:                                  # checkpoints from before visual_config: the 3-conv encoder
+                visual = VisualEncoder(config.image, int(state['visual_resolution']))
             visual.load_state_dict(state['visual'])
             saved = Timing(**state['timing']) if state.get('timing') else DEFAULT_TIMING
         except Exception as exc:  # noqa: BLE001 - a damaged file raises many kinds
@@ -116,7 +120,7 @@ class LearnedQuestioner:
     def record_of(self, rgb, instruction: str, dialogue: Sequence[AskedQA], step: int) -> Record:
         """The model's inputs for a decision (qtype / noun still -1)."""
         lang = encode_language(self.vocab, instruction, dialogue if self.reads_dialogue else ())
-        image = self.visual(frame_tensor(rgb, self.resolution)[None])[0][0]
+        image = self.visual.embedding(frame_tensor(rgb, self.resolution)[None])[0]
         return Record(lang.ids, lang.types, image, step, -1, -1)
 
     @torch.no_grad()

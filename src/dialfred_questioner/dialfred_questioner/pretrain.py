@@ -86,7 +86,8 @@ def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, p
     instruction-only input, an ablation), the command (of `module`) and commit."""
     state = {'format': FORMAT, 'config': dataclasses.asdict(model.config), 'nouns': list(model.nouns),
              'vocab': vocab.to_json(), 'state_dict': model.state_dict(), 'visual': visual_state,
-             'visual_resolution': performer_info['config'].resolution, 'performer': performer_info['path'],
+             'visual_resolution': performer_info['config'].resolution,
+             'visual_config': dataclasses.asdict(performer_info['config']), 'performer': performer_info['path'],
              'timing': timing, 'reads_dialogue': reads_dialogue, 'git_commit': commit, 'command': command_line(module, cfg), 'extra': extra or {}}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + '.tmp')

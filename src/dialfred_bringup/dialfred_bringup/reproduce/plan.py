@@ -16,12 +16,14 @@ from ..baselines import BASELINES as TABLE2_BASELINES  # the one place of Table 
 from ..paths import REPO
 
 
-STAGES = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'check', 'doc')
+STAGES = ('demos', 'perception', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'check', 'doc')
 EVAL_PATHS = ('local', 'graph', 'in-process')
 SPLITS = ('valid_seen', 'valid_unseen')
 PERTURB_PROBABILITY = 0.5
 SHIPPED_QUESTIONERS = REPO / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
 RESOLUTION = 64
+# The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch, 41 min on 2 cores.
+PERFORMER_UPDATES = 12_000
 
 # The RL fine-tunings (FinetuneConfig fields beyond the shared ones).
 RL_RUNS = {
@@ -167,6 +169,7 @@ class Plan:
         self.demos = cache / 'demonstrations' / f'train_{RESOLUTION}' if q else default_dir('train', RESOLUTION)
         self.dialogue_dir = cache / 'dialogues' if q else None     # None: annotator's default (~/.cache)
         self.frames = cache / f'train_first_{RESOLUTION}.npz' if q else default_path('train', RESOLUTION)
+        self.perception_dir = self.run / 'perception'
         self.performer_dir = self.run / 'performer'
         self.pretrain_dir = self.run / 'questioner' / 'pretrain'
         self.eval_dir = self.run / 'eval'
@@ -178,11 +181,24 @@ class Plan:
     # each stage's config, as plain JSON (part of its stamp)
     def demos_config(self) -> dict:
         return dict(split='train', resolution=RESOLUTION, workers=self.cfg.workers, limit=self.train_limit,
-                    out=str(self.demos), progress=self.cfg.progress, annotate=True)
+                    out=str(self.demos), progress=self.cfg.progress, annotate=True, labels=True)
+
+    def perception_config(self) -> dict:
+        base = dict(demonstrations=str(self.demos), out=str(self.perception_dir), seed=self.cfg.seed,
+                    progress=self.cfg.progress)
+        if self.cfg.quick:
+            base.update(frames=512, batch_size=16, val_frames=64, validate_every=16, threads=1,
+                        c1=8, c2=16, c3=16, decoder=8)
+        return base
+
+    @property
+    def perception_checkpoint(self) -> Path:
+        return self.perception_dir / 'perception.pt'
 
     def performer_config(self) -> dict:
         base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
-                    progress=self.cfg.progress, epochs=1, max_updates=0, validation='', val_fraction=0.05)
+                    progress=self.cfg.progress, epochs=1, max_updates=PERFORMER_UPDATES, validation='',
+                    val_fraction=0.05, perception=str(self.perception_checkpoint))
         if self.cfg.quick:
             base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
                         checkpoint_every=30, val_fraction=0.2,
@@ -262,7 +278,7 @@ class Plan:
         return not s.questioner.startswith('rl:') or self.questioner_checkpoint(s.questioner[3:]).exists()
 
 
-TRAINING = ('demos', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
+TRAINING = ('demos', 'perception', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')
 
 
 def sha256_of(data) -> str:

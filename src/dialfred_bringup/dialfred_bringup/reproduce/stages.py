@@ -51,7 +51,9 @@ UP = 'src/dialfred_bringup/dialfred_bringup'
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
-    'performer': (f'{PERF}/train.py', f'{PERF}/model.py', f'{PERF}/data.py', f'{PERF}/preprocess.py'),
+    'perception': (f'{PERF}/perception.py', f'{SIM}/tasks/demonstrations.py'),
+    'performer': (f'{PERF}/train.py', f'{PERF}/model.py', f'{PERF}/data.py', f'{PERF}/preprocess.py',
+                  f'{PERF}/nn/enc_perceived.py'),
     'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
@@ -63,7 +65,7 @@ CODE = {
             f'{PERF}/curves.py'),
 }
 UPSTREAM = {
-    'demos': (), 'performer': ('demos',), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
+    'demos': (), 'perception': ('demos',), 'performer': ('demos', 'perception'), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
     'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
 }
 
@@ -82,7 +84,7 @@ class Runner:
     def stage_inputs(self, stage: str) -> dict:
         p = self.plan
         config = {
-            'demos': p.demos_config, 'performer': p.performer_config, 'dialogues': p.dialogues_config,
+            'demos': p.demos_config, 'perception': p.perception_config, 'performer': p.performer_config, 'dialogues': p.dialogues_config,
             'frames': p.frames_config, 'pretrain': p.pretrain_config,
             'rl': lambda: {name: p.rl_config(name) for name in RL_RUNS},
             'eval': lambda: {'settings': [dataclasses.asdict(s) for s in settings() if p.available(s)],
@@ -161,6 +163,13 @@ class Runner:
     def demos(self, resume: bool) -> dict:
         from dialfred_performer.prepare import PrepareConfig, prepare
         return prepare(PrepareConfig(**self.plan.demos_config()))
+
+    def perception(self, resume: bool) -> dict:
+        from dialfred_performer.perception import PerceptionConfig, train_perception
+        c = self.plan.perception_config()
+        resume = resume and (self.plan.perception_dir / 'last.pt').exists()
+        report = train_perception(PerceptionConfig(**c, resume=resume))
+        return {k: v for k, v in report.items() if isinstance(v, (int, float, str, dict))}
 
     def performer(self, resume: bool) -> dict:
         from dialfred_performer.model import PerformerConfig
@@ -287,7 +296,7 @@ class Runner:
         p = self.plan
         return {
             'demos': [], 'dialogues': [], 'frames': [],          # caches: rewritten in place (same bytes)
-            'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
+            'perception': [p.perception_dir], 'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
             'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir], 'check': [p.check_dir],
             'doc': [p.run / 'results.md', p.run / 'sr_nq.png'],
         }[stage]

@@ -27,6 +27,7 @@ class PerceivedFrames(nn.Module):
         self.net = net
         self.net.requires_grad_(False)
         c = net.config
+        self.d_model = d_model
         self.embed = nn.Sequential(nn.Linear(c.c3 * POOLED * POOLED, d_model), nn.LayerNorm(d_model))
         self.key = nn.Conv2d(c.decoder + c.c1, d_key, 1)
 
@@ -47,3 +48,9 @@ class PerceivedFrames(nn.Module):
         fine = F.interpolate(fine, size=stem.shape[-2:], mode='bilinear', align_corners=False)
         keys = self.key(torch.cat([fine, stem], 1)).flatten(2).transpose(1, 2)
         return emb, keys
+
+    def embedding(self, frames: torch.Tensor) -> torch.Tensor:
+        """The frame embeddings [N, d] alone (no pointer keys are computed)."""
+        with torch.no_grad():
+            out = self.net(frames)
+        return self.embed(F.adaptive_avg_pool2d(out.coarse, POOLED).flatten(1))

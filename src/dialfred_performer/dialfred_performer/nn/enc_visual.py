@@ -19,6 +19,7 @@ class VisualEncoder(nn.Module):
         if resolution % 8:
             raise ValueError(f'the resolution must be a multiple of 8, got {resolution}')
         c1, c2 = channels
+        self.d_model = d_model
         self.grid_size = resolution // 8
         self.cnn = nn.Sequential(
             nn.Conv2d(3, c1, 5, stride=2, padding=2), nn.GroupNorm(8, c1), nn.ReLU(inplace=True),
@@ -34,3 +35,7 @@ class VisualEncoder(nn.Module):
         grid = self.cnn(frames - self.mean).flatten(2).transpose(1, 2)        # [N, G*G, d]
         grid = grid + self.cell_position[None]
         return self.project(grid.mean(1)), grid
+
+    def embedding(self, frames: torch.Tensor) -> torch.Tensor:
+        """The frame embeddings [N, d_model] alone."""
+        return self(frames)[0]
