@@ -145,3 +145,26 @@ def test_the_agent_reads_rgb_only(performer):
         env.close()
         runs.append(actions)
     assert runs[0] == runs[1]
+
+
+def test_a_questioner_pretrained_against_the_perception_performer_sees_through_its_network(performer, tmp_path):
+    """The questioner keeps a frozen copy of whichever frame encoder its performer has: pre-trained against
+    a perception performer, its checkpoint rebuilds that encoder and gives the performer's frame embedding."""
+    from dialfred_performer.preprocess import frame_tensor
+    from dialfred_questioner.frames import build_first_frames
+    from dialfred_questioner.model import QuestionerConfig
+    from dialfred_questioner.policy import LearnedQuestioner
+    from dialfred_questioner.pretrain import PretrainConfig, pretrain
+    from dialfred_sim.tasks import load_split
+    checkpoint, _ = performer
+    build_first_frames('valid_unseen', 32, tmp_path / 'first.npz', workers=1, limit=8, progress=False)
+    pretrain(PretrainConfig(split='valid_unseen', frames=str(tmp_path / 'first.npz'), performer=str(checkpoint),
+                            out=str(tmp_path / 'q'), model=QuestionerConfig(embedding=16, hidden=32, image=32),
+                            epochs=1, batch_size=4, val_fraction=0.3, limit=8, threads=1, progress=False))
+    q = LearnedQuestioner.from_checkpoint(tmp_path / 'q' / 'best.pt')
+    model, _, _ = load_checkpoint(checkpoint)
+    assert type(q.visual) is type(model.visual)
+    rgb = torch.randint(0, 255, (32, 32, 3), dtype=torch.uint8).numpy()
+    _, record = q.decide(rgb, load_split('valid_unseen')[0].instruction, [], 0)
+    with torch.no_grad():
+        assert torch.allclose(record.image, model.encode_frames(frame_tensor(rgb, 32)[None])[0][0])

@@ -112,3 +112,35 @@ def test_first_frames_copied_out_of_demonstrations_are_the_rendered_ones(setup, 
     assert main(['valid_unseen', '--limit', '6', '--demonstrations', str(tmp_path / 'nothing'),
                  '--out', str(tmp_path / 'x.npz')]) == 2
     assert not (tmp_path / 'more.npz').exists() and not (tmp_path / 'x.npz').exists()
+
+
+def test_a_questioner_can_keep_its_frame_encoder_in_its_performers_checkpoint(setup, tmp_path):
+    """share_visual drops the questioner's copy of the frozen encoder and names the performer checkpoint
+    that holds it: the questioner decides the same, and a replaced or missing performer file is refused
+    with the reason."""
+    from dialfred_questioner.policy import LearnedQuestioner, SharedVisualError, share_visual
+    pretrain(config(setup, tmp_path / 'q', epochs=1))
+    full = tmp_path / 'q' / 'best.pt'
+    performer = tmp_path / 'perf' / 'et.pt'
+    performer.parent.mkdir()
+    performer.write_bytes(setup[1].read_bytes())
+    shared = tmp_path / 'ship' / 'q.pt'
+    source = share_visual(full, shared, performer)
+    assert source['performer'] == '../perf/et.pt' and shared.stat().st_size < full.stat().st_size
+    assert 'visual' not in torch.load(shared, weights_only=True)
+    rgb = np.random.default_rng(1).integers(0, 255, (64, 64, 3), dtype=np.uint8)
+    instruction = load_dialogues('valid_unseen')[0].instruction
+    a, b = LearnedQuestioner.from_checkpoint(full), LearnedQuestioner.from_checkpoint(shared)
+    (qa, ra), (qb, rb) = a.decide(rgb, instruction, [], 0), b.decide(rgb, instruction, [], 0)
+    assert qa == qb and torch.equal(ra.image, rb.image)
+    state = torch.load(performer, weights_only=True)
+    name = next(k for k in state['state_dict'] if k.startswith('visual.'))
+    state['state_dict'][name] = state['state_dict'][name] + 1.0
+    torch.save(state, performer)                          # another performer in its place
+    with pytest.raises(SharedVisualError, match='another frame encoder'):
+        LearnedQuestioner.from_checkpoint(shared)
+    with pytest.raises(SharedVisualError, match='is not the one in'):
+        share_visual(full, tmp_path / 'ship' / 'r.pt', performer)
+    performer.unlink()
+    with pytest.raises(SharedVisualError, match='cannot be read'):
+        LearnedQuestioner.from_checkpoint(shared)

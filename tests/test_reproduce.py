@@ -135,6 +135,29 @@ def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first
     assert digest[0] == digest[1] == reproduce.weights_sha256(out / 'performer' / 'best.pt')[:16]
 
 
+@pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
+def test_a_runs_models_are_shipped_with_the_frame_encoder_kept_once(first, tmp_path):
+    from dialfred_bringup.reproduce.ship import ShipConfig, ship
+    from dialfred_questioner.policy import LearnedQuestioner
+    run = first[0]
+    with pytest.raises(ValueError, match='quick run'):
+        ship(ShipConfig(run=str(run)))                        # never over the package's checkpoints
+    report = ship(ShipConfig(run=str(run), into=str(tmp_path / 'ship')))
+    assert len(report['files']) == 1 + 1 + len(reproduce.RL_RUNS)
+    full = run / 'questioner' / 'rl_anytime' / 'final.pt'
+    shipped = tmp_path / 'ship' / 'rl_anytime.pt'
+    assert shipped.stat().st_size < full.stat().st_size
+    assert LearnedQuestioner.from_checkpoint(shipped).visual.state_dict().keys() == \
+        LearnedQuestioner.from_checkpoint(full).visual.state_dict().keys()
+    (run / 'stamps' / 'rl.json').rename(run / 'stamps' / 'rl.json.away')
+    try:
+        with pytest.raises(ValueError, match='rl stage has no stamp'):
+            ship(ShipConfig(run=str(run), into=str(tmp_path / 'again')))
+        assert not (tmp_path / 'again').exists()
+    finally:
+        (run / 'stamps' / 'rl.json.away').rename(run / 'stamps' / 'rl.json')
+
+
 def test_the_weights_digest_reads_tensors_not_provenance(tmp_path):
     import torch
     state = {'b.weight': torch.arange(6, dtype=torch.float32).reshape(2, 3), 'a.bias': torch.ones(3, dtype=torch.bfloat16),

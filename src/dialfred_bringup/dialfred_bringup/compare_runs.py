@@ -143,7 +143,7 @@ def same_value(x, y) -> bool:
 
 
 # what a checkpoint holds that must not depend on the run (its command and commit name the run folder)
-MODEL_KEYS = ('format', 'config', 'vocab', 'nouns', 'state_dict', 'visual', 'visual_resolution', 'timing',
+MODEL_KEYS = ('format', 'config', 'vocab', 'nouns', 'state_dict', 'visual', 'visual_resolution', 'visual_config', 'timing',
               'reads_dialogue')
 
 

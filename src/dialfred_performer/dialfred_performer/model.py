@@ -199,6 +199,27 @@ def save_checkpoint(path: Path, model: Performer, vocab: Vocabulary, command: Op
 REQUIRED_KEYS = ('format', 'config', 'vocab', 'state_dict', 'git_commit', 'command')
 
 
+def state_digest(state: dict) -> str:
+    """sha256 over a state dict's tensors (name, dtype, shape and bytes, in name order): the same
+    weights give the same digest whatever file, command or commit they were saved with."""
+    import hashlib
+    h = hashlib.sha256()
+    for name in sorted(state):
+        t = state[name].detach().contiguous().reshape(-1)
+        h.update(f'{name}\0{t.dtype}\0{tuple(state[name].shape)}\0'.encode())
+        h.update(t.view(torch.uint8).numpy().tobytes())
+    return h.hexdigest()
+
+
+def visual_state(path: Path) -> dict:
+    """The frame encoder's weights (state dict without the 'visual.' prefix) of the performer checkpoint
+    at `path`."""
+    state = read_state(path).get('state_dict')
+    if not isinstance(state, dict):
+        raise CheckpointError(f'{path}: no state_dict')
+    return {k[len('visual.'):]: v for k, v in state.items() if k.startswith('visual.')}
+
+
 def read_state(path: Path) -> dict:
     """The dict a training run saved with torch.save, loaded with weights_only=True: tensors and plain
     values only, so a crafted file's pickled code never runs. FileNotFoundError if there is none;

@@ -29,7 +29,7 @@ from typing import Any, Optional, Sequence
 
 import torch
 
-from dialfred_performer.model import PerformerConfig, build_visual
+from dialfred_performer.model import PerformerConfig, build_visual, state_digest, visual_state
 from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 from dialfred_sim.protocol import QA, Question, top2_gap
@@ -57,6 +57,53 @@ class Record:
     step: int
     qtype: int                    # index into TYPE_TOKENS
     noun: int                     # index into the nouns, -1 when the type names none
+
+
+class SharedVisualError(ValueError):
+    """A questioner checkpoint whose frame encoder is kept in a performer checkpoint that is missing or
+    holds other weights."""
+
+
+def shared_visual(path: Path, state: dict) -> dict:
+    """The frame encoder's weights of a questioner checkpoint written by share_visual: read from the
+    performer checkpoint it names (relative to its own folder), checked against the digest it stores."""
+    source = state.get('visual_source')
+    if not isinstance(source, dict) or not isinstance(source.get('performer'), str):
+        raise SharedVisualError(f'{path} has neither the frame encoder\'s weights nor a visual_source')
+    performer = Path(path).parent / source['performer']
+    try:
+        weights = visual_state(performer)
+    except (OSError, ValueError) as exc:
+        raise SharedVisualError(f'{path} keeps its frame encoder in {performer}, which cannot be read: {exc}') from None
+    if state_digest(weights) != source.get('sha256'):
+        raise SharedVisualError(f'{path} was trained with another frame encoder than the one in {performer} '
+                                f'(weights sha256 {state_digest(weights)[:12]}..., expected '
+                                f'{str(source.get("sha256"))[:12]}...): the performer checkpoint was replaced')
+    return weights
+
+
+def share_visual(source: Path, target: Path, performer: Path) -> dict:
+    """Write questioner checkpoint `source` to `target` without its copy of the frame encoder, naming the
+    performer checkpoint that holds the same weights instead (relative to target's folder; its digest is
+    stored and checked on every load). A shipped set of questioners then keeps the encoder once, in the
+    performer they were trained with. Raises SharedVisualError if `performer`'s encoder differs."""
+    import os
+    state = torch.load(source, map_location='cpu', weights_only=True)
+    own = state.get('visual')
+    if own is None:
+        raise SharedVisualError(f'{source} has no frame encoder weights of its own')
+    theirs = visual_state(performer)
+    if state_digest(own) != state_digest(theirs):
+        raise SharedVisualError(f'{source}\'s frame encoder is not the one in {performer}')
+    target = Path(target)
+    state = {k: v for k, v in state.items() if k != 'visual'}
+    state['visual_source'] = {'performer': os.path.relpath(Path(performer).resolve(), target.parent.resolve()),
+                              'sha256': state_digest(own)}
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(target.name + '.tmp')
+    torch.save(state, tmp)
+    tmp.replace(target)
+    return state['visual_source']
 
 
 def batch_records(records: Sequence[Record]) -> dict:
@@ -108,8 +155,10 @@ class LearnedQuestioner:
                 visual = build_visual(PerformerConfig(**state['visual_config']))
             else:                                  # checkpoints from before visual_config: the 3-conv encoder
                 visual = VisualEncoder(config.image, int(state['visual_resolution']))
-            visual.load_state_dict(state['visual'])
+            visual.load_state_dict(state['visual'] if 'visual' in state else shared_visual(path, state))
             saved = Timing(**state['timing']) if state.get('timing') else DEFAULT_TIMING
+        except SharedVisualError:
+            raise
         except Exception as exc:  # noqa: BLE001 - a damaged file raises many kinds
             raise ValueError(f'{path} is not a questioner checkpoint ({type(exc).__name__}: {exc})') from exc
         q = cls(model.eval(), vocab, visual, int(state['visual_resolution']), greedy, seed, timing or saved)

@@ -5,13 +5,15 @@
     ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> docs/results_shipped.md
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
     ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
+    ./dialfred env python -m dialfred_bringup.reproduce.ship   # a finished run's models become the shipped ones
 
 Stages, in order (each calls the project's own API or command; none repeats their logic):
 
 | stage | what | output (under the run folder, `--out`) |
 |---|---|---|
-| demos | the performer's demonstrations of train (`dialfred_performer.prepare --annotate`): the expert's frames, and while each task is played the oracle's QAs at its start and middle and the synthetic annotators' row at its start (no second or third replay of train) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
-| performer | performer training (`dialfred_performer.train`: one epoch, 15,776 updates; the shipped checkpoint is the best of a 2-epoch run, which was also at the end of its epoch 1) | `performer/best.pt` |
+| demos | the performer's demonstrations of train (`dialfred_performer.prepare --annotate --labels`): the expert's frames with each pixel's class and depth (labels for perception only), and while each task is played the oracle's QAs at its start and middle and the synthetic annotators' row at its start (no second or third replay of train) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
+| perception | the perception network trained on those frames and labels (`dialfred_performer.perception`: 250,000 frames) | `perception/perception.pt` |
+| performer | performer training on the frozen perception network (`dialfred_performer.train --perception`: 12,000 updates of 16 episodes) | `performer/best.pt` |
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |

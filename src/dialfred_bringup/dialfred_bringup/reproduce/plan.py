@@ -288,19 +288,12 @@ def sha256_of(data) -> str:
 
 
 def weights_sha256(path: Path) -> str:
-    """A checkpoint's weights digest: sha256 over its state_dict's tensors (name, dtype, shape and bytes, in
-    name order). Two runs that train the same model get the same digest even though their files differ:
-    a checkpoint also records the command and git commit that made it."""
-    import torch
-
-    from dialfred_performer.model import read_state
+    """A checkpoint's weights digest (dialfred_performer.model.state_digest of its state_dict). Two runs
+    that train the same model get the same digest even though their files differ: a checkpoint also
+    records the command and git commit that made it."""
+    from dialfred_performer.model import read_state, state_digest
     try:
         state = read_state(path)['state_dict']
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f'{path}: not a checkpoint with a state_dict ({exc})') from None
-    h = hashlib.sha256()
-    for name in sorted(state):
-        t = state[name].detach().contiguous().reshape(-1)
-        h.update(f'{name}\0{t.dtype}\0{tuple(state[name].shape)}\0'.encode())
-        h.update(t.view(torch.uint8).numpy().tobytes())
-    return h.hexdigest()
+    return state_digest(state)
