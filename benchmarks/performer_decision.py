@@ -5,7 +5,7 @@ model's resolution. The incremental agent (the default: a step computes its own 
 keys and values) and the baseline that reads the whole episode again at every step, in the same run.
 Prints JSON.
 
-    ./dialfred bench performer_decision [--repeats 5]
+    ./dialfred bench performer_decision [--repeats 5] [--checkpoint PATH]
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -27,8 +28,10 @@ STEPS = (1, 20, 60, 200)
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--repeats', type=int, default=5, help='episodes of 60 steps')
-    REPEATS = ap.parse_args().repeats
+    ap.add_argument('--repeats', type=int, default=5, help='episodes of 200 steps')
+    ap.add_argument('--checkpoint', default=str(SHIPPED_CHECKPOINT), help='the performer (default: the shipped one)')
+    args = ap.parse_args()
+    REPEATS, checkpoint = args.repeats, Path(args.checkpoint)
     torch.set_num_threads(1)
     torch.manual_seed(0)
     config = PerformerConfig()
@@ -36,15 +39,17 @@ def main() -> None:
     answers = ['The apple is to your left in the fridge.', 'The apple is red and made of food.',
                'You should turn left.']
     vocab = Vocabulary.build([instruction, *answers])
-    if SHIPPED_CHECKPOINT.is_file():
-        model, vocab, _ = load_checkpoint(SHIPPED_CHECKPOINT)
+    if checkpoint.is_file():
+        model, vocab, _ = load_checkpoint(checkpoint)
         config = model.config
     else:
         model = Performer(config, len(vocab))
     agent = PerformerAgent(model, vocab)
     task = PublicTask('bench/0', 'FloorPlan1', 'bench', instruction, ('apple', 'fridge'))
     rng = np.random.default_rng(0)
-    report = {'config': {'resolution': config.resolution, 'd_model': config.d_model, 'layers': config.layers},
+    report = {'checkpoint': str(checkpoint) if checkpoint.is_file() else None,
+              'config': {'resolution': config.resolution, 'd_model': config.d_model, 'layers': config.layers,
+                         'visual': config.visual},
               'threads': torch.get_num_threads(), 'repeats': REPEATS}
     for name, incremental in (('incremental', True), ('whole_episode', False)):
         agent.incremental = incremental
