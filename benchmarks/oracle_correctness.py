@@ -14,7 +14,10 @@ The visible part, checked independently: for a location question about an object
 holding most of its pixels is recomputed here from the frame's depth and segmentation and the
 camera model (90 deg field of view, pitch = -horizon), and compared with the answer's bin and with
 the bin of its centre (what the oracle used before), for all such objects and for large ones
-(catalog footprint >= 1 m: bed, counter, sofa, armchair, tables, ...).
+(catalog footprint >= 1 m: bed, counter, sofa, armchair, tables, ...). The answer's bin is that of the
+visible pixel with the median bearing, so it is the bin holding most pixels whenever one bin holds more
+than half of them (checked apart); an object spread over three bins with none holding half (a counter
+across the view) can get the middle bin where another holds a few more pixels.
 Prints JSON with the agreement rates and the colour confusions.
 
     ./dialfred bench oracle_correctness [--questions 1000] [--seed 0]
@@ -151,9 +154,13 @@ def main() -> None:
                         for group in ('in_view', 'large_in_view') if fact.type_name in large else ('in_view',):
                             checks[f'location_{group}_answer_is_where_most_pixels_are'].append(f' {most}' in text)
                             checks[f'location_{group}_centre_is_where_most_pixels_are'].append(centre == most)
+                        majority = bins.count(most) * 2 > len(bins)
+                        if majority:       # the answer's median pixel lies in a bin holding over half of them
+                            checks['location_in_view_answer_is_the_majority_bin_when_one_holds_over_half'].append(
+                                f' {most}' in text)
                         if f' {most}' not in text:
-                            disagreements.append({'task': task.task_id, 'answer': text, 'pixels_per_bin':
-                                                  dict(collections.Counter(bins).most_common())})
+                            disagreements.append({'task': task.task_id, 'answer': text, 'majority_bin': majority,
+                                                  'pixels_per_bin': dict(collections.Counter(bins).most_common())})
             elif qtype == 'appearance':
                 named = next((c for c in text.replace('.', ' ').split() if c in COLOURS), '')
                 ok = named == fact.colour

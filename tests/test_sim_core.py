@@ -318,6 +318,28 @@ def test_a_baseball_bat_cannot_be_carried_into_the_wall(env):
     assert _passes_into(env, apple) is None
 
 
+def test_what_rides_on_a_held_object_stays_out_of_the_wall_too(env):
+    """A spatula on a plate reaches past the plate's rim: on the point nearest a wall, whichever way the
+    agent faces, the hand carries the plate where the spatula is clear of the wall as well."""
+    kitchen(env)
+    i, j, rot = _wall_approach(env)
+    di, dj = HEADING[rot]
+    plate = spawn_on(env, 'Plate', counter(env).object_id)
+    spatula = spawn_on(env, 'Spatula', plate.object_id)
+    assert max(spatula.spec.size[:2]) > max(plate.spec.size[:2])
+    env.world.hold(plate)
+    checked = 0
+    for heading in HEADING:
+        try:
+            env.teleport(i + di, j + dj, heading, 30)
+        except ValueError:            # no room at all facing this way
+            continue
+        checked += 1
+        assert _passes_into(env, plate) is None and _passes_into(env, spatula) is None, heading
+    assert checked >= 2
+    assert max(env.world.carried_size(plate)[:2]) >= max(spatula.spec.size[:2])
+
+
 def test_turning_to_face_the_wall_with_a_bat_in_hand_fails(env):
     kitchen(env)
     i, j, rot = _wall_approach(env)

@@ -4,7 +4,8 @@ An object in hand rides ahead of the agent, low and to the right (`HAND`), so th
 of the view. Near a wall or a tall piece of furniture that spot can lie inside it (a bread carried
 0.17 m through the wall when the agent faces the wall from its nearest grid point). The hand then
 draws the object back towards the body, in steps of a tenth of the way, to the first spot where it
-is inside the room and clear of every fixture at its height. Where even the body's own spot is
+is inside the room and clear of every fixture at its height; the box it checks takes in whatever
+rides on the object (World.carried_size: a spatula reaching past a plate's rim). Where even the body's own spot is
 taken (a baseball bat, longer than the agent is wide, facing a wall), there is no room to hold it:
 the move, turn or pickup that would need it fails (see actions.py).
 

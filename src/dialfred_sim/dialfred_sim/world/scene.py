@@ -361,13 +361,28 @@ class World:
     def carry_spot(self, obj: WorldObject, i: int, j: int, rotation: int) -> tuple[Optional[tuple], str]:
         """(spot, '') where the agent on (i, j) facing `rotation` would carry `obj` (and what it
         carries), clear of the walls and fixtures; (None, what it would hit) if there is no room (hand.py)."""
-        # what it carries (an apple on a plate) adds to its height
-        height = obj.spec.size[2] + max((o.spec.size[2] for o in self.descendants(obj)), default=0.0)
-        size = (obj.spec.size[0], obj.spec.size[1], height)
+        size = self.carried_size(obj)
         key = (size, i, j, rotation % 360)
         if key not in self._carry_cache:
             self._carry_cache[key] = carry_spot(solids_of(self.layout.scene), i * GRID, j * GRID, rotation, size)
         return self._carry_cache[key]
+
+    def carried_size(self, obj: WorldObject) -> tuple[float, float, float]:
+        """The box the hand carries with `obj`, centred on it and turned with it: its own size, widened
+        to take in whatever on or in it reaches past its sides (a spatula on a plate), and as tall as
+        it plus the tallest thing it carries."""
+        hx, hy = obj.spec.size[0] / 2, obj.spec.size[1] / 2
+        c, s = math.cos(obj.yaw), math.sin(obj.yaw)
+        for d in self.descendants(obj):
+            dx, dy = d.position[0] - obj.position[0], d.position[1] - obj.position[1]
+            turn = d.yaw - obj.yaw
+            ct, st = abs(math.cos(turn)), abs(math.sin(turn))
+            ex = ct * d.spec.size[0] / 2 + st * d.spec.size[1] / 2
+            ey = st * d.spec.size[0] / 2 + ct * d.spec.size[1] / 2
+            hx = max(hx, abs(c * dx + s * dy) + ex)
+            hy = max(hy, abs(-s * dx + c * dy) + ey)
+        height = obj.spec.size[2] + max((o.spec.size[2] for o in self.descendants(obj)), default=0.0)
+        return (2 * hx, 2 * hy, height)
 
     def update_held_pose(self) -> None:
         if self.held is None:
