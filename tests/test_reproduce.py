@@ -126,7 +126,7 @@ def test_a_second_run_with_the_same_seed_gives_the_same_tables_and_weights(first
     # every model trained, and the caches (the quick run keeps its own, in its folder)
     report = compare_runs.compare(out, other, parts=compare_runs.PARTS)
     assert report['same'], json.dumps(report, indent=1)[:3000]
-    assert set(report['weights']['models']) == {'performer', 'pretrain', *reproduce.RL_RUNS}
+    assert set(report['weights']['models']) == {'perception', 'performer', 'pretrain', *reproduce.RL_RUNS}
     assert report['episodes']['episodes'] > 0 and report['tables']['lines'] > 20
     assert all(c['same'] for c in report['caches']['caches'].values())
     # the doc names the performer by its weights, so both docs name the same one
