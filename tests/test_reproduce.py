@@ -188,6 +188,19 @@ def test_bad_settings_are_refused():
         reproduce.ReproduceConfig(check_tasks=-1)
 
 
+def test_a_stage_skipped_after_the_simulators_rules_changed_says_so(tmp_path, monkeypatch, capsys):
+    from dialfred_bringup.reproduce import stages
+    runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
+    monkeypatch.setattr(runner, 'stage_inputs', lambda stage: {'x': 1})
+    runner.run_stage('frames', lambda resume: {}, [])
+    assert json.loads((tmp_path / 'run' / 'stamps' / 'frames.json').read_text())['world_code'] == stages.world_code_hash()
+    runner.run_stage('frames', lambda resume: pytest.fail('rerun'), [])
+    assert 'warning' not in capsys.readouterr().err
+    monkeypatch.setattr(stages, 'world_code_hash', lambda: 'another')
+    runner.run_stage('frames', lambda resume: pytest.fail('rerun'), [])      # still skipped, with a warning
+    assert "frames: warning: the simulator's rules" in capsys.readouterr().err
+
+
 def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatch):
     runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
     monkeypatch.setattr(runner, 'stage_inputs', lambda stage: {'x': 1})

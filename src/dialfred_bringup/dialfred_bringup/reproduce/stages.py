@@ -64,6 +64,22 @@ CODE = {
     'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
 }
+# The simulator's rules. They are not in the stages' hashes (a change would rerun every stage from the
+# demonstrations on); each stamp records their digest instead, and a stage skipped although they changed
+# since it ran says so.
+WORLD_CODE = ('src/dialfred_sim/dialfred_sim/world', 'src/dialfred_sim/dialfred_sim/actions.py',
+              'src/dialfred_sim/dialfred_sim/env.py', 'src/dialfred_sim/dialfred_sim/tasks/expert.py',
+              'src/dialfred_sim/dialfred_sim/tasks/goals.py')
+
+
+def world_code_hash() -> str:
+    files = []
+    for rel in WORLD_CODE:
+        p = REPO / rel
+        files += sorted(str(f.relative_to(REPO)) for f in p.rglob('*.py')) if p.is_dir() else [rel]
+    return code_hash(tuple(files))
+
+
 UPSTREAM = {
     'demos': (), 'perception': ('demos',), 'performer': ('demos', 'perception'), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
     'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
@@ -129,8 +145,12 @@ class Runner:
         digest = sha256_of(inputs)
         self.hashes[stage] = digest
         old = self.read_stamp(stage)
+        world = world_code_hash()
         if old and old.get('hash') == digest and old.get('status') == 'done' and not self.forced:
             self.log(f'{stage}: skipped (stamp matches, {digest[:12]})')
+            if old.get('world_code', world) != world:
+                self.log(f'{stage}: warning: the simulator\'s rules (dialfred_sim world/, actions, env, expert, '
+                         f'goals) changed since this stage ran; --force {stage} reruns it with them')
             self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
             return
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
@@ -153,6 +173,7 @@ class Runner:
         this_run = time.monotonic() - t0
         seconds = round(before + this_run, 1)
         self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'done', 'inputs': inputs,
+                                 'world_code': world,
                                  'seconds': seconds, 'seconds_this_run': round(this_run, 1), 'runs': runs,
                                  'report': report})
         self.log(f'{stage}: ran in {this_run:.1f} s' + (f' ({seconds:.1f} s over {runs} runs)' if runs > 1 else ''))
