@@ -64,6 +64,8 @@ def test_perception_outputs_three_maps_at_their_resolutions():
     assert logits.shape == (2, len(label_classes()), 16, 16) and (metres >= 0).all() and colour.shape == (2, 3, 16, 16)
     with pytest.raises(ValueError, match='multiple of 8'):
         Perception(PerceptionNetConfig(resolution=30))
+    frames = torch.rand(2, 3, 32, 32)
+    assert torch.equal(net.coarse(frames), net(frames).coarse)      # the encoder alone gives the same map
 
 
 def test_training_writes_a_checkpoint_and_metrics_and_the_same_seed_gives_the_same_weights(prepared, tmp_path):
@@ -111,8 +113,10 @@ def test_the_performer_keeps_the_perception_network_as_trained_and_points_at_pix
     trained = net.state_dict()
     assert all(torch.equal(v, trained[k]) for k, v in model.visual.net.state_dict().items())
     assert not any(p.requires_grad for p in model.visual.net.parameters())
-    emb, keys = model.encode_frames(torch.rand(2, 3, 32, 32))
+    frames = torch.rand(2, 3, 32, 32)
+    emb, keys = model.encode_frames(frames)
     assert emb.shape == (2, 32) and keys.shape == (2, 32 * 32, model.config.pointer_key)
+    assert torch.equal(model.visual.embedding(frames), emb)   # the questioner's path skips the decoder, same numbers
     model.train()
     assert not model.visual.net.training              # frozen means its norms never switch to training either
 

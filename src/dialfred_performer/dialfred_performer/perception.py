@@ -95,11 +95,18 @@ class Perception(nn.Module):
         self.colour_head = nn.Conv2d(c.decoder, 3, 1)
         self.register_buffer('mean', torch.tensor([0.5, 0.5, 0.5]).view(1, 3, 1, 1), persistent=False)
 
-    def forward(self, frames: torch.Tensor) -> PerceptionOutput:
+    def _encode(self, frames: torch.Tensor):
         stem = self.stem(frames - self.mean)
         f1 = self.down1(stem)
         f2 = self.down2(f1)
-        f3 = self.down3(f2)
+        return stem, f1, f2, self.down3(f2)
+
+    def coarse(self, frames: torch.Tensor) -> torch.Tensor:
+        """The R/8 map alone (PerceptionOutput.coarse), without the decoder."""
+        return self._encode(frames)[3]
+
+    def forward(self, frames: torch.Tensor) -> PerceptionOutput:
+        stem, f1, f2, f3 = self._encode(frames)
         up = F.interpolate(self.top(f3), scale_factor=2, mode='nearest') + self.lateral2(f2)
         up = F.interpolate(self.smooth2(up), scale_factor=2, mode='nearest') + self.lateral1(f1)
         return PerceptionOutput(f3, self.smooth1(up), stem)

@@ -41,7 +41,7 @@ class PerceivedFrames(nn.Module):
         keys of those frames only [K, R*R, k]."""
         with torch.no_grad():
             out = self.net(frames)
-        emb = self.embed(F.adaptive_avg_pool2d(out.coarse, POOLED).flatten(1))
+        emb = self._embed(out.coarse)
         fine, stem = out.fine, out.stem
         if keys_for is not None:
             fine, stem = fine[keys_for], stem[keys_for]
@@ -50,7 +50,10 @@ class PerceivedFrames(nn.Module):
         return emb, keys
 
     def embedding(self, frames: torch.Tensor) -> torch.Tensor:
-        """The frame embeddings [N, d] alone (no pointer keys are computed)."""
+        """The frame embeddings [N, d] alone (the network's encoder only: no decoder, no pointer keys)."""
         with torch.no_grad():
-            out = self.net(frames)
-        return self.embed(F.adaptive_avg_pool2d(out.coarse, POOLED).flatten(1))
+            coarse = self.net.coarse(frames)
+        return self._embed(coarse)
+
+    def _embed(self, coarse: torch.Tensor) -> torch.Tensor:
+        return self.embed(F.adaptive_avg_pool2d(coarse, POOLED).flatten(1))
