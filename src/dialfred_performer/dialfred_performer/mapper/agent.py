@@ -1,0 +1,593 @@
+"""`MapAgent`: the performer that maps and plans (no ROS).
+
+Each step: the perception network (trained on our frames; `dialfred_performer.perception`) reads
+the RGB frame and predicts every cell's class and depth; the pose is dead-reckoned from the agent's
+own last action and whether it succeeded (`last_action_success` of the observation, which the
+graph's Observation message carries); the frame's points vote into the `SemanticMap`; then the
+current step of the instruction's plan (`language.parse_instruction`) picks the action:
+
+- the step's object is seen within reach in this frame: act on it, clicking the cell of its mask
+  nearest the mask's centre among those within reach (an appearance answer's colour picks among
+  several masks);
+- it is on the map: walk to the nearest grid point from which it can be reached, turn to it and tilt
+  the camera to its height; if it still is not in reach there, give that place up;
+- it has not been seen: look around once, then go where answers point (a location answer's
+  direction and receptacle, a direction answer's turn), else to the nearest unexplored edge of the map.
+
+Nothing privileged is read: not the simulator's depth, segmentation, pose, held object or error
+text (a test removes them from every observation and gets the same episode).
+
+`action_probabilities(observation)` is the agent's confusion signal for the model-confusion
+questioner: sure when it acts on what it sees, less so when walking to a mapped place, unsure when
+exploring or lost.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import torch
+
+from dialfred_sim.protocol import ACTIONS, QA, Decision
+from dialfred_sim.tasks.demonstrations import label_classes
+from dialfred_sim.world.catalog import load_catalog
+
+from ..agent import observation_rgb
+from ..preprocess import frame_tensor
+from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, Pose, bearing_deg, estimate_horizon,
+                       points_in_agent_frame, ray_distance, to_map_frame)
+from .language import Fact, InstructionError, Step, parse_answer, parse_instruction
+from .semantic_map import UNREACHABLE, SemanticMap, distance_field, next_move, reach_goals, unexamined_goals
+
+STRUCTURE = 4                    # label classes below this are nothing, Floor, Wall, Ceiling
+FLOOR = 1
+REACH_M = 1.45                   # stay a little inside the simulator's 1.5 m
+MIN_TARGET_CELLS = 1
+MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
+SCAN_TURNS = 3                   # turns of the first look around
+SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
+REPLAN = 'replan'                # _navigate changed the plan: decide again
+INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
+                'toggle_off': 'ToggleOff', 'slice': 'Slice'}
+
+
+def _success(observation: Any) -> Optional[bool]:
+    value = observation.get('last_action_success') if isinstance(observation, dict) else \
+        getattr(observation, 'last_action_success', None)
+    return None if value is None else bool(value)
+
+
+class MapAgent:
+    """The map-and-plan performer over a perception network (see the module)."""
+
+    name = 'map'
+
+    def __init__(self, net: torch.nn.Module, resolution: int = 64):
+        self.net = net.eval()
+        self.resolution = int(resolution)
+        self.classes = label_classes()
+        self.class_id = {name: k for k, name in enumerate(self.classes)}
+        self.catalog = load_catalog()
+        self.reset_state()
+
+    @classmethod
+    def from_checkpoint(cls, path: Path) -> 'MapAgent':
+        """From a perception performer's checkpoint (its frozen network) or a perception.pt file."""
+        from ..perception import PERCEPTION_FORMAT, load_perception
+        state = torch.load(Path(path), map_location='cpu', weights_only=True) if Path(path).is_file() else {}
+        if state.get('format') == PERCEPTION_FORMAT:
+            net, _ = load_perception(path)
+            return cls(net, net.config.resolution)
+        from ..model import load_checkpoint
+        model, _, info = load_checkpoint(path)
+        if info['config'].visual != 'perception':
+            raise ValueError(f'{path}: the map performer needs a perception network; this performer '
+                             f'sees through a {info["config"].visual!r} encoder')
+        return cls(model.visual.net, model.config.resolution)
+
+    # ------------------------------------------------------------------ episode
+
+    def reset_state(self) -> None:
+        self.task = None
+        self.pose = Pose()
+        self.map = SemanticMap(len(self.classes))
+        self.plan: deque[Step] = deque()
+        self.reading = None
+        self.held: Optional[str] = None
+        self.held_known = False
+        self.held_confirmed = False
+        self.opened: set[str] = set()
+        self.facts: dict[tuple[str, str], tuple[Fact, Pose]] = {}
+        self.turns: deque[str] = deque()
+        self.last: Optional[tuple[str, Step, tuple]] = None     # (action, step, (x, y) map point)
+        self.step = 0
+        self.step_actions = 0
+        self.step_failures = 0
+        self.scans = 0
+        self.approached = False
+        self.macro: deque[str] = deque()
+        self.last_ray: Optional[float] = None
+        self.visits: Counter = Counter()
+        self.confidence = EXPLORING
+        self.decided = Step('stop')
+        self._pending = None
+        self.lost = False
+        self.log: list[str] = []
+
+    def reset(self, task: Any, seed: int = 0) -> None:
+        """Start an episode of `task` (a PublicTask: only its instruction is read)."""
+        self.reset_state()
+        self.task = task
+        try:
+            self.reading = parse_instruction(task.instruction)
+            self.plan = deque(self.reading.steps)
+        except InstructionError as exc:
+            self.log.append(f'cannot read the instruction: {exc}')
+            self.plan = deque([Step('stop')])
+
+    def hear(self, qa: QA) -> None:
+        """A QA of the dialogue: location, appearance and direction answers become facts."""
+        if not qa.valid:
+            return
+        fact = parse_answer(qa.question.question_type, qa.answer)
+        if fact is None:
+            return
+        if fact.kind == 'held' and fact.receptacle == '':
+            self.held, self.held_known, self.held_confirmed = fact.object_type, True, True
+        elif fact.kind == 'location' and fact.object_type == self.held and not self.held_confirmed:
+            self.held = None                      # it is somewhere in the room, so not in hand
+        elif fact.kind == 'direction':
+            if fact.turn_deg == 90:
+                self.turns = deque(['RotateLeft'])
+            elif fact.turn_deg == -90:
+                self.turns = deque(['RotateRight'])
+            elif fact.turn_deg == 180:
+                self.turns = deque(['RotateLeft', 'RotateLeft'])
+        self.facts[(fact.kind, fact.object_type)] = (fact, Pose(self.pose.i, self.pose.j, self.pose.heading,
+                                                                 self.pose.horizon))
+
+    # ------------------------------------------------------------------ perception
+
+    @torch.inference_mode()
+    def perceive(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(class [S, S], its probability [S, S], depth m [S, S]) at the network's cells."""
+        out = self.net(frame_tensor(rgb, self.resolution)[None])
+        logits, metres, _ = self.net.heads(out.fine)
+        prob = torch.softmax(logits[0], 0)
+        conf, labels = prob.max(0)
+        return labels.numpy(), conf.numpy(), metres[0].numpy()
+
+    def _update(self, observation: Any) -> None:
+        rgb = observation_rgb(observation)
+        self.rgb = rgb
+        labels, conf, depth = self.perceive(rgb)
+        if self.step == 0:
+            self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
+        else:
+            self._dead_reckon(_success(observation))
+        self.labels, self.conf, self.depth = labels, conf, depth
+        self.ray = ray_distance(depth)
+        points = to_map_frame(points_in_agent_frame(depth, self.pose.horizon), self.pose)
+        self.points = points
+        if self.held is not None:
+            ray = self.ray.copy()
+            ray[self.hand_window()] = np.inf          # the object in hand is not part of the room
+            self.ray = ray
+        self.map.update(points, labels, conf, self.ray, FLOOR, STRUCTURE)
+        self.map.visited.add((self.pose.i, self.pose.j))
+        if not self.held_known and self.step == 0:
+            # A put, heat, cool or clean instruction is given with the object in hand 91% of the time
+            # in train; the hand's view or a failed Put says otherwise.
+            wanted = [s.held for s in self.plan if s.kind == 'put' and s.held]
+            self.held = wanted[0] if wanted else self._held_in_view()
+            self.held_known = True
+
+    def _held_in_view(self) -> Optional[str]:
+        """The type the instruction puts down (or, failing that, any pickupable type) seen where the
+        hand carries an object, if any."""
+        window = self.hand_window()
+        wanted = [s.held for s in self.plan if s.kind == 'put' and s.held]
+        seen = Counter(self.labels[window & (self.labels >= STRUCTURE)].tolist())
+        for name in wanted:
+            k = self.class_id.get(name)
+            if k is not None and seen.get(k, 0) >= 1:
+                return name
+        for k, count in seen.most_common():
+            t = self.catalog.get(self.classes[k])
+            if t is not None and t.pickupable and count >= 3 and not wanted:
+                return self.classes[k]
+        return None
+
+    def hand_window(self, radius: int = 3) -> np.ndarray:
+        """[S, S] bool: the cells around where the hand's object appears at the current horizon."""
+        s = self.labels.shape[0]
+        r, c = hand_cell(self.pose.horizon, s)
+        window = np.zeros((s, s), bool)
+        window[max(r - radius, 0):r + radius + 1, max(c - radius, 0):c + radius + 1] = True
+        return window
+
+    def _dead_reckon(self, success: Optional[bool]) -> None:
+        if self.last is None:
+            return
+        action, step, point = self.last
+        if success is None:
+            success = True
+        if action in ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown'):
+            if success:
+                self.pose = self.pose.after(action)
+            elif action == 'MoveAhead':
+                self.map.blocked.add(self.pose.forward())
+            return
+        if success:
+            self.step_failures = 0
+            if action == 'Pickup':
+                self.held, self.held_confirmed = step.target, True
+            elif action == 'Put':
+                self.held = None
+            elif action == 'Open':
+                self.opened.add(step.target)
+            elif action == 'Close':
+                self.opened.discard(step.target)
+            self._step_done(action)
+        else:
+            self.step_failures += 1
+            self._after_failure(action, step, point)
+
+    # ------------------------------------------------------------------ the plan
+
+    def _step_done(self, action: str) -> None:
+        step = self.plan.popleft() if self.plan else None
+        self.step_actions, self.step_failures = 0, 0
+        self.approached = False
+        if step is not None and step.kind == 'put' and (step.close or step.target in self.opened) and \
+                self.catalog.get(step.target) is not None and self.catalog[step.target].openable:
+            self.plan.appendleft(Step('close', step.target))
+
+    def _after_failure(self, action: str, step: Step, point) -> None:
+        t = self.catalog.get(step.target)
+        if action == 'Put' and t is not None and t.openable and step.target not in self.opened and \
+                self.step_failures == 1:
+            self.plan.appendleft(Step('open', step.target))        # closed: open it first
+            return
+        if action == 'Put' and not self.held_confirmed and (t is None or not t.openable or step.target in self.opened):
+            self.held = None                      # nothing to put down: fetch it first (see _current)
+            self.step_failures = 0
+            return
+        if action == 'Pickup' and self.held is None and any(s.kind == 'put' and s.held == step.target
+                                                            for s in self.plan):
+            # A hand that cannot take the object the task puts down most likely holds it already.
+            self.held = step.target
+            if self.plan and self.plan[0] == step:
+                self.plan.popleft()
+            self.step_failures = 0
+            return
+        if action == 'Open' and self.step_failures == 1 and self.last_ray is not None and self.last_ray < 1.0:
+            # Too near for the door to swing open: one step back, then again.
+            self.macro = deque(['RotateLeft', 'RotateLeft', 'MoveAhead', 'RotateLeft', 'RotateLeft'])
+            return
+        if self.step_failures >= 2 and point is not None:
+            self.map.exclude(self.class_id[step.target], point[0], point[1])
+            self.step_failures = 0
+
+    def _current(self) -> Step:
+        while self.plan:
+            step = self.plan[0]
+            if step.kind == 'put' and self.held_known and self.held != step.held and step.held:
+                self.plan.appendleft(Step('pickup', step.held))
+                continue
+            return step
+        return Step('stop')
+
+    # ------------------------------------------------------------------ acting
+
+    def _decide(self, depth: int = 0) -> tuple[str, int, int, Optional[tuple]]:
+        step = self._current()
+        self.decided = step
+        self.step_actions += 1
+        if depth > 4:
+            return 'Stop', -1, -1, None
+        if self.macro:
+            action = self.macro.popleft()
+            if action == 'MoveAhead' and (self.map.blocked and self.pose.forward() in self.map.blocked):
+                self.macro.clear()
+            else:
+                self.confidence = WALKING
+                return action, -1, -1, None
+        if step.kind == 'stop' or self.step_actions > MAX_STEP_ACTIONS:
+            self.confidence = SURE if step.kind == 'stop' else EXPLORING
+            if step.kind != 'stop':
+                self.log.append(f'gave up on {step.kind} {step.target} after {MAX_STEP_ACTIONS} actions')
+            return 'Stop', -1, -1, None
+        k = self.class_id.get(step.target)
+        if k is None:
+            self.lost = True
+            return 'Stop', -1, -1, None
+        target = self._target_pixel(k, step)
+        if step.kind == 'goto':
+            if target is not None:
+                self.plan.popleft()
+                self.step_actions = 0
+                return self._decide(depth + 1)
+        elif target is not None:
+            if self.step_failures >= 2 and not self.approached:
+                self.approached = True              # twice failed from here: one step nearer, then again
+                free = self.map.traversable()
+                off = self.map.node_offset()
+                a, b = self.pose.forward()
+                if free[a + off, b + off]:
+                    self.confidence = WALKING
+                    return 'MoveAhead', -1, -1, None
+            self.confidence = SURE
+            (r, c), point = target
+            self.last_ray = float(self.ray[r, c])
+            return INTERACTIONS[step.kind], r, c, point
+        move = self._navigate(k, step)
+        if move == REPLAN:
+            return self._decide(depth + 1)
+        if move is None:
+            self.lost = True
+            self.log.append(f'lost: no way to {step.kind} {step.target} (seen: {len(self.map.object_cells(k)[0])} cells)')
+            self.confidence = EXPLORING
+            if step.kind == 'goto' and self._seen_within(k, REACH_M + 0.3):
+                self.plan.popleft()
+                return self._decide(depth + 1)
+            return 'Stop', -1, -1, None
+        return move, -1, -1, None
+
+    def _seen_within(self, k: int, metres: float) -> bool:
+        return bool(((self.labels == k) & (self.ray < metres)).sum() >= MIN_TARGET_CELLS)
+
+    def _target_pixel(self, k: int, step: Step):
+        """((row, col), map point) of the cell to click on class k, or None when none is in reach."""
+        mask = (self.labels == k) & (self.conf > 0.3)
+        if self.held is not None:
+            mask &= ~self.hand_window()
+        reach = mask & (self.ray < (REACH_M - 0.15 if step.kind == 'goto' else REACH_M))
+        if reach.sum() < (2 if step.kind == 'goto' else MIN_TARGET_CELLS):
+            return None
+        comps = _components(mask)
+        colour = self._colour_wanted(step)
+        best, best_score = None, None
+        for comp in comps:
+            inside = comp & reach
+            if not inside.any():
+                continue
+            score = -float(inside.sum())
+            if colour is not None:
+                named = self._colour_of(comp)
+                score += 0.0 if named == colour else 1000.0
+            if best_score is None or score < best_score:
+                best, best_score = (comp, inside), score
+        if best is None:
+            return None
+        comp, inside = best
+        rows, cols = np.nonzero(comp)
+        cr, cc = rows.mean(), cols.mean()
+        interior = inside.copy()
+        interior[1:, :] &= comp[:-1, :]
+        interior[:-1, :] &= comp[1:, :]
+        interior[:, 1:] &= comp[:, :-1]
+        interior[:, :-1] &= comp[:, 1:]
+        safe = interior & (self.ray < REACH_M - 0.1)
+        if safe.any():
+            inside = safe
+        elif interior.any():
+            inside = interior
+        ir, ic = np.nonzero(inside)
+        j = int(np.argmin((ir - cr) ** 2 + (ic - cc) ** 2 + 4.0 * (self.step_failures > 0) * self.ray[ir, ic]))
+        r, c = int(ir[j]), int(ic[j])
+        p = self.points[r, c]
+        return (r, c), (float(p[0]), float(p[1]))
+
+    def _colour_wanted(self, step: Step) -> Optional[str]:
+        name = step.held if step.kind == 'put' else step.target
+        fact = self.facts.get(('appearance', name))
+        return fact[0].colour if fact is not None else None
+
+    def _colour_of(self, comp: np.ndarray) -> Optional[str]:
+        from dialfred_oracle.colours import colour_name
+        h, w = self.rgb.shape[:2]
+        s = comp.shape[0]
+        rows = (np.arange(h) * s // h)
+        cols = (np.arange(w) * s // w)
+        full = comp[rows[:, None], cols[None, :]]
+        return colour_name(self.rgb[full])
+
+    def _navigate(self, k: int, step: Step) -> Optional[str]:
+        """The next move towards where class k can be reached, or towards where it may be found."""
+        if self.turns:
+            self.confidence = WALKING
+            return self.turns.popleft()
+        free = self.map.traversable()
+        off = self.map.node_offset()
+        cx, cy, height = self.map.object_cells(k)
+        if len(cx):
+            goals = reach_goals(self.map, cx, cy, height)
+            dist = distance_field(free, goals)
+            here = dist[self.pose.i + off, self.pose.j + off]
+            if here == 0:
+                move = self._face(cx, cy, height)
+                if move is not None:
+                    self.confidence = WALKING
+                    return move
+                # At a place from which it should be in reach and facing it, yet not in reach: give it up.
+                x, y = self.map.cell_centre(cx, cy)
+                d = (x - self.pose.xy[0]) ** 2 + (y - self.pose.xy[1]) ** 2
+                n = int(np.argmin(d))
+                self.map.exclude(k, float(x[n]), float(y[n]))
+                return self._navigate(k, step)
+            if here < UNREACHABLE:
+                move = next_move(dist, self.pose, off)
+                if move is not None and self._loop_guard(move):
+                    self.confidence = WALKING
+                    return move
+        return self._explore(k, step, free)
+
+    def _loop_guard(self, move: str) -> bool:
+        key = (self.pose.i, self.pose.j, self.pose.heading, self.pose.horizon, move)
+        self.visits[key] += 1
+        return self.visits[key] <= 3
+
+    def _face(self, cx, cy, height) -> Optional[str]:
+        """A turn or tilt that brings the nearest of the cells into view; None when it is in view."""
+        x, y = self.map.cell_centre(cx, cy)
+        x0, y0 = self.pose.xy
+        d = np.sqrt((x - x0) ** 2 + (y - y0) ** 2)
+        n = int(np.argmin(d))
+        b = bearing_deg(self.pose, float(x[n]), float(y[n]))
+        if b > 45:
+            return 'RotateLeft' if self._loop_guard('RotateLeft') else None
+        if b < -45:
+            return 'RotateRight' if self._loop_guard('RotateRight') else None
+        want = math.degrees(math.atan2(1.5 - float(height[n]), max(float(d[n]), 0.05)))
+        want = min(max(round(want / LOOK_DEG) * LOOK_DEG, HORIZON_MIN), HORIZON_MAX)
+        if want > self.pose.horizon + 1e-6:
+            return 'LookDown' if self._loop_guard('LookDown') else None
+        if want < self.pose.horizon - 1e-6:
+            return 'LookUp' if self._loop_guard('LookUp') else None
+        return None
+
+    def _explore(self, k: int, step: Step, free: np.ndarray) -> Optional[str]:
+        self.confidence = EXPLORING
+        off = self.map.node_offset()
+        # A location answer: walk to its receptacle in its direction, if mapped.
+        name = step.held if step.kind == 'put' and self.held != step.held else step.target
+        fact = self.facts.get(('location', name))
+        if fact is not None and fact[0].receptacle:
+            f, at = fact
+            rk = self.class_id.get(f.receptacle)
+            if rk is not None and rk != k:
+                cx, cy, height = self.map.object_cells(rk)
+                if len(cx):
+                    x, y = self.map.cell_centre(cx, cy)
+                    bearings = np.array([bearing_deg(at, float(a), float(b)) for a, b in zip(x, y)])
+                    diff = np.abs((bearings - f.bearing_deg + 180) % 360 - 180)
+                    keep = diff <= 67.5
+                    if keep.any():
+                        goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
+                        dist = distance_field(free, goals)
+                        if dist[self.pose.i + off, self.pose.j + off] == 0:
+                            move = self._face(cx[keep], cy[keep], height[keep])
+                            if move is not None:
+                                return move
+                            t = self.catalog.get(f.receptacle)
+                            if t is not None and t.openable and f.receptacle not in self.opened and \
+                                    step.kind == 'pickup':
+                                self.plan.appendleft(Step('open', f.receptacle))
+                                self.plan.insert(2, Step('close', f.receptacle))
+                                return REPLAN
+                        else:
+                            move = next_move(dist, self.pose, off)
+                            if move is not None and self._loop_guard(move):
+                                return move
+        if self.scans < SCAN_TURNS:
+            self.scans += 1
+            return 'RotateLeft'
+        # The nearest furniture not yet looked at from close by (objects lie on it) ...
+        goals = unexamined_goals(self.map, free)
+        for (i, j) in self.map.visited:
+            goals[i + off, j + off] = False
+        if goals.any():
+            dist = distance_field(free, goals)
+            if dist[self.pose.i + off, self.pose.j + off] < UNREACHABLE:
+                move = next_move(dist, self.pose, off)
+                if move is not None and self._loop_guard(move):
+                    return move
+        # ... else the nearest edge of what has been seen.
+        known = self.map.known()
+        unknown = ~known
+        edge = np.zeros_like(known)
+        edge[1:, :] |= unknown[:-1, :]
+        edge[:-1, :] |= unknown[1:, :]
+        edge[:, 1:] |= unknown[:, :-1]
+        edge[:, :-1] |= unknown[:, 1:]
+        goals = edge & known & free
+        for (i, j) in self.map.visited:
+            goals[i + off, j + off] = False
+        if not goals.any():
+            return None
+        dist = distance_field(free, goals)
+        if dist[self.pose.i + off, self.pose.j + off] >= UNREACHABLE:
+            return None
+        move = next_move(dist, self.pose, off)
+        if move is None:
+            return 'RotateLeft' if self._loop_guard('RotateLeft') else None
+        return move if self._loop_guard(move) else None
+
+    def _outputs(self, observation: Any):
+        if self.task is None:
+            raise RuntimeError('reset() the agent before it acts')
+        key = (self.step, id(observation))
+        if self._pending is not None and self._pending[0] == key:
+            return self._pending[1]
+        self._update(observation)
+        action, r, c, point = self._decide()
+        result = (action, r, c, point, self.confidence)
+        self._pending = (key, result)
+        return result
+
+    def action_probabilities(self, observation: Any) -> np.ndarray:
+        """Probabilities over ACTIONS of the next action: the chosen one gets the agent's confidence,
+        the rest is spread over the others (the model-confusion questioner's signal)."""
+        action, _, _, _, confidence = self._outputs(observation)
+        p = np.full(len(ACTIONS), (1.0 - confidence) / (len(ACTIONS) - 1), np.float32)
+        p[ACTIONS.index(action)] = confidence
+        return p
+
+    def act(self, observation: Any) -> Decision:
+        """The next (action, x, y) with the pixel in the observation's frame (-1, -1 for moves)."""
+        action, r, c, point, _ = self._outputs(observation)
+        self._pending = None
+        x = y = -1
+        step = self.decided
+        if r >= 0:
+            h, w = observation_rgb(observation).shape[:2]
+            s = self.labels.shape[0]
+            x, y = int((c + 0.5) * w / s), int((r + 0.5) * h / s)
+        self.last = (action, step, point)
+        self.step += 1
+        return action, x, y
+
+
+HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object (ahead, left, height)
+
+
+def hand_cell(horizon: float, size: int) -> tuple[int, int]:
+    """(row, col) of the cell where the hand's object appears in a size x size grid at `horizon`."""
+    pitch = math.radians(-horizon)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    f, l, up = HAND_M[0], HAND_M[1], HAND_M[2] - 1.5
+    z = f * cp + up * sp
+    u = -l / z
+    v = (-f * sp + up * cp) / z
+    col = int(round((u + 1) / 2 * size - 0.5))
+    row = int(round((1 - v) / 2 * size - 0.5))
+    return min(max(row, 0), size - 1), min(max(col, 0), size - 1)
+
+
+def _components(mask: np.ndarray) -> list[np.ndarray]:
+    """The 4-connected components of a small bool mask, largest first."""
+    seen = np.zeros_like(mask)
+    out = []
+    h, w = mask.shape
+    for r0, c0 in zip(*np.nonzero(mask)):
+        if seen[r0, c0]:
+            continue
+        comp = np.zeros_like(mask)
+        stack = [(r0, c0)]
+        seen[r0, c0] = True
+        while stack:
+            r, c = stack.pop()
+            comp[r, c] = True
+            for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                a, b = r + dr, c + dc
+                if 0 <= a < h and 0 <= b < w and mask[a, b] and not seen[a, b]:
+                    seen[a, b] = True
+                    stack.append((a, b))
+        out.append(comp)
+    out.sort(key=lambda m: -int(m.sum()))
+    return out

@@ -1,0 +1,104 @@
+"""The map performer's parts: reading instructions and answers, geometry, the map and its paths."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dialfred_performer.mapper.geometry import Pose, estimate_horizon, points_in_agent_frame, ray_distance, to_map_frame
+from dialfred_performer.mapper.language import InstructionError, Step, parse_answer, parse_instruction
+from dialfred_performer.mapper.semantic_map import (UNREACHABLE, SemanticMap, distance_field, next_move,
+                                                     reach_goals)
+
+
+def test_every_instruction_of_the_shipped_splits_is_read():
+    from dialfred_sim.tasks.split_files import load_split
+    tasks = [t for split in ('valid_seen', 'valid_unseen') for t in load_split(split)]
+    for task in tasks:
+        reading = parse_instruction(task.instruction)
+        assert reading.steps[-1] == Step('stop') and reading.objects
+
+
+def test_instructions_become_the_steps_their_task_type_implies():
+    r = parse_instruction('Now move to the fridge, cool the bread slice.')
+    assert [(s.kind, s.target) for s in r.steps] == [('put', 'Fridge'), ('open', 'Fridge'), ('pickup', 'BreadSliced'),
+                                                     ('close', 'Fridge'), ('stop', '')]
+    assert r.steps[0].held == 'BreadSliced' and r.steps[0].close
+    r = parse_instruction('Walk to the toilet paper hanger and leave the toilet paper on it.')
+    assert [(s.kind, s.target, s.held) for s in r.steps[:1]] == [('put', 'ToiletPaperHanger', 'ToiletPaper')]
+    r = parse_instruction('Slice the apple with a butter knife.')
+    assert [(s.kind, s.target) for s in r.steps] == [('pickup', 'ButterKnife'), ('slice', 'Apple'), ('stop', '')]
+    assert [s.kind for s in parse_instruction('Carry the mug to the desk.').steps] == ['pickup', 'goto', 'stop']
+    with pytest.raises(InstructionError, match='cannot read'):
+        parse_instruction('Could you warm my potato up?')
+
+
+def test_answers_become_facts():
+    f = parse_answer('location', 'The apple is to your left in the fridge.')
+    assert (f.kind, f.object_type, f.bearing_deg, f.receptacle) == ('location', 'Apple', 90.0, 'Fridge')
+    assert parse_answer('location', 'You are holding the mug.').kind == 'held'
+    assert parse_answer('appearance', 'The apple is red and made of food.').colour == 'red'
+    assert parse_answer('direction', 'You should turn right.').turn_deg == -90
+    assert parse_answer('direction', "You don't need to move.").stay
+    assert parse_answer('location', "I don't know.") is None
+
+
+def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():
+    from dialfred_sim.env import DialfredEnv
+    env = DialfredEnv(resolution=32)
+    obs, info = env.reset(options={'task_id': 'valid_unseen/000012'})
+    a = env.world.agent
+    depth = obs['depth']
+    ids, names = info['instances']
+    floor = np.isin(obs['segmentation'], [i for i, n in zip(ids, names) if n == 'Floor'])
+    assert estimate_horizon(depth, floor) == a.horizon
+    points = points_in_agent_frame(depth, a.horizon)
+    yaw = math.radians(a.rotation)
+    for px, py in ((5, 20), (16, 16), (30, 28)):
+        world, dist = env.world.pixel_point(px, py, depth)
+        f, l, h = points[py, px]
+        assert a.x + math.cos(yaw) * f - math.sin(yaw) * l == pytest.approx(world[0], abs=1e-4)
+        assert a.y + math.sin(yaw) * f + math.cos(yaw) * l == pytest.approx(world[1], abs=1e-4)
+        assert h == pytest.approx(world[2], abs=1e-4)
+        assert ray_distance(depth)[py, px] == pytest.approx(dist, abs=1e-4)
+
+
+def test_dead_reckoning_follows_the_actions():
+    p = Pose()
+    for action in ('MoveAhead', 'RotateLeft', 'MoveAhead', 'MoveAhead', 'LookDown', 'RotateRight', 'RotateRight'):
+        p = p.after(action)
+    assert (p.i, p.j, p.heading, p.horizon) == (1, 2, 270, 45.0)
+    assert to_map_frame(np.array([[1.0, 0.0, 0.5]]), Pose(0, 0, 90))[0] == pytest.approx([0.0, 1.0, 0.5])
+
+
+def test_paths_go_around_what_is_blocked_and_say_when_there_is_none():
+    free = np.ones((7, 7), bool)
+    free[3, 0:6] = False                    # a wall with a gap at column 6
+    goals = np.zeros_like(free)
+    goals[6, 0] = True
+    dist = distance_field(free, goals)
+    assert dist[0, 0] == 6 + 6 + 6          # around the wall's end
+    assert next_move(dist, Pose(-1, -3, 0), 3) == 'RotateLeft'      # facing the wall: turn towards the gap
+    assert next_move(dist, Pose(-1, -3, 90), 3) == 'MoveAhead'
+    free[3, 6] = False
+    assert distance_field(free, goals)[0, 0] == UNREACHABLE
+
+
+def test_the_map_marks_obstacles_and_objects_and_goals_within_reach():
+    smap = SemanticMap(n_classes=10, map_m=8.0)
+    pts = np.zeros((2, 2, 3))
+    pts[..., 0], pts[..., 1] = 1.0, 0.0
+    pts[0, 0, 2] = 0.9                      # a table top ...
+    pts[0, 1, 2] = 0.9
+    labels = np.array([[7, 7], [1, 1]])     # ... with class 7 on it, and floor
+    for _ in range(3):
+        smap.update(pts, labels, np.ones((2, 2)), np.ones((2, 2)), floor_class=1, structure_classes=4)
+    cx, cy, h = smap.object_cells(7)
+    assert len(cx) == 1 and h[0] == pytest.approx(0.9)
+    goals = reach_goals(smap, cx, cy, h)
+    off = smap.node_offset()
+    assert goals[off, off] and not goals[off + 4, off]          # from the start, 1 m away: in reach
+    smap.exclude(7, 1.0, 0.0)
+    assert len(smap.object_cells(7)[0]) == 0
