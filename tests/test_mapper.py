@@ -9,6 +9,7 @@ import pytest
 
 from dialfred_performer.mapper.geometry import Pose, estimate_horizon, points_in_agent_frame, ray_distance, to_map_frame
 from dialfred_performer.mapper.language import InstructionError, Step, parse_answer, parse_instruction
+from dialfred_performer.model import SHIPPED_CHECKPOINT as SHIPPED
 from dialfred_performer.mapper.semantic_map import (UNREACHABLE, SemanticMap, distance_field, next_move,
                                                      reach_goals)
 
@@ -102,3 +103,39 @@ def test_the_map_marks_obstacles_and_objects_and_goals_within_reach():
     assert goals[off, off] and not goals[off + 4, off]          # from the start, 1 m away: in reach
     smap.exclude(7, 1.0, 0.0)
     assert len(smap.object_cells(7)[0]) == 0
+
+
+class _Stripped:
+    """Serves an episode with every privileged field removed from the observations."""
+
+    def __init__(self, server):
+        self.server = server
+
+    def __call__(self, request):
+        reply = self.server(request)
+        obs = getattr(reply, 'observation', None)
+        if isinstance(obs, dict):
+            reply.observation = {'rgb': obs['rgb'], 'last_action_success': obs['last_action_success']}
+        return reply
+
+
+def test_the_map_performer_reads_rgb_and_its_own_success_only():
+    from dialfred_oracle.local import EnvServer
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.episode import play, run
+    from dialfred_sim.tasks.split_files import get_task
+    from dialfred_performer.mapper.agent import MapAgent
+
+    task = get_task('valid_unseen/000012')
+    env = DialfredEnv(resolution=64, max_steps=40)
+    played = []
+    for strip in (False, True):
+        agent = MapAgent.from_checkpoint(SHIPPED)          # the shipped performer's perception network
+        actions = []
+        act = agent.act
+        agent.act = lambda obs, act=act, actions=actions: actions.append(act(obs)) or actions[-1]
+        server = EnvServer(env, task)
+        state = run(play(agent, seed=0, asks=False), _Stripped(server) if strip else server)
+        played.append((actions, state.steps, state.end_reason))
+    assert played[0] == played[1] and len(played[0][0]) >= 10
+    assert {'MoveAhead', 'RotateLeft'} <= {a for a, _, _ in played[0][0]}

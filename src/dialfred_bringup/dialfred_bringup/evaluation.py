@@ -80,7 +80,8 @@ class EvalConfig:
         None, 'a split file of your own instead of --split, e.g. a sealed test split made with '
         '`python -m dialfred_sim.tasks.splits test_unseen --seed S --size N --out PATH`; results record its '
         'path and sha256 and are never mixed with another file\'s', flag='--tasks', metavar='PATH', group='tasks')
-    agent: str = arg('expert', 'expert, random, et (the performer of --checkpoint, in this process), or your own '
+    agent: str = arg('expert', 'expert, random, et (the performer of --checkpoint, in this process), map (the '
+                     'map-and-plan performer over the perception network of --checkpoint, in this process), or your own '
                      'class as package.module:ClassName (on the Python path; made as ClassName(resolution=R), with '
                      'reset(task, seed) and act(observation))')
     performer: str = arg('', 'et: a performer node per worker plays each task as a RunTask goal (with sim, oracle '
@@ -184,7 +185,7 @@ class EvalConfig:
     def agent_name(self) -> str:
         """The name results carry: the agent's (the `et` performer's with its checkpoint's sha256, so that
         results of two checkpoints never mix), with its questioner's (`questioner_label`) after a '+'."""
-        agent = f'et-{self.checkpoint_sha256[:8]}' if self.agent == 'et' else self.agent
+        agent = f'{self.agent}-{self.checkpoint_sha256[:8]}' if self.agent in ('et', 'map') else self.agent
         return f'{agent}+{self.questioner_label}' if self.questioner else agent
 
     @property
@@ -213,6 +214,13 @@ class EvalConfig:
             from dialfred_performer.model import CheckpointError
             try:
                 return PerformerAgent.from_checkpoint(self.checkpoint_path)
+            except (FileNotFoundError, CheckpointError) as exc:
+                raise ValueError(str(exc)) from None
+        if self.agent == 'map':
+            from dialfred_performer.mapper.agent import MapAgent
+            from dialfred_performer.model import CheckpointError
+            try:
+                return MapAgent.from_checkpoint(self.checkpoint_path)
             except (FileNotFoundError, CheckpointError) as exc:
                 raise ValueError(str(exc)) from None
         from dialfred_sim.agents import make_agent
@@ -282,7 +290,8 @@ class EvalReport:
             'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
             'workers': c.workers,
             'through': 'performer node' if c.performer else ('local processes (no ROS)' if c.local else 'in-process agent'),
-            'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent == 'et' else None),
+            'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent in ('et', 'map')
+                           else None),
             'limit': c.limit, 'shard': {'index': c.shard[0], 'count': c.shard[1]} if c.shard else None,
             'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
@@ -468,7 +477,7 @@ def default_resolution(config: EvalConfig) -> int:
     """The et performer's training resolution (its checkpoint's: a frame of another size would be
     resized by area averaging, which is not the rendering it learned from); 128 for other agents. An
     unreadable checkpoint: 128, and check() says why."""
-    if config.agent != 'et' and config.performer != 'et':
+    if config.agent not in ('et', 'map') and config.performer != 'et':
         return DEFAULT_RESOLUTION
     from dialfred_performer.model import CheckpointError, load_checkpoint
     try:

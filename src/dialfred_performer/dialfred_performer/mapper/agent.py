@@ -480,6 +480,11 @@ class MapAgent:
                                 self.plan.appendleft(Step('open', f.receptacle))
                                 self.plan.insert(2, Step('close', f.receptacle))
                                 return REPLAN
+                            # Looked at this part of the receptacle and the object is not there: the next part.
+                            d = (x[keep] - self.pose.xy[0]) ** 2 + (y[keep] - self.pose.xy[1]) ** 2
+                            n = int(np.argmin(d))
+                            self.map.exclude(rk, float(x[keep][n]), float(y[keep][n]), radius_m=1.0)
+                            return REPLAN
                         else:
                             move = next_move(dist, self.pose, off)
                             if move is not None and self._loop_guard(move):
@@ -487,10 +492,14 @@ class MapAgent:
         if self.scans < SCAN_TURNS:
             self.scans += 1
             return 'RotateLeft'
-        # The nearest furniture not yet looked at from close by (objects lie on it) ...
+        # The nearest furniture not yet looked at from close by (objects lie on it), in the answered
+        # direction if there is one ...
         goals = unexamined_goals(self.map, free)
         for (i, j) in self.map.visited:
             goals[i + off, j + off] = False
+        if fact is not None and goals.any():
+            toward = goals & self._cone(fact[1], fact[0].bearing_deg)
+            goals = toward if toward.any() else goals
         if goals.any():
             dist = distance_field(free, goals)
             if dist[self.pose.i + off, self.pose.j + off] < UNREACHABLE:
@@ -517,6 +526,16 @@ class MapAgent:
         if move is None:
             return 'RotateLeft' if self._loop_guard('RotateLeft') else None
         return move if self._loop_guard(move) else None
+
+    def _cone(self, at: Pose, bearing: float, half_width: float = 67.5) -> np.ndarray:
+        """[nodes, nodes] bool: grid points within half_width degrees of `bearing` seen from `at`."""
+        off = self.map.node_offset()
+        ii = np.arange(self.map.nodes) - off
+        dx = (ii[:, None] - at.i) * 0.25
+        dy = (ii[None, :] - at.j) * 0.25
+        b = np.degrees(np.arctan2(dy, dx)) - at.heading
+        diff = np.abs((b - bearing + 180.0) % 360.0 - 180.0)
+        return diff <= half_width
 
     def _outputs(self, observation: Any):
         if self.task is None:
