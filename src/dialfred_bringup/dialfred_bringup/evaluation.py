@@ -84,10 +84,11 @@ class EvalConfig:
                      'map-and-plan performer over the perception network of --checkpoint, in this process), or your own '
                      'class as package.module:ClassName (on the Python path; made as ClassName(resolution=R), with '
                      'reset(task, seed) and act(observation))')
-    performer: str = arg('', 'et: a performer node per worker plays each task as a RunTask goal (with sim, oracle '
-                         'and questioner nodes in its namespace); this process only sends goals and records results. '
-                         'none: the agent is a Python object of this process (--agent et plays the same performer '
-                         'there)', choices=['et'], aliases={'none': ''})
+    performer: str = arg('', 'et or map: a performer node per worker (its `model` parameter) plays each task as a '
+                         'RunTask goal (with sim, oracle and questioner nodes in its namespace); this process only '
+                         'sends goals and records results. none: the agent is a Python object of this process '
+                         '(--agent et or map plays the same performer there)', choices=['et', 'map'],
+                         aliases={'none': ''})
     checkpoint: Optional[Path] = arg(None, 'the et performer\'s checkpoint (none: the one shipped in the package, '
                                      'dialfred_performer/checkpoints/et.pt)', metavar='PATH')
     questioner: str = arg(
@@ -245,9 +246,9 @@ class EvalConfig:
         if self.local and (self.performer or self.record is not None or self.foxglove is not None):
             raise ValueError('--local plays without ROS: it cannot go with --performer, --record or --foxglove')
         if self.performer:
-            if self.performer != 'et':
-                raise ValueError(f'--performer must be et (the Episodic-Transformer performer node), got {self.performer!r}')
-            self.agent = 'et'
+            if self.performer not in ('et', 'map'):
+                raise ValueError(f'--performer must be et or map (the performer node\'s model), got {self.performer!r}')
+            self.agent = self.performer
         self.make_agent()     # the node path too: a bad checkpoint or questioner fails before any node starts
         if self.tasks_file:
             try:
@@ -477,7 +478,7 @@ def default_resolution(config: EvalConfig) -> int:
     """The et performer's training resolution (its checkpoint's: a frame of another size would be
     resized by area averaging, which is not the rendering it learned from); 128 for other agents. An
     unreadable checkpoint: 128, and check() says why."""
-    if config.agent not in ('et', 'map') and config.performer != 'et':
+    if config.agent not in ('et', 'map') and config.performer not in ('et', 'map'):
         return DEFAULT_RESOLUTION
     from dialfred_performer.model import CheckpointError, load_checkpoint
     try:

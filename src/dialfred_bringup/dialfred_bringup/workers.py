@@ -440,6 +440,7 @@ def worker_nodes(config, namespace: str, **sim_params) -> list:
         record = {'record_dir': str(Path(config.record).resolve()),
                   'record_format': config.record_format} if config.record is not None else {}
         nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
+                                                        'model': config.performer,
                                                         'questioner': bool(config.questioner),
                                                         'request_timeout': config.request_timeout, **record},
                                  namespace=namespace))

@@ -64,6 +64,8 @@ class GoalCanceled(Exception):
 PARAMETERS = (
     Param('checkpoint', str(SHIPPED_CHECKPOINT), "the policy (default: the shipped et.pt; '' = none); a goal may "
           'name another; each file is loaded once, and again if it changes'),
+    Param('model', 'et', 'how the checkpoint decides: et (the Episodic Transformer) or map (the map-and-plan '
+          'performer over the checkpoint\'s perception network, dialfred_performer.mapper)', choices=('et', 'map')),
     Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
     Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
           'fails', span=(0.1, 86_400.0), dynamic=True),
@@ -86,6 +88,7 @@ class PerformerNode(Node):
         self.recorder = None       # the running goal's EpisodeRecorder, when recording
         torch.set_num_threads(max(1, int(p('torch_threads').value)))
         self.checkpoint = p('checkpoint').value
+        self.model = str(p('model').value)
         self.use_questioner = bool(p('questioner').value)
         group = ReentrantCallbackGroup()
         self.reset_cli = self.create_client(SimReset, 'sim/reset', qos_profile=SERVICE_QOS, callback_group=group)
@@ -108,7 +111,7 @@ class PerformerNode(Node):
                 self.policy(self.checkpoint)
             except (FileNotFoundError, CheckpointError, ValueError) as exc:   # goals will say it too
                 self.get_logger().error(f'checkpoint: {exc}')
-        self.get_logger().info(f'serving performer/run_task (checkpoint {self.checkpoint or "none"}, '
+        self.get_logger().info(f'serving performer/run_task (model {self.model}, checkpoint {self.checkpoint or "none"}, '
                                f'questioner {"on" if self.use_questioner else "off"})')
 
     # ------------------------------------------------------------------ action server
@@ -178,8 +181,9 @@ class PerformerNode(Node):
 
     # ------------------------------------------------------------------ helpers
 
-    def policy(self, path: str) -> PerformerAgent:
-        """The policy of checkpoint `path`, loaded once (again if the file changed)."""
+    def policy(self, path: str):
+        """The policy of checkpoint `path` (a PerformerAgent, or a MapAgent with model:=map), loaded once (again
+        if the file changed)."""
         if not path:
             raise FileNotFoundError('no checkpoint: set the node\'s `checkpoint` parameter or the goal\'s')
         path = str(Path(path).expanduser())
@@ -190,7 +194,11 @@ class PerformerNode(Node):
         stamp = (st.st_mtime_ns, st.st_size)
         cached = self._policies.get(path)
         if cached is None or cached[0] != stamp:
-            self._policies[path] = (stamp, PerformerAgent.from_checkpoint(Path(path)))
+            if self.model == 'map':
+                from .mapper.agent import MapAgent
+                self._policies[path] = (stamp, MapAgent.from_checkpoint(Path(path)))
+            else:
+                self._policies[path] = (stamp, PerformerAgent.from_checkpoint(Path(path)))
         return self._policies[path][1]
 
     def call(self, client, request, resend: bool):
@@ -230,7 +238,7 @@ class GoalRun(EpisodeObserver):
     the node's `questioner` parameter is on), the transport (this node's service clients) and an
     observer that fills the result, publishes QAs, actions and feedback, and records the bag."""
 
-    def __init__(self, node: PerformerNode, goal_handle, policy: PerformerAgent, result: RunTask.Result):
+    def __init__(self, node: PerformerNode, goal_handle, policy, result: RunTask.Result):
         self.node, self.goal_handle, self.policy, self.result = node, goal_handle, policy, result
         self.task, self.dialogue = None, []
 
