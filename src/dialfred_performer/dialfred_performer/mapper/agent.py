@@ -110,6 +110,7 @@ class MapAgent:
         self.scans = 0
         self.approached = False
         self.macro: deque[str] = deque()
+        self.anchors: dict[str, tuple[float, float]] = {}     # type -> map point of the instance acted on
         self.last_ray: Optional[float] = None
         self.visits: Counter = Counter()
         self.confidence = EXPLORING
@@ -224,6 +225,8 @@ class MapAgent:
             return
         if success:
             self.step_failures = 0
+            if point is not None:
+                self.anchors[step.target] = point
             if action == 'Pickup':
                 self.held, self.held_confirmed = step.target, True
             elif action == 'Put':
@@ -360,6 +363,7 @@ class MapAgent:
             if colour is not None:
                 named = self._colour_of(comp)
                 score += 0.0 if named == colour else 1000.0
+            score += self._place_penalty(step.target, comp)
             if best_score is None or score < best_score:
                 best, best_score = (comp, inside), score
         if best is None:
@@ -382,6 +386,21 @@ class MapAgent:
         r, c = int(ir[j]), int(ic[j])
         p = self.points[r, c]
         return (r, c), (float(p[0]), float(p[1]))
+
+    def _place_penalty(self, type_name: str, comp: np.ndarray) -> float:
+        """How far a mask of `type_name` lies from the instance acted on before (an opened fridge is the
+        one to put into and close), else from where a location answer said it is."""
+        rows, cols = np.nonzero(comp)
+        p = self.points[rows, cols].mean(0)
+        anchor = self.anchors.get(type_name)
+        if anchor is not None:
+            return 100.0 * math.hypot(p[0] - anchor[0], p[1] - anchor[1])
+        fact = self.facts.get(('location', type_name))
+        if fact is not None:
+            f, at = fact
+            diff = abs((bearing_deg(at, float(p[0]), float(p[1])) - f.bearing_deg + 180.0) % 360.0 - 180.0)
+            return 2.0 * diff + (500.0 if diff > 67.5 else 0.0)
+        return 0.0
 
     def _colour_wanted(self, step: Step) -> Optional[str]:
         name = step.held if step.kind == 'put' else step.target
