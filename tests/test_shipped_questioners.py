@@ -2,7 +2,8 @@
 
 Claims: every shipped name has its file, each is small, loads, records the command that made it (the
 pre-training or a fine-tuning with the settings its name says: timing, gap, rewards, perturbation,
-input) and a commit, carries the shipped performer's frozen visual encoder, and decides the same
+input) and a commit, names the shipped performer as the holder of its frozen frame encoder (with the
+encoder's digest), and decides the same
 question twice on the same input (greedy).
 """
 
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from dialfred_performer.model import load_checkpoint, SHIPPED_CHECKPOINT
+from dialfred_performer.model import SHIPPED_CHECKPOINT, state_digest, visual_state
 from dialfred_questioner.policy import SHIPPED_LEARNED, learned_checkpoint
 from dialfred_questioner.questioners import make_questioner
 from dialfred_sim.tasks import load_split
@@ -47,8 +48,11 @@ def test_a_shipped_questioner_is_small_says_how_it_was_made_and_decides_the_same
     for w in words:
         assert w in state['command'], (w, state['command'])
     assert state['git_commit'] not in ('', 'unknown')
-    performer, _, _ = load_checkpoint(SHIPPED_CHECKPOINT)
-    assert all(torch.equal(performer.visual.state_dict()[k], v) for k, v in state['visual'].items())
+    # The frame encoder is kept once, in the shipped performer: the questioner names it and its digest.
+    assert 'visual' not in state
+    source = state['visual_source']
+    assert (path.parent / source['performer']).resolve() == SHIPPED_CHECKPOINT.resolve()
+    assert state_digest(visual_state(SHIPPED_CHECKPOINT)) == source['sha256']
     q = make_questioner(name)
     assert q.timing.mode == mode and (gap is None or q.timing.gap == gap) and q.reads_dialogue == reads
     task = load_split('valid_unseen')[3]

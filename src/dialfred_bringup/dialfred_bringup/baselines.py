@@ -81,7 +81,7 @@ class BaselinesConfig:
                              'instead of in this process (eval --agent et)')
     seed: int = arg(0, "the evaluation's seed (each episode's seed comes from it)")
     out: str = arg('out/baselines', 'folder of the results files <split>_<baseline>.jsonl')
-    doc: str = arg('out/baselines/results.md', 'the results document to write (the tables of docs/results.md and docs/results_shipped.md come from ./dialfred reproduce)')
+    doc: str = arg('out/baselines/results.md', 'the results document to write (the tables of docs/results.md come from ./dialfred reproduce)')
     results_only: bool = arg(False, 'run nothing: print the JSON and rewrite the doc from the results files')
     resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
     progress: bool = arg(True, 'progress bars on stderr')

@@ -2,7 +2,7 @@
 
     ./dialfred reproduce                      # everything after set-up -> out/reproduce/ (resumable), docs/results.md
     ./dialfred reproduce --quick              # the same pipeline on tiny slices, in minutes -> out/reproduce_quick/
-    ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> docs/results_shipped.md
+    ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> out/reproduce_shipped
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
     ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
     ./dialfred env python -m dialfred_bringup.reproduce.ship   # a finished run's models become the shipped ones
@@ -32,9 +32,10 @@ line per stage (name, skipped/ran, seconds) goes to stderr and one JSON summary 
 `--shipped` runs no training: the performer is the shipped `dialfred_performer/checkpoints/et.pt`
 and the questioners the shipped `dialfred_questioner/checkpoints/<setting>.pt` (a setting whose file
 is absent is left out of the tables, marked "no results"); its run folder is out/reproduce_shipped.
-The document goes to the run folder, and is copied to docs/results.md (a full run in out/reproduce),
-docs/results_shipped.md (`--shipped` in out/reproduce_shipped) or `--doc PATH`; a quick run or another
-`--out` copies it nowhere unless `--doc` says where, `--doc none` never.
+The document goes to the run folder, and is copied to docs/results.md (a full run in out/reproduce) or
+`--doc PATH`; `--shipped` (the shipped checkpoints are a full run's, so its tables should be
+docs/results.md's), a quick run or another `--out` copy it nowhere unless `--doc` says where, `--doc
+none` never.
 `--quick` runs the whole pipeline on slices (32 train tasks, a tiny performer and questioner, RL of
 2 updates x 8 episodes of at most 30 steps, evaluations of 8 tasks by `--eval-path`); its numbers mean
 nothing, it checks the pipeline. Caches of the quick run stay in its run folder (DIALFRED_DIALOGUE_DIR

@@ -109,7 +109,7 @@ class ReproduceConfig:
     quick: bool = arg(False, 'tiny slices of every stage (minutes): checks the pipeline, the numbers mean nothing')
     shipped: bool = arg(False, 'no training stages: evaluate the shipped performer and questioner checkpoints')
     doc: str = arg('', "also write the document here; '' = docs/results.md for a full run in out/reproduce, "
-                       "docs/results_shipped.md for --shipped in out/reproduce_shipped, nowhere else (--quick, "
+                       "nowhere else (--shipped, --quick, "
                        "another --out); 'none' = only <out>/results.md")
     force: str = arg('', 'rerun this stage and every stage after it, stamps or not')
     until: str = arg('', "stop after this stage ('' = run to the end)")
@@ -143,9 +143,9 @@ class ReproduceConfig:
             return None
         if self.doc:
             return Path(self.doc) if Path(self.doc).is_absolute() else REPO / self.doc
-        if self.quick or self.out:
+        if self.quick or self.out or self.shipped:
             return None
-        return REPO / 'docs' / ('results_shipped.md' if self.shipped else 'results.md')
+        return REPO / 'docs' / 'results.md'
 
     @property
     def run_dir(self) -> Path:
