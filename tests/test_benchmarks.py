@@ -157,3 +157,16 @@ def test_eval_local_times_every_path_and_finds_the_same_episodes():
     assert report['same_episodes'] is True and report['NQ'] > 0
     assert set(report['wall_s_best']) == {'local', 'in-process', 'graph'}
     assert set(report['speedup_of_local']) == {'in-process', 'graph'}
+
+
+@pytest.mark.slow   # a benchmark script end to end; the map performer has fast tests of its own
+def test_map_decision_times_real_steps():
+    report = run_bench('map_decision', '--tasks', '1')
+    assert report['steps'] >= 1 and 0 < report['ms_median'] <= report['ms_max']
+
+
+@pytest.mark.slow   # a benchmark script end to end
+def test_perception_recall_counts_objects_and_what_it_found():
+    report = run_bench('perception_recall', '--every', '400', '--resolution', '64')
+    row = report['recall']['64']['all']
+    assert row['objects'] >= 1 and 0 <= row['found'] <= row['objects']
