@@ -37,10 +37,10 @@ from dialfred_bringup.workers import worker_nodes
 from dialfred_bringup.graph import Graph, NodeProcess
 
 REPO = Path(__file__).resolve().parents[1]
-SPLIT, TASK_INDEX = 'valid_seen', 0        # 10 steps, direction and appearance questions (6 when withheld)
+SPLIT, TASK_INDEX = 'valid_seen', 4        # 13 steps, direction and appearance questions (12 steps when withheld)
 TIMING = {'mode': 'anytime', 'gap': 2, 'epsilon': 0.5}
-CONFUSION = {'mode': 'confusion', 'gap': 5, 'epsilon': 0.8}     # on this task: chances before 5 of 6 actions
-DIRECTION_BIAS = 0.3
+CONFUSION = {'mode': 'confusion', 'gap': 5, 'epsilon': 0.8}     # on this task: questions before 7 of 13 actions
+DIRECTION_BIAS = 0.2
 
 
 def questioner_checkpoint(path: Path, timing: dict = TIMING) -> Path:
@@ -196,6 +196,7 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
     published on questioner/question must be the same)."""
     from dialfred_msgs.msg import QAPair
     config = EvalConfig(split=SPLIT, agent='et', questioner=f'learned:{checkpoint}', limit=TASK_INDEX + 1,
+                        shard=(TASK_INDEX, TASK_INDEX + 1),            # that one task
                         resolution=128, workers=1,   # the rollout's DialfredEnv(resolution=128)
                         out=tmp_path / f'{"graph" if graph else "local"}.jsonl',
                         performer='et' if graph else '', **kw)
