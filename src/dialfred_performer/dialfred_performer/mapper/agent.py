@@ -38,7 +38,7 @@ from dialfred_sim.world.catalog import load_catalog
 
 from ..agent import observation_rgb
 from ..preprocess import frame_tensor
-from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, Pose, bearing_deg, estimate_horizon,
+from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon,
                        points_in_agent_frame, ray_distance, to_map_frame)
 from .language import Fact, InstructionError, Step, parse_answer, parse_instruction
 from .semantic_map import UNREACHABLE, SemanticMap, distance_field, next_move, reach_goals, unexamined_goals
@@ -116,7 +116,6 @@ class MapAgent:
         self.confidence = EXPLORING
         self.decided = Step('stop')
         self._pending = None
-        self.lost = False
         self.log: list[str] = []
 
     def reset(self, task: Any, seed: int = 0) -> None:
@@ -170,7 +169,7 @@ class MapAgent:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
         else:
             self._dead_reckon(_success(observation))
-        self.labels, self.conf, self.depth = labels, conf, depth
+        self.labels, self.conf = labels, conf
         self.ray = ray_distance(depth)
         points = to_map_frame(points_in_agent_frame(depth, self.pose.horizon), self.pose)
         self.points = points
@@ -188,18 +187,11 @@ class MapAgent:
             self.held_known = True
 
     def _held_in_view(self) -> Optional[str]:
-        """The type the instruction puts down (or, failing that, any pickupable type) seen where the
-        hand carries an object, if any."""
-        window = self.hand_window()
-        wanted = [s.held for s in self.plan if s.kind == 'put' and s.held]
-        seen = Counter(self.labels[window & (self.labels >= STRUCTURE)].tolist())
-        for name in wanted:
-            k = self.class_id.get(name)
-            if k is not None and seen.get(k, 0) >= 1:
-                return name
+        """The pickupable type seen most (at least 3 cells) where the hand carries an object, if any."""
+        seen = Counter(self.labels[self.hand_window() & (self.labels >= STRUCTURE)].tolist())
         for k, count in seen.most_common():
             t = self.catalog.get(self.classes[k])
-            if t is not None and t.pickupable and count >= 3 and not wanted:
+            if t is not None and t.pickupable and count >= 3:
                 return self.classes[k]
         return None
 
@@ -307,7 +299,7 @@ class MapAgent:
             return 'Stop', -1, -1, None
         k = self.class_id.get(step.target)
         if k is None:
-            self.lost = True
+            self.log.append(f'no class for {step.target}')
             return 'Stop', -1, -1, None
         target = self._target_pixel(k, step)
         if step.kind == 'goto':
@@ -332,7 +324,6 @@ class MapAgent:
         if move == REPLAN:
             return self._decide(depth + 1)
         if move is None:
-            self.lost = True
             self.log.append(f'lost: no way to {step.kind} {step.target} (seen: {len(self.map.object_cells(k)[0])} cells)')
             self.confidence = EXPLORING
             if step.kind == 'goto' and self._seen_within(k, REACH_M + 0.3):
@@ -550,8 +541,8 @@ class MapAgent:
         """[nodes, nodes] bool: grid points within half_width degrees of `bearing` seen from `at`."""
         off = self.map.node_offset()
         ii = np.arange(self.map.nodes) - off
-        dx = (ii[:, None] - at.i) * 0.25
-        dy = (ii[None, :] - at.j) * 0.25
+        dx = (ii[:, None] - at.i) * STEP_M
+        dy = (ii[None, :] - at.j) * STEP_M
         b = np.degrees(np.arctan2(dy, dx)) - at.heading
         diff = np.abs((b - bearing + 180.0) % 360.0 - 180.0)
         return diff <= half_width

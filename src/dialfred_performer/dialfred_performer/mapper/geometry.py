@@ -18,12 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STEP_M = 0.25                  # MoveAhead
+from dialfred_sim.actions import LOOK_STEP as LOOK_DEG       # LookDown (+) / LookUp (-): positive looks down
+from dialfred_sim.world.rooms import GRID as STEP_M          # MoveAhead
+from dialfred_sim.world.scene import CAMERA_HEIGHT as CAMERA_HEIGHT_M
+from dialfred_sim.world.scene import FOV_DEG, HORIZON_MAX, HORIZON_MIN
+
 TURN_DEG = 90                  # RotateLeft (+) / RotateRight (-)
-LOOK_DEG = 15.0                # LookDown (+) / LookUp (-): positive horizon looks down
-HORIZON_MIN, HORIZON_MAX = -30.0, 60.0
-CAMERA_HEIGHT_M = 1.5
-FOV_DEG = 90.0
 HORIZONS = tuple(float(h) for h in range(int(HORIZON_MIN), int(HORIZON_MAX) + 1, int(LOOK_DEG)))
 
 
@@ -116,5 +116,5 @@ def estimate_horizon(depth: np.ndarray, floor: np.ndarray, default: float = 30.0
 def bearing_deg(pose: Pose, x: float, y: float) -> float:
     """The bearing of map point (x, y) from the agent, counter-clockwise from its heading, in (-180, 180]."""
     x0, y0 = pose.xy
-    a = math.degrees(math.atan2(y - y0, x - x0)) - pose.heading
-    return (a + 180.0) % 360.0 - 180.0 if (a + 180.0) % 360.0 != 0 else 180.0
+    b = (math.degrees(math.atan2(y - y0, x - x0)) - pose.heading + 180.0) % 360.0 - 180.0
+    return 180.0 if b == -180.0 else b

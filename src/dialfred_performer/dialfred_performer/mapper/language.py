@@ -13,7 +13,8 @@ The templates are DialFRED's own, so a rule-based reader is enough here; a phras
 phrasings would need a learned reader (a sequence tagger from words to verb and object spans)
 trained on its instructions; the `Step` plan below is the interface such a reader would fill.
 
-`parse_answer` reads the oracle's templated answers (`dialfred_oracle.answers`): a location answer
+`parse_answer` reads the oracle's templated answers (`dialfred_oracle.answers`, whose direction bins
+and advice it uses): a location answer
 becomes a direction bin from the agent and a receptacle type, an appearance answer a colour, a
 direction answer a turn.
 """
@@ -25,6 +26,7 @@ import re
 from dataclasses import dataclass
 from typing import Optional
 
+from dialfred_oracle.answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT
 from dialfred_sim.tasks.instructions import SYNONYMS
 from dialfred_sim.world.catalog import load_catalog
 
@@ -100,21 +102,18 @@ def _noun(name: str) -> str:
     return _NOUN.format(name)
 
 
-# Main clauses, tried in order (the longer forms first).
+def _clause(action: str, verb: str, rest: str = '') -> tuple[str, re.Pattern]:
+    return action, re.compile(rf'^(?:{_verb_pattern(verb)}) {_noun("obj")}{rest}$')
+
+
+# Main clauses, tried in order: the forms with a second object first; 'take' is pickup unless 'to'
+# follows, and 'slice ... with' before 'slice'.
 _CLAUSES = [
-    ('put', re.compile(rf'^(?:{_verb_pattern("put")}) {_noun("obj")} (?:in|on) {_noun("recep")}$')),
-    ('carry', re.compile(rf'^(?:{_verb_pattern("carry")}) {_noun("obj")} to {_noun("recep")}$')),
-    ('slice_with', re.compile(rf'^(?:{_verb_pattern("slice")}) {_noun("obj")} with {_noun("tool")}$')),
-    ('heat', re.compile(rf'^(?:{_verb_pattern("heat")}) {_noun("obj")}$')),
-    ('cool', re.compile(rf'^(?:{_verb_pattern("cool")}) {_noun("obj")}$')),
-    ('clean', re.compile(rf'^(?:{_verb_pattern("clean")}) {_noun("obj")}$')),
-    ('toggle_on', re.compile(rf'^(?:{_verb_pattern("toggle_on")}) {_noun("obj")}$')),
-    ('toggle_off', re.compile(rf'^(?:{_verb_pattern("toggle_off")}) {_noun("obj")}$')),
-    ('slice', re.compile(rf'^(?:{_verb_pattern("slice")}) {_noun("obj")}$')),
-    ('open', re.compile(rf'^(?:{_verb_pattern("open")}) {_noun("obj")}$')),
-    ('close', re.compile(rf'^(?:{_verb_pattern("close")}) {_noun("obj")}$')),
-    ('goto', re.compile(rf'^(?:{_verb_pattern("goto")}) {_noun("obj")}$')),
-    ('pickup', re.compile(rf'^(?:{_verb_pattern("pickup")}) {_noun("obj")}$')),
+    _clause('put', 'put', rf' (?:in|on) {_noun("recep")}'),
+    _clause('carry', 'carry', rf' to {_noun("recep")}'),
+    _clause('slice_with', 'slice', rf' with {_noun("tool")}'),
+    *(_clause(kind, kind) for kind in ('heat', 'cool', 'clean', 'toggle_on', 'toggle_off', 'slice', 'open', 'close',
+                                       'goto', 'pickup')),
 ]
 # "turn on the lamp" / "switch it on" style particles: "turn the lamp on" is not a template, but
 # "go to the lamp and switch it on" is: the pronoun forms.
@@ -201,15 +200,13 @@ def parse_instruction(sentence: str) -> Reading:
 
 # ---------------------------------------------------------------------- answers
 
-DIRECTION_BINS = ('in front of you', 'to your front left', 'to your left', 'to your rear left',
-                  'behind you', 'to your rear right', 'to your right', 'to your front right')
 _BIN_RE = '|'.join(re.escape(b) for b in DIRECTION_BINS)
 _LOCATION = re.compile(rf'^the (?P<noun>.+?) is (?P<bin>{_BIN_RE})(?: (?:in|on) the (?P<recep>.+))?\.$')
 _HOLDING = re.compile(r'^you are holding the (?P<noun>.+)\.$')
 _CARRIED = re.compile(r'^the (?P<noun>.+?) is (?:in|on) the (?P<recep>.+) you are holding\.$')
 _APPEARANCE = re.compile(r'^the (?P<noun>.+?) is (?P<colour>[a-z]+) and made of (?P<material>.+)\.$')
-_TURNS = {'you should turn left.': 90, 'you should turn right.': -90, 'you should turn around.': 180,
-          'you should go straight ahead.': 0, "you don't need to move.": 0}
+_TURNS = {TURN_LEFT.lower(): 90, TURN_RIGHT.lower(): -90, TURN_AROUND.lower(): 180, GO_STRAIGHT.lower(): 0,
+          STAY.lower(): 0}
 
 
 @dataclass(frozen=True)
@@ -234,7 +231,7 @@ def parse_answer(question_type: str, answer: str) -> Optional[Fact]:
         if question_type == 'direction':
             if text not in _TURNS:
                 return None
-            return Fact('direction', turn_deg=_TURNS[text], stay=text.startswith("you don't"))
+            return Fact('direction', turn_deg=_TURNS[text], stay=text == STAY.lower())
         if question_type == 'location':
             m = _HOLDING.match(text)
             if m:

@@ -19,7 +19,9 @@ from typing import Optional
 
 import numpy as np
 
-from .geometry import HEADING_STEPS, STEP_M, Pose
+from dialfred_sim.actions import REACH as REACH_M          # the simulator's reach, from the camera
+
+from .geometry import CAMERA_HEIGHT_M, HEADING_STEPS, STEP_M, Pose
 
 CELL_M = 0.125                 # map cell
 NODE_CELLS = int(round(STEP_M / CELL_M))
@@ -27,8 +29,6 @@ MAP_M = 32.0                   # the map spans MAP_M x MAP_M metres centred on t
 OBSTACLE_MIN_M, OBSTACLE_MAX_M = 0.08, 1.8
 MAX_RANGE_M = 4.0              # predicted depth further than this is not mapped
 CLOSE_M = 1.6                  # a surface seen from nearer than this has been looked at closely
-REACH_M = 1.5                  # the simulator's reach, from the camera
-CAMERA_HEIGHT_M = 1.5
 UNREACHABLE = 1 << 20
 
 
@@ -228,11 +228,7 @@ def unexamined_goals(smap: SemanticMap, free: np.ndarray, reach_m: float = 1.0) 
     if len(cx) == 0:
         return goals
     off = smap.node_offset()
-    ni, nj = np.nonzero(free)
-    if len(ni) == 0:
-        return goals
     xs, ys = smap.cell_centre(cx, cy)
-    node_x, node_y = (ni - off) * STEP_M, (nj - off) * STEP_M
     # Bin the cells on the node grid, then dilate by reach_m.
     hit = np.zeros((smap.nodes, smap.nodes), bool)
     ai = np.clip(np.round(xs / STEP_M).astype(np.int64) + off, 0, smap.nodes - 1)
@@ -244,8 +240,5 @@ def unexamined_goals(smap: SemanticMap, free: np.ndarray, reach_m: float = 1.0) 
         for dj in range(-r, r + 1):
             if di * di + dj * dj > r * r:
                 continue
-            shifted = np.roll(np.roll(hit, di, 0), dj, 1)
-            near |= shifted
-    goals = near & free
-    del node_x, node_y
-    return goals
+            near |= np.roll(np.roll(hit, di, 0), dj, 1)
+    return near & free
