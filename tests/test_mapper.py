@@ -139,3 +139,15 @@ def test_the_map_performer_reads_rgb_and_its_own_success_only():
         played.append((actions, state.steps, state.end_reason))
     assert played[0] == played[1] and len(played[0][0]) >= 10
     assert {'MoveAhead', 'RotateLeft'} <= {a for a, _, _ in played[0][0]}
+
+
+def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
+    from dialfred_performer.agent import PerformerAgent
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.models import load_policy
+    assert isinstance(load_policy('map', SHIPPED), MapAgent)
+    assert isinstance(load_policy('et', SHIPPED), PerformerAgent)
+    with pytest.raises(ValueError, match='unknown performer model'):
+        load_policy('transformer', SHIPPED)
+    with pytest.raises(FileNotFoundError):
+        load_policy('map', SHIPPED.with_name('none.pt'))

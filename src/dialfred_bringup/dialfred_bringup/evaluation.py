@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from dialfred_performer.models import PERFORMER_MODELS, load_policy
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the et performer (its checkpoint's)
@@ -87,7 +88,7 @@ class EvalConfig:
     performer: str = arg('', 'et or map: a performer node per worker (its `model` parameter) plays each task as a '
                          'RunTask goal (with sim, oracle and questioner nodes in its namespace); this process only '
                          'sends goals and records results. none: the agent is a Python object of this process '
-                         '(--agent et or map plays the same performer there)', choices=['et', 'map'],
+                         '(--agent et or map plays the same performer there)', choices=list(PERFORMER_MODELS),
                          aliases={'none': ''})
     checkpoint: Optional[Path] = arg(None, 'the et performer\'s checkpoint (none: the one shipped in the package, '
                                      'dialfred_performer/checkpoints/et.pt)', metavar='PATH')
@@ -186,7 +187,7 @@ class EvalConfig:
     def agent_name(self) -> str:
         """The name results carry: the agent's (the `et` performer's with its checkpoint's sha256, so that
         results of two checkpoints never mix), with its questioner's (`questioner_label`) after a '+'."""
-        agent = f'{self.agent}-{self.checkpoint_sha256[:8]}' if self.agent in ('et', 'map') else self.agent
+        agent = f'{self.agent}-{self.checkpoint_sha256[:8]}' if self.agent in PERFORMER_MODELS else self.agent
         return f'{agent}+{self.questioner_label}' if self.questioner else agent
 
     @property
@@ -210,19 +211,10 @@ class EvalConfig:
 
     def make_performer(self):
         """The acting agent alone: the `et` performer from its checkpoint, or a dialfred_sim.agents one."""
-        if self.agent == 'et':
-            from dialfred_performer.agent import PerformerAgent
-            from dialfred_performer.model import CheckpointError
+        if self.agent in PERFORMER_MODELS:
             try:
-                return PerformerAgent.from_checkpoint(self.checkpoint_path)
-            except (FileNotFoundError, CheckpointError) as exc:
-                raise ValueError(str(exc)) from None
-        if self.agent == 'map':
-            from dialfred_performer.mapper.agent import MapAgent
-            from dialfred_performer.model import CheckpointError
-            try:
-                return MapAgent.from_checkpoint(self.checkpoint_path)
-            except (FileNotFoundError, CheckpointError) as exc:
+                return load_policy(self.agent, self.checkpoint_path)
+            except FileNotFoundError as exc:
                 raise ValueError(str(exc)) from None
         from dialfred_sim.agents import make_agent
         return make_agent(self.agent, self.resolution)
@@ -246,7 +238,7 @@ class EvalConfig:
         if self.local and (self.performer or self.record is not None or self.foxglove is not None):
             raise ValueError('--local plays without ROS: it cannot go with --performer, --record or --foxglove')
         if self.performer:
-            if self.performer not in ('et', 'map'):
+            if self.performer not in PERFORMER_MODELS:
                 raise ValueError(f'--performer must be et or map (the performer node\'s model), got {self.performer!r}')
             self.agent = self.performer
         self.make_agent()     # the node path too: a bad checkpoint or questioner fails before any node starts
@@ -291,7 +283,7 @@ class EvalReport:
             'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
             'workers': c.workers,
             'through': 'performer node' if c.performer else ('local processes (no ROS)' if c.local else 'in-process agent'),
-            'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent in ('et', 'map')
+            'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent in PERFORMER_MODELS
                            else None),
             'limit': c.limit, 'shard': {'index': c.shard[0], 'count': c.shard[1]} if c.shard else None,
             'results_file': str(c.results_path), 'tasks': len(self.results),
@@ -478,7 +470,7 @@ def default_resolution(config: EvalConfig) -> int:
     """The et performer's training resolution (its checkpoint's: a frame of another size would be
     resized by area averaging, which is not the rendering it learned from); 128 for other agents. An
     unreadable checkpoint: 128, and check() says why."""
-    if config.agent not in ('et', 'map') and config.performer not in ('et', 'map'):
+    if config.agent not in PERFORMER_MODELS and config.performer not in PERFORMER_MODELS:
         return DEFAULT_RESOLUTION
     from dialfred_performer.model import CheckpointError, load_checkpoint
     try:

@@ -45,8 +45,8 @@ from dialfred_sim.protocol import QA, Question, top2_gap
 from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, refused_request, run_node
 
-from .agent import PerformerAgent
 from .model import SHIPPED_CHECKPOINT, CheckpointError
+from .models import PERFORMER_MODELS, load_policy
 
 RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again
 SETTLE_S = 0.2           # after a service first appears: its reply path may match a moment later
@@ -65,7 +65,7 @@ PARAMETERS = (
     Param('checkpoint', str(SHIPPED_CHECKPOINT), "the policy (default: the shipped et.pt; '' = none); a goal may "
           'name another; each file is loaded once, and again if it changes'),
     Param('model', 'et', 'how the checkpoint decides: et (the Episodic Transformer) or map (the map-and-plan '
-          'performer over the checkpoint\'s perception network, dialfred_performer.mapper)', choices=('et', 'map')),
+          'performer over the checkpoint\'s perception network, dialfred_performer.mapper)', choices=PERFORMER_MODELS),
     Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
     Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
           'fails', span=(0.1, 86_400.0), dynamic=True),
@@ -99,7 +99,7 @@ class PerformerNode(Node):
                                                  callback_group=group)
         self.qa_pub = self.create_publisher(QAPair, 'dialogue/qa', 100)
         self.action_pub = self.create_publisher(Action, 'performer/action', 100)
-        self._policies: dict = {}     # checkpoint path -> ((mtime, size), PerformerAgent)
+        self._policies: dict = {}     # checkpoint path -> ((mtime, size), policy of self.model)
         self._busy = False
         self._lock = threading.Lock()
         self._settled: set = set()
@@ -194,11 +194,7 @@ class PerformerNode(Node):
         stamp = (st.st_mtime_ns, st.st_size)
         cached = self._policies.get(path)
         if cached is None or cached[0] != stamp:
-            if self.model == 'map':
-                from .mapper.agent import MapAgent
-                self._policies[path] = (stamp, MapAgent.from_checkpoint(Path(path)))
-            else:
-                self._policies[path] = (stamp, PerformerAgent.from_checkpoint(Path(path)))
+            self._policies[path] = (stamp, load_policy(self.model, Path(path)))
         return self._policies[path][1]
 
     def call(self, client, request, resend: bool):
