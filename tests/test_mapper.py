@@ -151,3 +151,45 @@ def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
         load_policy('transformer', SHIPPED)
     with pytest.raises(FileNotFoundError):
         load_policy('map', SHIPPED.with_name('none.pt'))
+
+
+def test_the_belief_map_is_pictured_recorded_and_filmed_beside_the_camera(tmp_path):
+    from dialfred_bringup.replay import film
+    from dialfred_oracle.local import EnvServer
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.picture import TARGET
+    from dialfred_sim.bag import EpisodeRecorder, read_episode
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.episode import EpisodeObserver, play, run
+    from dialfred_sim.tasks.split_files import get_task
+
+    task = get_task('valid_unseen/000012')
+    env = DialfredEnv(resolution=64, max_steps=12)
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    rec = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns, image_format='png')
+    pictures = []
+
+    class Recording(EpisodeObserver):
+        def on_started(self, state, reply):
+            rec.observation(0, reply.observation['rgb'], (0.0, 0.0, 0.0, 0.0), 0.9)
+
+        def on_action(self, state, action, x, y):
+            pictures.append(agent.picture())
+            rec.belief_map(state.steps + 1, pictures[-1])
+
+        def on_stepped(self, state, reply, action, x, y):
+            rec.action(state.steps, action, x, y, bool(reply.observation['last_action_success']), 0)
+            rec.observation(state.steps, reply.observation['rgb'], (0.0, 0.0, 0.0, 0.0), 0.9)
+
+    state = run(play(agent, seed=0, asks=False, observers=[Recording()]), EnvServer(env, task))
+    assert len(pictures) == state.steps >= 5
+    first = pictures[0]
+    assert first.dtype == np.uint8 and first.ndim == 3 and min(first.shape[:2]) >= 40 * 3
+    assert len({p.tobytes() for p in pictures}) > 1                 # the map grows as the agent looks around
+    ep = read_episode(rec.save(tmp_path))
+    assert [s for s, _ in ep.maps] == list(range(1, state.steps + 1))
+    assert all(np.array_equal(a, b) for (_, a), b in zip(ep.maps, pictures))    # png: exact
+    shots = film(ep)
+    h, w = ep.frames[0][2].shape[:2]
+    assert all(frame.shape == (h, w + h, 3) for frame, _ in shots)
+    assert not (pictures[-1] == np.array(TARGET, np.uint8)).all(-1).all()

@@ -8,6 +8,7 @@ WebSocket" -> `ws://localhost:8765` (or the host and `--foxglove PORT` of the ru
 |---|---|---|
 | /w<k>/camera | foxglove.RawImage (rgb8) | the agent's camera after every reset and action |
 | /w<k>/map | foxglove.RawImage (rgb8) | a top-down map of the room: its fixtures, the agent's trail and pose |
+| /w<k>/belief | foxglove.RawImage (rgb8) | the map performer's belief map (its own frame, starting heading up), with every action |
 | /w<k>/pose | foxglove.PoseInFrame (frame `map`) | the agent's pose (x, y, camera height, yaw) |
 | /w<k>/progress | JSON | the task, the step, questions so far, the last action and whether it worked |
 | /dialogue | foxglove.Log | every task start, question and answer, and outcome, by worker (name `w<k>`): the Log panel |
@@ -92,6 +93,7 @@ class LiveView:
             self.channels[w] = {
                 'camera': RawImageChannel(f'/{w}/camera', context=self.context),
                 'map': RawImageChannel(f'/{w}/map', context=self.context),
+                'belief': RawImageChannel(f'/{w}/belief', context=self.context),
                 'pose': PoseInFrameChannel(f'/{w}/pose', context=self.context),
                 'progress': foxglove.Channel(f'/{w}/progress', message_encoding='json', context=self.context,
                                              schema={'type': 'object'}),
@@ -143,6 +145,14 @@ class LiveView:
                 self.state[worker]['step'] = int(step)
         self._progress(worker)
 
+    def belief(self, worker: str, picture: np.ndarray) -> None:
+        """A picture of the performer's belief map (rgb8), shown on /w<k>/belief."""
+        from foxglove.messages import RawImage
+        picture = np.ascontiguousarray(picture, dtype=np.uint8)
+        h, w = picture.shape[:2]
+        self.channels[worker]['belief'].log(RawImage(timestamp=_timestamp(), frame_id='belief', width=w, height=h,
+                                                     encoding='rgb8', step=w * 3, data=picture.tobytes()))
+
     def qa(self, worker: str, question_type: str, object_noun: str, answer: str, valid: bool) -> None:
         with self.lock:
             if worker in self.state:
@@ -187,4 +197,4 @@ class LiveView:
 
 def describe(view: LiveView) -> str:
     return (f'Foxglove live view: ws://localhost:{view.port} (Foxglove app -> Open connection -> Foxglove WebSocket); '
-            f'topics /w<k>/camera, /w<k>/map, /w<k>/pose, /w<k>/progress, /dialogue, /eval/progress')
+            f'topics /w<k>/camera, /w<k>/map, /w<k>/belief, /w<k>/pose, /w<k>/progress, /dialogue, /eval/progress')

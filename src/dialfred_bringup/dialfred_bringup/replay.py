@@ -38,21 +38,43 @@ def transcript(ep: RecordedEpisode) -> list[str]:
     return lines
 
 
+def beside(frame, picture):
+    """The frame with `picture` (a performer's map) fitted into a square of the frame's height on its right."""
+    import numpy as np
+    from PIL import Image
+    h = frame.shape[0]
+    scale = h / max(picture.shape[:2])
+    size = (max(1, round(picture.shape[1] * scale)), max(1, round(picture.shape[0] * scale)))
+    box = Image.new('RGB', (h, h), (255, 255, 255))
+    box.paste(Image.fromarray(picture).resize(size, Image.BILINEAR), ((h - size[0]) // 2, (h - size[1]) // 2))
+    return np.concatenate([frame, np.asarray(box)], axis=1)
+
+
 def film(ep: RecordedEpisode) -> list:
     """(frame, caption lines) pairs for a captioned GIF: the start, each QA over the frame it was asked
-    on, each action over the frame after it."""
+    on, each action over the frame after it; with the performer's map beside each frame where the bag
+    holds one (the map it decided its next action on)."""
     title = f'{ep.task["task_id"]}: "{ep.task["instruction"]}"'
-    out = [(ep.frame(0), [title, 'start'])]
+    maps = sorted(ep.maps, key=lambda m: m[0])
+
+    def shot(step: int):
+        frame = ep.frame(step)
+        if not maps:
+            return frame
+        made = [m for m in maps if m[0] <= step + 1] or maps[:1]     # decided on frames up to this one
+        return beside(frame, made[-1][1])
+
+    out = [(shot(0), [title, 'start'])]
     qas = sorted(ep.dialogue, key=lambda q: q[0])
     qi = 0
     for a in ep.actions:
         while qi < len(qas) and qas[qi][0] < a[0]:
             q = qas[qi]
-            out.append((ep.frame(q[0]), [title, f'Q [{q[1]}{": " + q[2] if q[2] else ""}]',
-                                         f'A: {q[4] if q[5] else "(no answer)"}']))
+            out.append((shot(q[0]), [title, f'Q [{q[1]}{": " + q[2] if q[2] else ""}]',
+                                     f'A: {q[4] if q[5] else "(no answer)"}']))
             qi += 1
         target = f' at ({a[2]}, {a[3]})' if a[2] >= 0 else ''
-        out.append((ep.frame(a[0]), [title, f'{a[0]}: {a[1]}{target} {"ok" if a[4] else "failed"}']))
+        out.append((shot(a[0]), [title, f'{a[0]}: {a[1]}{target} {"ok" if a[4] else "failed"}']))
     if ep.result:
         out[-1][1].append('success' if ep.result['success'] else f'failure ({ep.result["end_reason"]})')
     return out

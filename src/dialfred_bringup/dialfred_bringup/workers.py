@@ -123,6 +123,13 @@ class SimWorker(EpisodeObserver):
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
         self.traces[self.task.task_id].append((action, x, y))
+        picture = getattr(self.agent, 'picture', None)     # a performer that keeps a map
+        if picture is not None and (self.recorder is not None or self.live is not None):
+            img = picture()
+            if self.recorder is not None:
+                self.recorder.belief_map(state.steps + 1, img)
+            if self.live is not None:
+                self.live.belief(img)
 
     def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
         obs = reply.raw.observation
@@ -462,14 +469,19 @@ class LiveHook:
     def action(self, step: int, name: str, success: bool) -> None:
         self.view.action(self.worker, step, name, success)
 
+    def belief(self, picture) -> None:
+        self.view.belief(self.worker, picture)
+
     def result(self, r) -> None:
         self.view.result(self.worker, r.task_id, r.success, r.end_reason, r.steps, r.questions)
 
 
 def start_live_view(config, graph: Graph, namespaces: list, total: int):
     """The Foxglove server of --foxglove, fed from each worker's sim/observation (camera, pose) and,
-    for performer nodes, dialogue/qa; the workers' LiveHooks tell it the rest."""
+    for performer nodes, dialogue/qa and performer/map; the workers' LiveHooks tell it the rest."""
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from sensor_msgs.msg import Image
 
     from dialfred_msgs.msg import Observation, QAPair
     from dialfred_sim.protocol import image_array
@@ -490,4 +502,6 @@ def start_live_view(config, graph: Graph, namespaces: list, total: int):
             graph.client_node.create_subscription(
                 QAPair, f'{base}/dialogue/qa',
                 lambda m, w=w: view.qa(w, m.question_type, m.object_noun, m.answer, m.valid), 100)
+            graph.client_node.create_subscription(
+                Image, f'{base}/performer/map', lambda m, w=w: view.belief(w, image_array(m)), qos)
     return view

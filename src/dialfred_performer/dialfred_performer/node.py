@@ -5,7 +5,9 @@ the graph: `sim/reset` (the public TaskDescription and RGB only), then before ea
 `questioner` parameter is on, `questioner/ask` (with the policy's top-2 action-probability gap) and
 `oracle/answer` for each question it asks, and `sim/step` with the policy's decision. Every QA is
 published on `dialogue/qa` (dialfred_msgs/QAPair) and every action command on `performer/action`
-(dialfred_msgs/Action); feedback after each step. The result comes from the simulator's step
+(dialfred_msgs/Action); feedback after each step. A policy that keeps a map (`model:=map`) publishes a
+picture of its belief with each action on `performer/map` (sensor_msgs/Image, rgb8) while anything
+subscribes or records. The result comes from the simulator's step
 replies (the simulator is the checker). All names are relative: in a namespace /w0 they are
 /w0/sim/reset, /w0/performer/run_task, ...
 
@@ -35,6 +37,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
+from sensor_msgs.msg import Image
 
 from dialfred_msgs.action import RunTask
 from dialfred_msgs.msg import Action, QAPair
@@ -99,6 +102,7 @@ class PerformerNode(Node):
                                                  callback_group=group)
         self.qa_pub = self.create_publisher(QAPair, 'dialogue/qa', 100)
         self.action_pub = self.create_publisher(Action, 'performer/action', 100)
+        self.map_pub = self.create_publisher(Image, 'performer/map', 10)
         self._policies: dict = {}     # checkpoint path -> ((mtime, size), policy of self.model)
         self._busy = False
         self._lock = threading.Lock()
@@ -303,7 +307,15 @@ class GoalRun(EpisodeObserver):
             self.node.recorder.question_msg(self.result.steps, qa_msg(qa))
 
     def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
-        self.node.action_pub.publish(Action(action=action, x=x, y=y))
+        node = self.node
+        picture = getattr(self.policy, 'picture', None)
+        if picture is not None and (node.recorder is not None or node.map_pub.get_subscription_count() > 0):
+            img = picture()
+            h, w = img.shape[:2]
+            node.map_pub.publish(Image(height=h, width=w, encoding='rgb8', step=w * 3, data=img.tobytes()))
+            if node.recorder is not None:
+                node.recorder.belief_map(self.result.steps + 1, img)
+        node.action_pub.publish(Action(action=action, x=x, y=y))
 
     def on_stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
         result, observation = self.result, reply.raw.observation

@@ -132,12 +132,29 @@ def cell_targets(classes: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor, 
     return share, metres, colour, objects
 
 
-def perception_loss(net: Perception, out: PerceptionOutput, frames, classes, depth, object_weight: float):
-    """(loss, stats): class cross-entropy against each cell's class shares (object cells weigh
-    `object_weight`), L1 of depth in metres, L1 of colour."""
+def class_weights(classes: torch.Tensor, n_classes: int, object_weight: float, small_objects: float) -> torch.Tensor:
+    """[N, K] weight of a cell of each class in each frame: 1 for nothing, floor, wall and ceiling;
+    `object_weight` for an object, times (A / area)^small_objects (at most 8) for an object type
+    that covers less than A = 1/64 of the frame, so that the few cells of a knife across the room
+    count as much as they must for the network to learn to see it."""
+    N = classes.shape[0]
+    area = torch.zeros(N, n_classes).scatter_add_(1, classes.view(N, -1).long(),
+                                                  torch.ones(N, classes[0].numel()))
+    weight = torch.full((N, n_classes), float(object_weight))
+    if small_objects > 0:
+        small = (classes[0].numel() / 64.0 / area.clamp(min=1.0)) ** small_objects
+        weight = weight * small.clamp(1.0, 8.0)
+    weight[:, :FIRST_OBJECT_CLASS] = 1.0
+    return weight
+
+
+def perception_loss(net: Perception, out: PerceptionOutput, frames, classes, depth, object_weight: float,
+                    small_objects: float = 0.0):
+    """(loss, stats): class cross-entropy against each cell's class shares (each cell weighs as its
+    classes do: `class_weights`), L1 of depth in metres, L1 of colour."""
     logits, metres, colour = net.heads(out.fine)
     share, true_metres, true_colour, objects = cell_targets(classes, depth, frames, logits.shape[1])
-    weight = 1.0 + (object_weight - 1.0) * objects
+    weight = torch.einsum('nkhw,nk->nhw', share, class_weights(classes, logits.shape[1], object_weight, small_objects))
     ce = -(share * F.log_softmax(logits, 1)).sum(1)
     class_loss = (ce * weight).sum() / weight.sum()
     depth_loss = (metres - true_metres).abs().mean()
@@ -208,6 +225,8 @@ class PerceptionConfig:
     lr: float = arg(2e-3, 'peak learning rate (AdamW, warm-up then cosine)')
     weight_decay: float = arg(1e-4, 'AdamW weight decay')
     object_weight: float = arg(4.0, 'weight of a cell of an object against one of floor, wall or nothing')
+    small_objects: float = arg(0.0, 'an object type covering less than 1/64 of a frame weighs (1/64 of the frame / '
+                                    'its area)^this more (at most 8 times; 0: off)')
     val_frames: int = arg(4000, 'held-out frames evaluated at each validation')
     validate_every: int = arg(500, 'updates between validations (and last.pt)')
     seed: int = arg(0, 'the seed of the initial weights and of the frames drawn')
@@ -262,7 +281,8 @@ def validate(net: Perception, demo, rows: np.ndarray, cfg: PerceptionConfig) -> 
     total: dict = {}
     for k in range(0, len(rows), cfg.batch_size):
         frames, classes, depth = load_batch(demo, rows[k:k + cfg.batch_size])
-        _, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight)
+        _, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight,
+                                      cfg.small_objects)
         sum_stats(total, stats)
     net.train()
     return finish_stats(total)
@@ -311,7 +331,8 @@ def train_perception(cfg: PerceptionConfig) -> dict:
             frames, classes, depth = load_batch(demo, train_rows[rng.integers(len(train_rows), size=cfg.batch_size)])
             if rng.random() < 0.5:                                  # a mirrored room is a room too
                 frames, classes, depth = frames.flip(-1), classes.flip(-1), depth.flip(-1)
-            loss, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight)
+            loss, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight,
+                                      cfg.small_objects)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)

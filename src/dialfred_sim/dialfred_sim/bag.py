@@ -16,6 +16,8 @@ dialfred_msgs install):
 | /agent/pose_stamped | geometry_msgs/msg/PoseStamped (frame `map`, yaw only) | with every frame, for 3D views |
 | /dialogue/qa | dialfred_msgs/msg/QAPair | every question and the oracle's answer |
 | /performer/action | dialfred_msgs/msg/Action | every action command |
+| /performer/map | sensor_msgs/msg/Image (rgb8) | with every action command of a performer that keeps a map (the map performer): a picture of its belief |
+| /performer/map/compressed | sensor_msgs/msg/CompressedImage | instead, with `image_format` |
 | /performer/feedback | dialfred_msgs/action/RunTask_Feedback | every action's result (success, questions so far) |
 | /episode/result | dialfred_msgs/action/RunTask_Result | once, at the end |
 
@@ -58,6 +60,8 @@ TOPICS = {     # topic -> type, in the order their connections are written
     '/agent/pose': 'dialfred_msgs/msg/AgentPose',
     '/agent/pose_stamped': 'geometry_msgs/msg/PoseStamped',
     '/dialogue/qa': 'dialfred_msgs/msg/QAPair',
+    '/performer/map': 'sensor_msgs/msg/Image',
+    '/performer/map/compressed': 'sensor_msgs/msg/CompressedImage',
     '/performer/action': 'dialfred_msgs/msg/Action',
     '/performer/feedback': 'dialfred_msgs/action/RunTask_Feedback',
     '/episode/result': 'dialfred_msgs/action/RunTask_Result',
@@ -137,19 +141,7 @@ class EpisodeRecorder:
     def observation(self, step: int, rgb: np.ndarray, pose: Sequence[float], camera_height: float) -> None:
         """The frame after `step` actions and the agent's pose (x, y, rotation_deg, horizon_deg)."""
         t = step * STEP_NS
-        rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
-        if rgb.ndim != 3 or rgb.shape[2] != 3:
-            raise ValueError(f'rgb must be H x W x 3, got shape {rgb.shape}')
-        header = self._header(t, CAMERA_FRAME)
-        if self.image_format == 'raw':
-            h, w = rgb.shape[:2]
-            self._add(t, '/camera/image', self._t('sensor_msgs/msg/Image')(
-                header=header, height=h, width=w, encoding='rgb8', is_bigendian=0, step=w * 3,
-                data=rgb.reshape(-1)))
-        else:
-            self._add(t, '/camera/image/compressed', self._t('sensor_msgs/msg/CompressedImage')(
-                header=header, format=self.image_format, data=np.frombuffer(encode_image(rgb, self.image_format),
-                                                                            np.uint8)))
+        self._image(t, '/camera/image', CAMERA_FRAME, rgb)
         x, y, rotation, horizon = (float(v) for v in pose)
         self._add(t, '/agent/pose', self._t('dialfred_msgs/msg/AgentPose')(
             x=x, y=y, camera_height=float(camera_height), rotation_deg=rotation, horizon_deg=horizon))
@@ -158,6 +150,28 @@ class EpisodeRecorder:
         quat = self._t('geometry_msgs/msg/Quaternion')(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
         self._add(t, '/agent/pose_stamped', self._t('geometry_msgs/msg/PoseStamped')(
             header=self._header(t, MAP_FRAME), pose=self._t('geometry_msgs/msg/Pose')(position=point, orientation=quat)))
+
+    def _image(self, t: int, topic: str, frame_id: str, rgb: np.ndarray) -> None:
+        """An rgb8 Image on `topic`, or a CompressedImage on `topic`/compressed in the recorder's format."""
+        rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
+        if rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise ValueError(f'rgb must be H x W x 3, got shape {rgb.shape}')
+        header = self._header(t, frame_id)
+        if self.image_format == 'raw':
+            h, w = rgb.shape[:2]
+            self._add(t, topic, self._t('sensor_msgs/msg/Image')(
+                header=header, height=h, width=w, encoding='rgb8', is_bigendian=0, step=w * 3,
+                data=rgb.reshape(-1)))
+        else:
+            self._add(t, f'{topic}/compressed', self._t('sensor_msgs/msg/CompressedImage')(
+                header=header, format=self.image_format, data=np.frombuffer(encode_image(rgb, self.image_format),
+                                                                            np.uint8)))
+
+    def belief_map(self, step: int, rgb: np.ndarray) -> None:
+        """A picture of the performer's belief when it decided action `step` (1-based), on /performer/map."""
+        if step < 1:
+            raise ValueError(f'actions count from 1, got {step}')
+        self._image((step - 1) * STEP_NS + ACTION_NS, '/performer/map', MAP_FRAME, rgb)
 
     def observation_msg(self, obs) -> None:
         """Record a dialfred_msgs/Observation (its rgb8 frame and pose, at its step_count)."""
@@ -260,6 +274,7 @@ class RecordedEpisode:
     path: Path
     task: dict
     frames: list = field(default_factory=list)       # (time_ns, step, rgb array)
+    maps: list = field(default_factory=list)         # (step of the action decided on it, rgb array)
     poses: list = field(default_factory=list)        # (step, x, y, rotation_deg, horizon_deg)
     dialogue: list = field(default_factory=list)     # (step, question_type, object_noun, question, answer, valid)
     actions: list = field(default_factory=list)      # (step, action, x, y, success, questions so far)
@@ -306,6 +321,8 @@ def read_episode(path: Path) -> RecordedEpisode:
         step = time_ns // STEP_NS
         if topic in ('/camera/image', '/camera/image/compressed'):
             ep.frames.append((time_ns, step, decode_image(m, topic.endswith('compressed'))))
+        elif topic in ('/performer/map', '/performer/map/compressed'):
+            ep.maps.append((step + 1, decode_image(m, topic.endswith('compressed'))))
         elif topic == '/agent/pose':
             ep.poses.append((step, m.x, m.y, m.rotation_deg, m.horizon_deg))
         elif topic == '/dialogue/qa':

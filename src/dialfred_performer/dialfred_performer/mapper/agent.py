@@ -567,6 +567,11 @@ class MapAgent:
         p[ACTIONS.index(action)] = confidence
         return p
 
+    def picture(self) -> np.ndarray:
+        """[H, W, 3] uint8: the belief map as a picture (`picture.belief_picture`), for bags and the live view."""
+        from .picture import belief_picture
+        return belief_picture(self)
+
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y) with the pixel in the observation's frame (-1, -1 for moves)."""
         action, r, c, point, _ = self._outputs(observation)
