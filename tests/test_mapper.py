@@ -90,7 +90,7 @@ def test_paths_go_around_what_is_blocked_and_say_when_there_is_none():
 def test_the_map_marks_obstacles_and_objects_and_goals_within_reach():
     smap = SemanticMap(n_classes=10, map_m=8.0)
     pts = np.zeros((2, 2, 3))
-    pts[..., 0], pts[..., 1] = 1.0, 0.0
+    pts[..., 0], pts[..., 1] = 0.9, 0.0
     pts[0, 0, 2] = 0.9                      # a table top ...
     pts[0, 1, 2] = 0.9
     labels = np.array([[7, 7], [1, 1]])     # ... with class 7 on it, and floor
@@ -100,8 +100,8 @@ def test_the_map_marks_obstacles_and_objects_and_goals_within_reach():
     assert len(cx) == 1 and h[0] == pytest.approx(0.9)
     goals = reach_goals(smap, cx, cy, h)
     off = smap.node_offset()
-    assert goals[off, off] and not goals[off + 4, off]          # from the start, 1 m away: in reach
-    smap.exclude(7, 1.0, 0.0)
+    assert goals[off, off] and not goals[off + 4, off]          # from the start, 0.9 m away: in reach
+    smap.exclude(7, 0.9, 0.0)
     assert len(smap.object_cells(7)[0]) == 0
 
 

@@ -194,7 +194,7 @@ def next_move(dist: np.ndarray, pose: Pose, offset: int) -> Optional[str]:
 
 
 def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray, height: np.ndarray,
-                margin_m: float = 0.1) -> np.ndarray:
+                margin_m: float = 0.3) -> np.ndarray:
     """[nodes, nodes] bool: grid points from which one of the cells (cx, cy) at `height` above the
     floor is within reach (REACH_M from the camera less `margin_m`), and not nearer than one step."""
     goals = np.zeros((smap.nodes, smap.nodes), bool)
