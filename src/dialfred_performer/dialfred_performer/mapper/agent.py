@@ -340,6 +340,12 @@ class MapAgent:
         mask = (self.labels == k) & (self.conf > 0.3)
         if self.held is not None:
             mask &= ~self.hand_window()
+        given_up = self.map.excluded.get(k)
+        if given_up is not None and mask.any():
+            # Places given up on (two failed interactions there) are given up on in view too.
+            cx, cy = self.map.cell_of(self.points[..., 0], self.points[..., 1])
+            inside = (cx >= 0) & (cx < self.map.n) & (cy >= 0) & (cy < self.map.n)
+            mask &= ~(inside & given_up[np.clip(cx, 0, self.map.n - 1), np.clip(cy, 0, self.map.n - 1)])
         reach = mask & (self.ray < (REACH_M - 0.15 if step.kind == 'goto' else REACH_M))
         if reach.sum() < (2 if step.kind == 'goto' else MIN_TARGET_CELLS):
             return None
