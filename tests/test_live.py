@@ -26,7 +26,8 @@ from dialfred_sim.bag import EpisodeRecorder
 from dialfred_bringup.replay import replay_bag
 
 REPO = Path(__file__).resolve().parents[1]
-TOPICS = {'/w0/camera': 'foxglove.RawImage', '/w0/map': 'foxglove.RawImage', '/w0/pose': 'foxglove.PoseInFrame',
+TOPICS = {'/w0/camera': 'foxglove.RawImage', '/w0/map': 'foxglove.RawImage', '/w0/belief': 'foxglove.RawImage',
+          '/w0/pose': 'foxglove.PoseInFrame',
           '/w0/progress': None, '/dialogue': 'foxglove.Log', '/eval/progress': None}
 
 
@@ -144,6 +145,9 @@ def test_a_client_gets_every_topic_and_decodes_a_frame_the_map_a_qa_and_the_prog
     rec = EpisodeRecorder('valid_unseen/000003', 'FloorPlan301', 'valid_unseen', 'Open the drawer.', ['drawer'])
     rec.observation(0, frames[0], (1.0, 1.5, 90.0, 0.0), 0.9)
     rec.question(0, 'location', 'drawer', 'Where is the drawer?', 'The drawer is to your left.', True)
+    belief = np.zeros((30, 40, 3), np.uint8)
+    belief[:, :20] = (200, 10, 10)                                            # SYNTHETIC belief map
+    rec.belief_map(1, belief)
     rec.action(1, 'RotateLeft', -1, -1, True, 1)
     rec.observation(1, frames[1], (1.0, 1.5, 180.0, 0.0), 0.9)
     rec.action(2, 'MoveAhead', -1, -1, True, 1)
@@ -151,7 +155,7 @@ def test_a_client_gets_every_topic_and_decodes_a_frame_the_map_a_qa_and_the_prog
     rec.result(success=False, steps=2, end_reason='stop', questions=1)
     bag = rec.save(tmp_path)
     view = LiveView(1, port=free_port(), total=1)
-    client = Client(view.port, ['/w0/camera', '/w0/map', '/dialogue', '/w0/progress', '/eval/progress'])
+    client = Client(view.port, ['/w0/camera', '/w0/map', '/w0/belief', '/dialogue', '/w0/progress', '/eval/progress'])
     try:
         assert client.subscribed.wait(30), 'no advertise from the server'
         assert {t: c.get('schemaName') for t, c in client.channels.items() if TOPICS[t]} == \
@@ -166,6 +170,8 @@ def test_a_client_gets_every_topic_and_decodes_a_frame_the_map_a_qa_and_the_prog
         view.close()
     camera = [raw_image(p) for _, p in client.messages['/w0/camera']]
     assert len(camera) == 3 and all(np.array_equal(a, b) for a, b in zip(camera, frames))
+    beliefs = [raw_image(p) for _, p in client.messages['/w0/belief']]
+    assert len(beliefs) == 1 and np.array_equal(beliefs[0], belief)
     maps = [raw_image(p) for _, p in client.messages['/w0/map']]
     assert len(maps) == 3 and maps[0].shape[0] > 100
     red = lambda m: np.argwhere((m[..., 0] > 180) & (m[..., 1] < 90))   # the agent's arrow

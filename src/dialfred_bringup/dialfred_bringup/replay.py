@@ -89,6 +89,7 @@ def replay_bag(view, path, worker: str = 'w0', speed: float = 1.0) -> None:
     events = [(time_ns, 0, ('frame', step, rgb)) for time_ns, step, rgb in ep.frames]
     events += [(q[0] * STEP_NS + 1, 1, ('qa', q)) for q in ep.dialogue]
     events += [(a[0] * STEP_NS, 2, ('action', a)) for a in ep.actions]
+    events += [((step - 1) * STEP_NS + 1, 3, ('belief', picture)) for step, picture in ep.maps]
     poses = {p[0]: p for p in ep.poses}
     start = time.monotonic()
     for time_ns, _, event in sorted(events, key=lambda e: (e[0], e[1])):
@@ -101,6 +102,8 @@ def replay_bag(view, path, worker: str = 'w0', speed: float = 1.0) -> None:
         elif event[0] == 'qa':
             q = event[1]
             view.qa(worker, q[1], q[2], q[4], q[5])
+        elif event[0] == 'belief':
+            view.belief(worker, event[1])
         else:
             a = event[1]
             view.action(worker, a[0], a[1], a[4])
