@@ -132,29 +132,28 @@ def cell_targets(classes: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor, 
     return share, metres, colour, objects
 
 
-def class_weights(classes: torch.Tensor, n_classes: int, object_weight: float, small_objects: float) -> torch.Tensor:
-    """[N, K] weight of a cell of each class in each frame: 1 for nothing, floor, wall and ceiling;
-    `object_weight` for an object, times (A / area)^small_objects (at most 8) for an object type
-    that covers less than A = 1/64 of the frame, so that the few cells of a knife across the room
-    count as much as they must for the network to learn to see it."""
+def small_object_boost(classes: torch.Tensor, n_classes: int, small_objects: float) -> torch.Tensor:
+    """[N, K] how much more a cell of each class weighs in each frame: (A / area)^small_objects, at
+    most 8, for a type covering less than A = 1/64 of the frame (1 for the rest), so that the few
+    cells of a knife across the room count as much as they must for the network to learn to see it."""
     N = classes.shape[0]
     area = torch.zeros(N, n_classes).scatter_add_(1, classes.view(N, -1).long(),
                                                   torch.ones(N, classes[0].numel()))
-    weight = torch.full((N, n_classes), float(object_weight))
-    if small_objects > 0:
-        small = (classes[0].numel() / 64.0 / area.clamp(min=1.0)) ** small_objects
-        weight = weight * small.clamp(1.0, 8.0)
-    weight[:, :FIRST_OBJECT_CLASS] = 1.0
-    return weight
+    return (classes[0].numel() / 64.0 / area.clamp(min=1.0)).pow(small_objects).clamp(1.0, 8.0)
 
 
 def perception_loss(net: Perception, out: PerceptionOutput, frames, classes, depth, object_weight: float,
                     small_objects: float = 0.0):
-    """(loss, stats): class cross-entropy against each cell's class shares (each cell weighs as its
-    classes do: `class_weights`), L1 of depth in metres, L1 of colour."""
+    """(loss, stats): class cross-entropy against each cell's class shares (object cells weigh
+    `object_weight`, small ones more with `small_objects`: `small_object_boost`), L1 of depth in
+    metres, L1 of colour."""
     logits, metres, colour = net.heads(out.fine)
     share, true_metres, true_colour, objects = cell_targets(classes, depth, frames, logits.shape[1])
-    weight = torch.einsum('nkhw,nk->nhw', share, class_weights(classes, logits.shape[1], object_weight, small_objects))
+    weight = 1.0 + (object_weight - 1.0) * objects
+    if small_objects > 0:
+        boost = small_object_boost(classes, logits.shape[1], small_objects) - 1.0
+        weight = weight + object_weight * torch.einsum('nkhw,nk->nhw', share[:, FIRST_OBJECT_CLASS:],
+                                                       boost[:, FIRST_OBJECT_CLASS:])
     ce = -(share * F.log_softmax(logits, 1)).sum(1)
     class_loss = (ce * weight).sum() / weight.sum()
     depth_loss = (metres - true_metres).abs().mean()

@@ -35,7 +35,7 @@ def belief_picture(agent) -> np.ndarray:
     """[H, W, 3] uint8: the MapAgent's map around what it has seen so far, and where it is."""
     m = agent.map
     free = m.free > 0
-    occupied = (m.occupied >= 2.0) & (m.occupied > 0.5 * m.free)
+    occupied = m.obstacles()
     known = free | (m.occupied > 0)
     xs, ys = np.nonzero(known)
     agent_cell = m.node_cell(agent.pose.i, agent.pose.j)

@@ -114,9 +114,13 @@ class SemanticMap:
 
     # ------------------------------------------------------------------ grid points
 
+    def obstacles(self) -> np.ndarray:
+        """[n, n] bool: cells believed occupied (seen as an obstacle twice, and more often than as floor)."""
+        return (self.occupied >= 2.0) & (self.occupied > 0.5 * self.free)
+
     def traversable(self) -> np.ndarray:
         """[nodes, nodes] bool: grid points believed free for the agent (unknown counts as free)."""
-        occ = (self.occupied >= 2.0) & (self.occupied > 0.5 * self.free)
+        occ = self.obstacles()
         # A grid point sits on a cell corner region; the agent's 0.2 m disc covers the 3x3 cells around it.
         pad = np.pad(occ, 1)
         near = np.zeros_like(occ)
