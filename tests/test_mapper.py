@@ -141,6 +141,37 @@ def test_the_map_performer_reads_rgb_and_its_own_success_only():
     assert {'MoveAhead', 'RotateLeft'} <= {a for a, _, _ in played[0][0]}
 
 
+def test_asking_for_the_confusion_signal_first_changes_no_action():
+    """The performer node asks the policy for its action probabilities before each step's dialogue;
+    worker processes do not. Both must play the same episode, answers included."""
+    from dialfred_oracle.local import EnvServer
+    from dialfred_questioner.baselines import AllQuestioner, QuestioningAgent
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.episode import play, run
+    from dialfred_sim.tasks.split_files import get_task
+    from dialfred_performer.mapper.agent import MapAgent
+
+    class ProbingFirst(QuestioningAgent):
+        def ask(self, observation):
+            self.performer.action_probabilities(observation)
+            self.performer.action_probabilities(observation)       # twice: still nothing changes
+            return super().ask(observation)
+
+    task = get_task('valid_unseen/000012')
+    env = DialfredEnv(resolution=64, max_steps=30)
+    played = []
+    for agent_type in (QuestioningAgent, ProbingFirst):
+        performer = MapAgent.from_checkpoint(SHIPPED)
+        agent = agent_type(performer, AllQuestioner())
+        actions = []
+        act = agent.act
+        agent.act = lambda obs, act=act, actions=actions: actions.append(act(obs)) or actions[-1]
+        state = run(play(agent, seed=0), EnvServer(env, task))
+        played.append((actions, state.questions, performer.log, sorted(performer.facts)))
+    assert played[0] == played[1]
+    assert played[0][1] >= 3 and played[0][3]           # it asked, and the answers became facts
+
+
 def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
     from dialfred_performer.agent import PerformerAgent
     from dialfred_performer.mapper.agent import MapAgent

@@ -19,11 +19,15 @@ text (a test removes them from every observation and gets the same episode).
 
 `action_probabilities(observation)` is the agent's confusion signal for the model-confusion
 questioner: sure when it acts on what it sees, less so when walking to a mapped place, unsure when
-exploring or lost.
+exploring or lost. It decides on a copy of the plan's state and changes nothing, so that a questioner
+may ask for it before the dialogue of the step: whatever the order of calls, a frame is perceived
+first, then the answers of its step are heard (against the pose the frame was seen from), then the
+action is decided (the performer node and worker processes play the same episode).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import Counter, deque
 from pathlib import Path
@@ -51,6 +55,9 @@ MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the ag
 SCAN_TURNS = 3                   # turns of the first look around
 SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
 REPLAN = 'replan'                # _navigate changed the plan: decide again
+# Attributes a decision reads but never changes (shared with the copy action_probabilities decides on).
+_SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points',
+                     '_pending', '_heard'})
 INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
                 'toggle_off': 'ToggleOff', 'slice': 'Slice'}
 
@@ -115,7 +122,10 @@ class MapAgent:
         self.visits: Counter = Counter()
         self.confidence = EXPLORING
         self.decided = Step('stop')
-        self._pending = None
+        self._observed = None            # (step, id(observation)) of the frame perceived last
+        self._heard: deque[QA] = deque()  # answers not yet taken in (see _observe)
+        self.answers = 0
+        self._pending = None             # (key, answers, twin, outputs) of action_probabilities
         self.log: list[str] = []
 
     def reset(self, task: Any, seed: int = 0) -> None:
@@ -130,7 +140,12 @@ class MapAgent:
             self.plan = deque([Step('stop')])
 
     def hear(self, qa: QA) -> None:
-        """A QA of the dialogue: location, appearance and direction answers become facts."""
+        """A QA of the dialogue: location, appearance and direction answers become facts (taken in
+        when the step's frame has been perceived: `_observe`)."""
+        self._heard.append(qa)
+
+    def _take_in(self, qa: QA) -> None:
+        self.answers += 1
         if not qa.valid:
             return
         fact = parse_answer(qa.question.question_type, qa.answer)
@@ -553,22 +568,42 @@ class MapAgent:
         diff = np.abs((b - bearing + 180.0) % 360.0 - 180.0)
         return diff <= half_width
 
-    def _outputs(self, observation: Any):
+    def _observe(self, observation: Any) -> tuple:
+        """Perceive the frame (once per step), then take in the answers heard since; its key."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, id(observation))
-        if self._pending is not None and self._pending[0] == key:
-            return self._pending[1]
-        self._update(observation)
+        if self._observed != key:
+            self._update(observation)
+            self._observed = key
+        while self._heard:
+            self._take_in(self._heard.popleft())
+        return key
+
+    def _fork(self) -> 'MapAgent':
+        """A copy whose decision changes nothing of this agent's state (the network, the frame's
+        perception and the map's arrays are shared; the map's give-ups are copied)."""
+        twin = copy.copy(self)
+        for name, value in self.__dict__.items():
+            if name not in _SHARED:
+                setattr(twin, name, copy.deepcopy(value))
+        twin.map = copy.copy(self.map)
+        twin.map.excluded = {k: v.copy() for k, v in self.map.excluded.items()}
+        twin.map.blocked, twin.map.visited = set(self.map.blocked), set(self.map.visited)
+        return twin
+
+    def _outputs(self) -> tuple:
         action, r, c, point = self._decide()
-        result = (action, r, c, point, self.confidence)
-        self._pending = (key, result)
-        return result
+        return action, r, c, point, self.confidence
 
     def action_probabilities(self, observation: Any) -> np.ndarray:
         """Probabilities over ACTIONS of the next action: the chosen one gets the agent's confidence,
         the rest is spread over the others (the model-confusion questioner's signal)."""
-        action, _, _, _, confidence = self._outputs(observation)
+        key = self._observe(observation)
+        twin = self._fork()
+        outputs = twin._outputs()
+        self._pending = (key, self.answers, twin, outputs)
+        confidence, action = outputs[4], outputs[0]
         p = np.full(len(ACTIONS), (1.0 - confidence) / (len(ACTIONS) - 1), np.float32)
         p[ACTIONS.index(action)] = confidence
         return p
@@ -580,8 +615,14 @@ class MapAgent:
 
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y) with the pixel in the observation's frame (-1, -1 for moves)."""
-        action, r, c, point, _ = self._outputs(observation)
-        self._pending = None
+        key = self._observe(observation)
+        pending, self._pending = self._pending, None
+        if pending is not None and pending[:2] == (key, self.answers):
+            self.__dict__.update(pending[2].__dict__)       # nothing heard since: that decision stands
+            self._pending = None
+            action, r, c, point, _ = pending[3]
+        else:
+            action, r, c, point, _ = self._outputs()
         x = y = -1
         step = self.decided
         if r >= 0:
