@@ -103,6 +103,17 @@ def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setu
         finetune(config(setup, tmp_path / 'cut', updates=4, resume=True, lr=0.5))
 
 
+def test_the_questioner_fine_tunes_against_the_map_performer_too(setup, tmp_path):
+    from dialfred_performer.model import SHIPPED_CHECKPOINT
+    finetune(config(setup, tmp_path / 'map', performer=str(SHIPPED_CHECKPOINT), model='map', updates=1,
+                    max_steps=12))
+    final = torch.load(tmp_path / 'map' / 'final.pt', weights_only=True)
+    assert final['performer_model'] == 'map' and '--model map' in final['command']
+    line = json.loads((tmp_path / 'map' / 'metrics.jsonl').read_text())
+    assert line['episodes'] == 4 and line['decisions'] >= 4
+    assert not same(final['state_dict'], weights(setup[0]))
+
+
 def test_the_episode_plan_visits_every_task_once_per_pass():
     plan = [p for u in range(5) for p in episode_plan(10, u, 4, seed=1)]
     assert sorted(t for t, _, _ in plan[:10]) == list(range(10)) and sorted(t for t, _, _ in plan[10:20]) == list(range(10))
@@ -119,7 +130,8 @@ def test_the_episode_plan_visits_every_task_once_per_pass():
                                             ({'gamma': 0.0}, 'gamma'), ({'updates': 0}, 'updates'),
                                             ({'baseline': 'mean'}, 'baseline'),
                                             ({'samples_per_task': 1}, 'samples_per_task'),
-                                            ({'episodes_per_update': 10}, 'multiple')])
+                                            ({'episodes_per_update': 10}, 'multiple'),
+                                            ({'model': 'transformer'}, 'model')])
 def test_bad_settings_are_refused(changes, match):
     with pytest.raises(ValueError, match=match):
         FinetuneConfig(**changes)

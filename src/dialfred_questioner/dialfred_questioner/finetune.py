@@ -6,9 +6,11 @@
     python -m dialfred_questioner.finetune --out out/questioner/rl_anytime_1 --gap 1 --rewards fixed_1
     python -m dialfred_questioner.finetune --out out/questioner/rl_mc --timing confusion
     python -m dialfred_questioner.finetune --out ... --perturb-type location       # Table III
+    python -m dialfred_questioner.finetune --out out/questioner/map_rl_anytime --model map   # the map performer
 
 Starts from a pre-trained questioner (`--init`, `pretrain.py`) and plays episodes of `--split`
-(valid_seen, as the paper) in process: `rollout.play` with the shipped performer frozen, the oracle's
+(valid_seen, as the paper) in process: `rollout.play` with the shipped performer frozen (`--model`: the
+Episodic Transformer, or the map-and-plan performer over its perception network), the oracle's
 rules (`dialfred_oracle.local`, with the perturbation if any) and the env at the evaluation's
 resolution, on `--workers` processes. Each update plays `--episodes-per-update` episodes with the
 current policy (sampled with a generator seeded per episode, so the episodes do not depend on the
@@ -44,6 +46,7 @@ import torch
 
 from dialfred_sim.dataclass_cli import arg, config_changes, parse
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
+from dialfred_performer.models import PERFORMER_MODELS
 
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 
@@ -64,6 +67,8 @@ class FinetuneConfig:
 
     init: str = arg(str(PRETRAINED), 'the pre-trained questioner checkpoint to start from')
     performer: str = arg(str(SHIPPED_CHECKPOINT), 'the performer checkpoint (frozen)')
+    model: str = arg('et', 'the performer\'s model, as the performer node\'s `model` parameter: et (the Episodic '
+                           'Transformer of --performer) or map (the map-and-plan performer over its perception network)')
     split: str = arg('valid_seen', 'the split whose tasks are played')
     out: str = arg('out/questioner/rl_anytime', 'folder for metrics.jsonl, curves.png, last.pt, final.pt')
     timing: str = arg('anytime', f'when the questioner may ask: {", ".join(TIMINGS)}')
@@ -94,6 +99,8 @@ class FinetuneConfig:
 
     def __post_init__(self):
         Timing(self.timing, self.gap, self.epsilon)               # ValueError for a bad timing
+        if self.model not in PERFORMER_MODELS:
+            raise ValueError(f'model must be one of {", ".join(PERFORMER_MODELS)}, got {self.model!r}')
         if self.rewards not in REWARDS:
             raise ValueError(f'rewards must be one of {", ".join(REWARDS)}, got {self.rewards!r}')
         if self.perturb_type and self.perturb_type not in QUESTION_TYPES_ASKED:
@@ -146,7 +153,7 @@ _W: dict = {}
 
 def _init_worker(cfg_json: str) -> None:
     from dialfred_oracle.answers import Perturbation
-    from dialfred_performer.agent import PerformerAgent
+    from dialfred_performer.models import load_policy
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
 
@@ -155,7 +162,7 @@ def _init_worker(cfg_json: str) -> None:
     cfg = FinetuneConfig(**json.loads(cfg_json))
     _W['cfg'] = cfg
     _W['env'] = DialfredEnv(resolution=cfg.resolution, max_steps=cfg.max_steps)
-    _W['performer'] = PerformerAgent.from_checkpoint(Path(cfg.performer))
+    _W['performer'] = load_policy(cfg.model, Path(cfg.performer))
     _W['policy'] = LearnedQuestioner.from_checkpoint(Path(cfg.init), greedy=False, timing=cfg.timing_of)
     _W['policy'].reads_dialogue = cfg.dialogue
     _W['tasks'] = [t.task_id for t in load_split(cfg.split)][:cfg.limit or None]
@@ -273,7 +280,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
     model.eval()
     base = read_state(Path(cfg.init))
     _, _, performer_info = load_checkpoint(Path(cfg.performer))
-    performer_info = dict(performer_info, path=str(cfg.performer))
+    performer_info = dict(performer_info, path=str(cfg.performer), model=cfg.model)
     if base.get('performer') and Path(base['performer']).name != Path(cfg.performer).name:
         print(f'note: {cfg.init} was pre-trained with the visual encoder of {base["performer"]}, '
               f'fine-tuned here against {cfg.performer}', file=sys.stderr)

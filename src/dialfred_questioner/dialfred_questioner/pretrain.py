@@ -88,6 +88,7 @@ def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, p
              'vocab': vocab.to_json(), 'state_dict': model.state_dict(), 'visual': visual_state,
              'visual_resolution': performer_info['config'].resolution,
              'visual_config': dataclasses.asdict(performer_info['config']), 'performer': performer_info['path'],
+             'performer_model': performer_info.get('model', 'et'),
              'timing': timing, 'reads_dialogue': reads_dialogue, 'git_commit': commit, 'command': command_line(module, cfg), 'extra': extra or {}}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + '.tmp')

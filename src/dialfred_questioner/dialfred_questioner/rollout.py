@@ -5,6 +5,8 @@ rollouts (the paper's MDP, "Questioner fine-tuning using RL").
 task, and before each performer action where `timing` gives the questioner a chance, asks `policy`
 for a question or none; the in-process oracle (`dialfred_oracle.local.answer_now`, the node's rules)
 answers and the performer hears it, as the graph does through `/questioner/ask` and `/oracle/answer`.
+The performer is handed the observation as the graph's Observation carries it (the RGB frame and
+whether the last action succeeded, which the map performer dead-reckons from).
 Each chance is a `Decision` with its reward (`rl.Rewards`: the question's cost, the performer steps
 until the next chance, the success bonus at the end; steps before the first chance, which only the
 confusion timing can have, are charged to nobody), and `record`: whatever the policy returned to
@@ -106,7 +108,7 @@ class RolloutAgent(EpisodeObserver):
         if self.had_chance:
             return None
         self.had_chance = True
-        if not self.timing.chance(episode.steps, self.performer, observation['rgb']):
+        if not self.timing.chance(episode.steps, self.performer, observation):
             return None
         if episode.decisions:
             episode.decisions[-1].reward += self.rewards.step * self.steps_since
@@ -126,7 +128,7 @@ class RolloutAgent(EpisodeObserver):
 
     def act(self, observation):
         self.had_chance = False
-        return self.performer.act(observation['rgb'])
+        return self.performer.act(observation)
 
     def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
         self.episode.steps += 1
