@@ -82,7 +82,7 @@ def spread(values: list) -> dict:
 
 def markdown(result: dict) -> str:
     lines = [f'Split {result["split"]}, {result["episodes"]} episodes per evaluation; performer and pre-trained '
-             'questioner fixed (shipped); RL draws: the shipped checkpoint and the fine-tunings of `--seeds`. '
+             f'questioner fixed (shipped; the performer\'s weights sha256 {result.get("performer_sha256", "?")}); RL draws: the shipped checkpoint and the fine-tunings of `--seeds`. '
              'Command: `./dialfred env python scripts/seed_study.py '
              + ' '.join(result['argv']) + '`.', '',
              '| setting | draw | SR | PWSR | NQ |', '|---|---|---|---|---|']
@@ -133,7 +133,9 @@ def main(argv=None) -> int:
     if args.random_seeds:
         draws['random_qa'] = {f'eval seed {s}': evaluate(f'random_qa_e{s}', 'random', args.split, s, limit,
                                                          args.workers, out, progress) for s in args.random_seeds}
-    result = {'split': args.split, 'episodes': next(iter(next(iter(draws.values())).values()))['n'],
+    from dialfred_bringup.reproduce import weights_sha256
+    from dialfred_performer.model import SHIPPED_CHECKPOINT
+    result = {'split': args.split, 'performer_sha256': weights_sha256(SHIPPED_CHECKPOINT)[:12], 'episodes': next(iter(next(iter(draws.values())).values()))['n'],
               'argv': list(argv if argv is not None else sys.argv[1:]), 'draws': draws,
               'spread': {name: {m: spread([r[m] for r in d.values()]) for m in ('SR', 'NQ')}
                          for name, d in draws.items()}}
