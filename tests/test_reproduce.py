@@ -88,6 +88,9 @@ def test_the_doc_has_every_table_row_and_the_plot(first):
         assert f'| {name} | 8 |' in doc
     for name in reproduce.EXTRA.values():
         assert f'| {name} | 8 |' in doc
+    assert '## Beyond the paper: the map-and-plan performer' in doc
+    for name, _ in reproduce.MAP_ROWS.values():
+        assert f'\n| {name} | 8 |' in doc
     assert 'no results' not in doc and 'not recorded' not in doc
     assert doc.count('**holds**') + doc.count('**does not hold**') >= 8
     png = out / 'sr_nq.png'
@@ -175,6 +178,18 @@ def test_the_weights_digest_reads_tensors_not_provenance(tmp_path):
     (tmp_path / 'e.pt').write_bytes(b'not a checkpoint')
     with pytest.raises(ValueError, match='not a checkpoint'):
         reproduce.weights_sha256(tmp_path / 'e.pt')
+
+
+def test_the_map_performers_settings_play_the_map_model_with_its_own_rl_questioner():
+    plan = reproduce.Plan(reproduce.ReproduceConfig(out='/tmp/unused-run'))
+    mapped = {s.key: s for s in reproduce.settings() if s.performer == 'map'}
+    assert set(mapped) == set(reproduce.MAP_ROWS) and all(s.split == 'valid_unseen' for s in mapped.values())
+    assert reproduce.RL_RUNS['map_rl_anytime']['model'] == 'map'
+    local = plan.eval_config(mapped['map_rl_anytime'])
+    assert local.agent == 'map' and local.questioner.endswith('map_rl_anytime/final.pt')
+    graph = plan.eval_config(mapped['map_all_qas'], check=True)
+    assert graph.performer == 'map' and graph.questioner == 'all'
+    assert plan.eval_config(reproduce.settings()[0]).agent == 'et'
 
 
 def test_bad_settings_are_refused():

@@ -17,8 +17,8 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
-| rl | 9 RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training) | `questioner/<name>/final.pt` |
-| eval | every setting of the tables (`dialfred_bringup.evaluation.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_bringup.local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| rl | the RL fine-tunings (`dialfred_questioner.finetune` on valid_seen): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training); beyond the paper rl_anytime_no_dialogue (the instruction only) and map_rl_anytime (against the map-and-plan performer, `--model map`) | `questioner/<name>/final.pt` |
+| eval | every setting of the tables, the map-and-plan performer's three among them (`dialfred_bringup.evaluation.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_bringup.local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
 | check | the first `--check-tasks` tasks of every setting played again through the ROS graph (performer, questioner, oracle and simulator nodes) and compared with the eval stage's episodes field by field (wall time aside); mismatches are listed in the document, not hidden | `check/<split>_<setting>.jsonl`, `check/report.json` |
 | doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`, its plot beside it: `sr_nq.png`, or `<stem>_sr_nq.png` for a doc of another name) |
 
@@ -60,11 +60,11 @@ from typing import Optional
 from dialfred_sim.dataclass_cli import parse
 
 from .document import copy_doc, draw_frontier, render, why_lines, write_outputs
-from .plan import (EXTRA, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,
+from .plan import (EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,
                    SPLITS, STAGES, Plan, ReproduceConfig, Setting, settings, weights_sha256)
 from .stages import Runner
 
-__all__ = ['EXTRA', 'PAPER_T2', 'PAPER_T3', 'PAPER_T4', 'PERTURB_PROBABILITY', 'RESOLUTION', 'RL_RUNS',
+__all__ = ['EXTRA', 'MAP_ROWS', 'PAPER_T2', 'PAPER_T3', 'PAPER_T4', 'PERTURB_PROBABILITY', 'RESOLUTION', 'RL_RUNS',
            'SHIPPED_QUESTIONERS', 'SPLITS', 'STAGES', 'Plan', 'ReproduceConfig', 'Runner', 'Setting', 'copy_doc',
            'draw_frontier', 'main', 'render', 'settings', 'weights_sha256', 'why_lines', 'write_outputs']
 

@@ -14,7 +14,7 @@ from ..paths import REPO
 
 
 from ..report_page import environment
-from .plan import (TRAINING, weights_sha256, EXTRA, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SPLITS, STAGES, Setting, settings)
+from .plan import (TRAINING, weights_sha256, EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SPLITS, STAGES, Setting, settings)
 
 
 # --------------------------------------------------------------------------------------------- the report
@@ -360,7 +360,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
         if perf.exists() else f'- performer: `{_relative(perf)}` (absent)',
         '- questioners: ' + ('the shipped checkpoints in `' + _relative(SHIPPED_QUESTIONERS) + '/`' if cfg.shipped
                              else f'fine-tuned by the rl stage in `{_relative(plan.run / "questioner")}/`') + ', played greedily',
-        f'- evaluation: `et` performer at {RESOLUTION} px, played {through}, seed {cfg.seed}, '
+        f'- evaluation: the `et` performer (the map performer\'s table: `map`, over the same perception network) at {RESOLUTION} px, played {through}, seed {cfg.seed}, '
         + (f'the first {plan.eval_limit} tasks of each split' if plan.eval_limit else 'every task of each split')
         + f'; perturbed oracle: one type\'s answers withheld with probability {PERTURB_PROBABILITY}',
         check_line(plan),
@@ -380,6 +380,12 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
         extra.append(f'| {name} | {_n(r)} | {_v(r, "SR")} | {_v(r, "PWSR")} | {_v(r, "NQ")} | {r["repeats"]:.3f} | '
                      + ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' |' if r.get('n')
                      else f'| {name} | 0 | no results | | | |  | | |')
+    map_rows = []
+    for key, (name, et_key) in MAP_ROWS.items():
+        r, e = rows[('valid_unseen', key)], rows[('valid_unseen', et_key)]
+        gain = f'{r["SR"] - e["SR"]:+.1f}' if r.get('n') and e.get('n') else ''
+        map_rows.append([name, _n(r), _v(r, 'SR'), _v(r, 'PWSR'), _v(r, 'NQ'),
+                         f'{e["SR"]:.1f}' if e.get('n') else 'no results', f'{e["NQ"]:.2f}' if e.get('n') else '', gain])
     returns = [[setting_name(key), split, r['n'], f'{r["SR"]:.1f}', f'{r["NQ"]:.2f}', f'{r["steps"]:.1f}',
                 f'{r["return"]:+.4f}', f'{r["return_fixed_1"]:+.4f}']
                for split in SPLITS for key in RETURN_ROWS for r in [rows.get((split, key), {})] if r.get('n')]
@@ -405,6 +411,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     return environment().get_template('results.md.j2').render(
         command='./dialfred reproduce' + (f' {mode}' if mode else ''), eval_dir=_relative(plan.eval_dir),
         quick=cfg.quick, settings=settings, table2=table2, table3=table3, table4=table4, extra=extra, returns=returns,
+        map_rows=map_rows,
         plot_name=plot_name, holds=what_holds(rows), why=why_lines(plan, rows), asked=asked, examples=examples,
         times=times)
 
@@ -413,7 +420,8 @@ def setting_name(key: str) -> str:
     """A setting's name in the plot and the returns table (the paper's where it has one)."""
     names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
              **{k: v[0] for k, v in PAPER_T4.items()}, 'pretrained': 'Pre-trained only',
-             'rl_anytime_no_dialogue': 'RL anytime, instruction only'}
+             'rl_anytime_no_dialogue': 'RL anytime, instruction only',
+             **{k: f'Map performer: {name}' for k, (name, _) in MAP_ROWS.items()}}
     return names[key]
 
 

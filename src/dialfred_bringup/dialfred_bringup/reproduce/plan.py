@@ -35,6 +35,8 @@ RL_RUNS = {
     **{f'rl_anytime_withhold_{t}': dict(timing='anytime', gap=5, perturb_type=t) for t in QUESTION_TYPES},
     # Beyond the paper: RL anytime reading the instruction only, as the original questioner did (ablation).
     'rl_anytime_no_dialogue': dict(timing='anytime', gap=5, dialogue=False),
+    # Beyond the paper: RL anytime fine-tuned against the map-and-plan performer (over the same perception).
+    'map_rl_anytime': dict(timing='anytime', gap=5, model='map'),
 }
 # The rows of the returns table (both splits where the setting was evaluated there).
 RETURN_ROWS = ('instruction_only', 'all_qas', 'random_qa', 'random_mc', 'pretrained', 'rl_begin', 'rl_anytime',
@@ -44,6 +46,14 @@ EXTRA = {
     'pretrained': 'Pre-trained only (no RL; asks at the start)',
     'rl_anytime': 'RL anytime (reads the dialogue so far)',
     'rl_anytime_no_dialogue': 'RL anytime, instruction only (the original\'s input)',
+}
+
+# Beyond the paper: the map-and-plan performer's settings (valid_unseen), each beside the Episodic
+# Transformer's setting of the same questioner: {key: (name, the E.T. setting's key)}.
+MAP_ROWS = {
+    'map_instruction_only': ('Instruction only', 'instruction_only'),
+    'map_all_qas': ('All QAs', 'all_qas'),
+    'map_rl_anytime': ('RL anytime', 'rl_anytime'),
 }
 
 # The paper's numbers. Table II rows 1-4 come from dialfred_bringup/baselines.py; rows 5-6 here.
@@ -83,6 +93,7 @@ class Setting:
     split: str
     questioner: str   # '' = none; a dialfred_questioner baseline; or 'rl:<run>' (an RL run's checkpoint)
     perturb_type: str = ''
+    performer: str = 'et'   # the performer's model (dialfred_performer.models): et or map
 
 
 def settings() -> list[Setting]:
@@ -97,6 +108,9 @@ def settings() -> list[Setting]:
         out.append(Setting(f'random_qa_withhold_{t}', 'valid_unseen', 'random', t))
     for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue'):
         out.append(Setting(run, 'valid_unseen', f'rl:{run}'))
+    questioners = {'instruction_only': '', 'all_qas': 'all', 'rl_anytime': 'rl:map_rl_anytime'}
+    for key, (_, et_key) in MAP_ROWS.items():
+        out.append(Setting(key, 'valid_unseen', questioners[et_key], performer='map'))
     return out
 
 
@@ -258,7 +272,8 @@ class Plan:
         limit = self.check_tasks if check else self.eval_limit or None
         if check and self.eval_limit:
             limit = min(limit, self.eval_limit)
-        return EvalConfig(split=s.split, agent='et', performer='et' if path == 'graph' else '', local=path == 'local',
+        return EvalConfig(split=s.split, agent=s.performer, performer=s.performer if path == 'graph' else '',
+                          local=path == 'local',
                           questioner=questioner, perturb_type=s.perturb_type,
                           perturb_probability=PERTURB_PROBABILITY, limit=limit,
                           workers=self.cfg.workers,

@@ -48,6 +48,7 @@ def code_hash(paths: tuple[str, ...]) -> str:
 PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_questioner/dialfred_questioner', \
     'src/dialfred_sim/dialfred_sim'
 UP = 'src/dialfred_bringup/dialfred_bringup'
+MAPPER = tuple(f'{PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map'))
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -57,9 +58,10 @@ CODE = {
     'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
-    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py'),
+    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py',
+           f'{PERF}/models.py', *MAPPER),
     'eval': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py', f'{QUES}/policy.py',
-             f'{PERF}/agent.py', f'{SIM}/metrics.py'),
+             f'{PERF}/agent.py', f'{SIM}/metrics.py', f'{PERF}/models.py', *MAPPER),
     'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
     'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
