@@ -3,9 +3,9 @@
     ./dialfred env python -m dialfred_bringup.reproduce.ship [--run out/reproduce] [--dry-run]
 
 The run's performer (`performer/best.pt`) becomes `dialfred_performer/checkpoints/et.pt`, and its
-pre-trained and nine RL questioners become `dialfred_questioner/checkpoints/<name>.pt`. The questioners
+pre-trained and RL questioners become `dialfred_questioner/checkpoints/<name>.pt`. The questioners
 were trained with a frozen copy of the performer's frame encoder; the shipped files name et.pt instead of
-carrying that copy ten times (`dialfred_questioner.policy.share_visual`, checked by weights digest on
+carrying that copy in every file (`dialfred_questioner.policy.share_visual`, checked by weights digest on
 every load), which keeps the shipped checkpoints small. Nothing is written unless every model of the
 run is there, and each of its stamps says done. Prints one JSON line: each file and its size.
 """
