@@ -31,6 +31,7 @@ EXPECTED = {
     'rl-anytime-withhold-appearance': (('--perturb-type appearance',), 'anytime', 5, True),
     'rl-anytime-withhold-direction': (('--perturb-type direction',), 'anytime', 5, True),
     'rl-anytime-no-dialogue': (('--no-dialogue',), 'anytime', 5, False),
+    'map-rl-anytime': (('--timing anytime', '--gap 5', '--model map'), 'anytime', 5, True),
 }
 
 
