@@ -172,6 +172,24 @@ def test_asking_for_the_confusion_signal_first_changes_no_action():
     assert played[0][1] >= 3 and played[0][3]           # it asked, and the answers became facts
 
 
+def test_the_shipped_wide_perception_network_says_how_it_was_made_and_drives_the_map_performer():
+    import torch
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.perception import load_perception
+    path = SHIPPED.with_name('perception_wide.pt')
+    assert path.stat().st_size <= 3 * 1024 * 1024
+    net, extra = load_perception(path)
+    c = net.config
+    assert (c.resolution, c.c1, c.c2, c.c3, c.decoder) == (64, 32, 64, 128, 48)
+    for words in ('dialfred_performer.perception', '--frames 400000', '--small-objects 0.5', '--seed 0'):
+        assert words in extra['command']
+    assert extra['val']['object_accuracy'] > 0.9
+    agent = MapAgent.from_checkpoint(path)
+    rgb = np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8)
+    labels, conf, depth = agent.perceive(rgb)
+    assert labels.shape == conf.shape == depth.shape == (32, 32) and torch.isfinite(torch.from_numpy(depth)).all()
+
+
 def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
     from dialfred_performer.agent import PerformerAgent
     from dialfred_performer.mapper.agent import MapAgent
