@@ -381,7 +381,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
                      + ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' |' if r.get('n')
                      else f'| {name} | 0 | no results | | | |  | | |')
     map_rows = []
-    for key, (name, et_key) in MAP_ROWS.items():
+    for key, (name, et_key, _) in MAP_ROWS.items():
         r, e = rows[('valid_unseen', key)], rows[('valid_unseen', et_key)]
         gain = f'{r["SR"] - e["SR"]:+.1f}' if r.get('n') and e.get('n') else ''
         map_rows.append([name, _n(r), _v(r, 'SR'), _v(r, 'PWSR'), _v(r, 'NQ'),
@@ -421,7 +421,7 @@ def setting_name(key: str) -> str:
     names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
              **{k: v[0] for k, v in PAPER_T4.items()}, 'pretrained': 'Pre-trained only',
              'rl_anytime_no_dialogue': 'RL anytime, instruction only',
-             **{k: f'Map performer: {name}' for k, (name, _) in MAP_ROWS.items()}}
+             **{k: f'Map performer: {name}' for k, (name, *_) in MAP_ROWS.items()}}
     return names[key]
 
 

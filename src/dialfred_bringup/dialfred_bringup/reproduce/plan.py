@@ -49,11 +49,11 @@ EXTRA = {
 }
 
 # Beyond the paper: the map-and-plan performer's settings (valid_unseen), each beside the Episodic
-# Transformer's setting of the same questioner: {key: (name, the E.T. setting's key)}.
+# Transformer's setting of the same questioner: {key: (name, the E.T. setting's key, questioner)}.
 MAP_ROWS = {
-    'map_instruction_only': ('Instruction only', 'instruction_only'),
-    'map_all_qas': ('All QAs', 'all_qas'),
-    'map_rl_anytime': ('RL anytime', 'rl_anytime'),
+    'map_instruction_only': ('Instruction only', 'instruction_only', ''),
+    'map_all_qas': ('All QAs', 'all_qas', 'all'),
+    'map_rl_anytime': ('RL anytime', 'rl_anytime', 'rl:map_rl_anytime'),
 }
 
 # The paper's numbers. Table II rows 1-4 come from dialfred_bringup/baselines.py; rows 5-6 here.
@@ -108,9 +108,8 @@ def settings() -> list[Setting]:
         out.append(Setting(f'random_qa_withhold_{t}', 'valid_unseen', 'random', t))
     for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue'):
         out.append(Setting(run, 'valid_unseen', f'rl:{run}'))
-    questioners = {'instruction_only': '', 'all_qas': 'all', 'rl_anytime': 'rl:map_rl_anytime'}
-    for key, (_, et_key) in MAP_ROWS.items():
-        out.append(Setting(key, 'valid_unseen', questioners[et_key], performer='map'))
+    for key, (_, _, questioner) in MAP_ROWS.items():
+        out.append(Setting(key, 'valid_unseen', questioner, performer='map'))
     return out
 
 
