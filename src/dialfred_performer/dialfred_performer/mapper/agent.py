@@ -616,13 +616,13 @@ class MapAgent:
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y) with the pixel in the observation's frame (-1, -1 for moves)."""
         key = self._observe(observation)
-        pending, self._pending = self._pending, None
+        pending = self._pending
         if pending is not None and pending[:2] == (key, self.answers):
-            self.__dict__.update(pending[2].__dict__)       # nothing heard since: that decision stands
-            self._pending = None
+            self.__dict__.update(vars(pending[2]))          # nothing heard since: that decision stands
             action, r, c, point, _ = pending[3]
         else:
             action, r, c, point, _ = self._outputs()
+        self._pending = None
         x = y = -1
         step = self.decided
         if r >= 0:
