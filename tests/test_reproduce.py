@@ -304,3 +304,22 @@ def test_where_the_document_is_copied():
     assert reproduce.ReproduceConfig(out='out/reproduce_b').doc_target is None           # a second run
     assert reproduce.ReproduceConfig(out='out/reproduce_b', doc='x/r.md').doc_target == ROOT / 'x' / 'r.md'
     assert reproduce.ReproduceConfig(doc='none').doc_target is None
+
+
+def test_the_full_run_trains_the_shipped_wide_perception_network_with_its_recorded_command():
+    from dialfred_performer.perception import PerceptionConfig, load_perception
+    from dialfred_bringup.paths import REPO
+    shipped = REPO / 'src/dialfred_performer/dialfred_performer/checkpoints/perception_wide.pt'
+    recorded = load_perception(shipped)[1]['command'].split()
+    planned = PerceptionConfig(**reproduce.Plan(reproduce.ReproduceConfig()).perception_config())
+    for field in ('c1', 'c2', 'c3', 'decoder', 'frames', 'batch_size', 'lr', 'small_objects', 'object_weight',
+                  'val_fraction', 'seed', 'threads'):
+        flag = '--' + field.replace('_', '-')
+        assert type(getattr(planned, field))(recorded[recorded.index(flag) + 1]) == getattr(planned, field), field
+
+
+def test_the_rl_and_eval_stages_rerun_when_the_perception_code_changes():
+    from dialfred_bringup.reproduce.stages import CODE
+    for stage in ('rl', 'eval'):
+        assert {'src/dialfred_performer/dialfred_performer/perception.py',
+                'src/dialfred_performer/dialfred_performer/preprocess.py'} <= set(CODE[stage])

@@ -22,6 +22,10 @@ SPLITS = ('valid_seen', 'valid_unseen')
 PERTURB_PROBABILITY = 0.5
 SHIPPED_QUESTIONERS = REPO / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
 RESOLUTION = 64
+# The perception network (PerceptionConfig fields): wider than PerceptionNetConfig's defaults, trained on more
+# frames, with small objects' cells weighted up. Against the defaults at 250,000 frames it labels 38.9% of
+# pickupable objects' cells with their type (26.0%), 91.1% of held-out object cells (86.2%).
+PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_objects=0.5)
 # The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch, 41 min on 2 cores.
 PERFORMER_UPDATES = 12_000
 
@@ -198,7 +202,7 @@ class Plan:
 
     def perception_config(self) -> dict:
         base = dict(demonstrations=str(self.demos), out=str(self.perception_dir), seed=self.cfg.seed,
-                    progress=self.cfg.progress)
+                    progress=self.cfg.progress, **PERCEPTION)
         if self.cfg.quick:
             base.update(frames=512, batch_size=16, val_frames=64, validate_every=16, threads=1,
                         c1=8, c2=16, c3=16, decoder=8)

@@ -49,6 +49,10 @@ PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_que
     'src/dialfred_sim/dialfred_sim'
 UP = 'src/dialfred_bringup/dialfred_bringup'
 MAPPER = tuple(f'{PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map'))
+# What plays the performer in an episode (the rl and eval stages): both models, over the perception network.
+AGENT = (f'{PERF}/agent.py', f'{PERF}/models.py', f'{PERF}/model.py', f'{PERF}/preprocess.py', f'{PERF}/perception.py',
+         *(f'{PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
+                                                'heads')), *MAPPER)
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -59,9 +63,9 @@ CODE = {
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py',
-           f'{PERF}/models.py', *MAPPER),
-    'eval': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py', f'{QUES}/policy.py',
-             f'{PERF}/agent.py', f'{SIM}/metrics.py', f'{PERF}/models.py', *MAPPER),
+           *AGENT),
+    'eval': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py',
+             f'{QUES}/policy.py', f'{SIM}/metrics.py', *AGENT),
     'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
     'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
