@@ -134,13 +134,18 @@ def test_an_eval_config_round_trips_through_the_launcher_command_line(tmp_path):
     assert eval_config(launcher_parser().parse_args(['eval', *to_argv(config)])) == config
 
 
-def test_the_et_performer_defaults_to_its_checkpoints_resolution_other_agents_to_128():
+def test_the_et_performer_defaults_to_its_checkpoints_resolution_the_map_performer_and_others_to_128():
     from dialfred_bringup.evaluation import DEFAULT_RESOLUTION, EvalConfig
     from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
     shipped = int(load_checkpoint(SHIPPED_CHECKPOINT)[0].config.resolution)
     assert EvalConfig(agent='et').resolution == shipped == EvalConfig(performer='et').resolution
     assert EvalConfig(agent='random').resolution == DEFAULT_RESOLUTION == 128
     assert EvalConfig(agent='et', resolution=32).resolution == 32
+    # the map performer plays at its own camera (128 px, area-averaged to its 64 px network), whatever file
+    from dialfred_performer.models import MAP_CAMERA
+    assert EvalConfig(agent='map').resolution == EvalConfig(performer='map').resolution == MAP_CAMERA == 128
+    wide = Path(SHIPPED_CHECKPOINT).with_name('perception_wide.pt')
+    assert EvalConfig(agent='map', checkpoint=wide).resolution == MAP_CAMERA
 
 
 def test_the_option_tables_of_the_docs_are_made_from_the_dataclasses():

@@ -323,3 +323,44 @@ def test_the_rl_and_eval_stages_rerun_when_the_perception_code_changes():
     for stage in ('rl', 'eval'):
         assert {'src/dialfred_performer/dialfred_performer/perception.py',
                 'src/dialfred_performer/dialfred_performer/preprocess.py'} <= set(CODE[stage])
+
+
+def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
+    runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
+    ran = []
+
+    def item(name, inputs, fail=False):
+        out = tmp_path / name
+        def action(resume):
+            ran.append((name, resume))
+            out.mkdir(exist_ok=True)
+            (out / 'part').write_text('x')
+            if fail:
+                raise KeyboardInterrupt
+            return {'made': name}
+        return runner.run_item('rl', name, inputs, [out], action)
+
+    assert item('a', {'lr': 1})['reused'] is False and item('b', {'lr': 1})['reused'] is False
+    again = item('a', {'lr': 1})
+    assert again['reused'] is True and again['made'] == 'a' and ran == [('a', False), ('b', False)]
+    (tmp_path / 'b' / 'stale').write_text('old')
+    assert item('b', {'lr': 2})['reused'] is False              # its inputs changed: cleared and rerun
+    assert not (tmp_path / 'b' / 'stale').exists() and ran[-1] == ('b', False)
+    with pytest.raises(KeyboardInterrupt):
+        item('c', {'lr': 1}, fail=True)
+    assert item('c', {'lr': 1})['reused'] is False and ran[-1] == ('c', True)   # cut off: resumed, not cleared
+    assert (tmp_path / 'run' / 'stamps' / 'rl' / 'c.json').exists()
+
+
+def test_the_run_times_count_the_reused_items_time(tmp_path):
+    from dialfred_bringup.reproduce.document import run_times
+    plan = reproduce.Plan(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
+    stamps = tmp_path / 'run' / 'stamps'
+    stamps.mkdir(parents=True)
+    (stamps / 'perception.json').write_text(json.dumps({'seconds': 100.0}))
+    (stamps / 'rl.json').write_text(json.dumps({'seconds': 50.0, 'report': {'items': {
+        'a': {'seconds': 40.0, 'reused': False}, 'b': {'seconds': 300.0, 'reused': True}}}}))
+    times = run_times(plan)
+    assert 'perception: 100 s' in times
+    assert 'rl: 350 s (1 of its 2 items done by an earlier run of the same inputs, their time included)' in times
+    assert 'demos: not run here' in times and times[-1] == 'total of the stages: 7.5 min'

@@ -34,10 +34,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_performer.models import PERFORMER_MODELS, load_policy
+from dialfred_performer.models import PERFORMER_MODELS, camera_resolution, load_policy
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
-from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the et performer (its checkpoint's)
+from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
 from dialfred_sim.metrics import ResultsFileError
 from dialfred_sim.protocol import QUESTION_TYPES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
@@ -122,7 +122,8 @@ class EvalConfig:
                               metavar='PATH')
     seed: int = arg(0, 'the run\'s seed: episode k of the split is seeded with (seed, k)')
     resolution: Optional[int] = arg(None, 'camera pixels (none: for the et performer, the resolution its checkpoint '
-                                    'was trained at, 64 for the shipped one; else 128)', metavar='PIXELS')
+                                    'was trained at, 64 for the shipped one; for the map performer and other '
+                                    'agents 128)', metavar='PIXELS')
     request_timeout: float = arg(120.0, 'seconds one reset or step may take before the run gives up')
     episode_timeout: float = arg(1800.0, 'seconds one RunTask goal (--performer et) may take before it is cancelled')
     max_restarts: int = arg(3, 'a worker whose node dies or stops answering has its nodes restarted and its '
@@ -467,15 +468,15 @@ def print_report(report: EvalReport) -> None:
 
 
 def default_resolution(config: EvalConfig) -> int:
-    """The et performer's training resolution (its checkpoint's: a frame of another size would be
-    resized by area averaging, which is not the rendering it learned from); 128 for other agents. An
-    unreadable checkpoint: 128, and check() says why."""
-    if config.agent not in PERFORMER_MODELS and config.performer not in PERFORMER_MODELS:
+    """The camera of the performer model played (dialfred_performer.models.camera_resolution: the et
+    performer's training resolution, 128 for the map performer); 128 for other agents. An unreadable
+    checkpoint: 128, and check() says why."""
+    model = config.agent if config.agent in PERFORMER_MODELS else config.performer
+    if model not in PERFORMER_MODELS:
         return DEFAULT_RESOLUTION
-    from dialfred_performer.model import CheckpointError, load_checkpoint
     try:
-        return int(load_checkpoint(config.checkpoint_path)[0].config.resolution)
-    except (FileNotFoundError, CheckpointError):
+        return camera_resolution(model, config.checkpoint_path)
+    except (FileNotFoundError, ValueError):
         return DEFAULT_RESOLUTION
 
 

@@ -89,7 +89,8 @@ class FinetuneConfig:
     entropy: float = arg(0.01, 'entropy bonus weight')
     value_weight: float = arg(0.5, 'critic loss weight')
     grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
-    resolution: int = arg(64, 'the env\'s frames (the evaluation\'s: the performer is trained at 64 px)')
+    resolution: int = arg(0, "the env's frames (0: the performer model's camera, as the evaluation plays it: the et "
+                             "performer's training resolution, 128 px for the map performer)")
     max_steps: int = arg(1000, 'performer steps before an episode is cut off (the evaluation\'s limit)')
     limit: int = arg(0, 'only the first N tasks of the split (0: all)')
     workers: int = arg(2, 'rollout processes')
@@ -114,10 +115,10 @@ class FinetuneConfig:
         if self.samples_per_task < 1 or self.episodes_per_update % self.samples_per_task:
             raise ValueError(f'episodes_per_update ({self.episodes_per_update}) must be a multiple of '
                              f'samples_per_task ({self.samples_per_task})')
-        for name in ('updates', 'episodes_per_update', 'workers', 'resolution', 'max_steps'):
+        for name in ('updates', 'episodes_per_update', 'workers', 'max_steps'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
-        for name in ('limit', 'seed', 'entropy', 'value_weight', 'grad_clip'):
+        for name in ('limit', 'seed', 'entropy', 'value_weight', 'grad_clip', 'resolution'):
             if getattr(self, name) < 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
         if not (self.lr > 0 and math.isfinite(self.lr)):
@@ -271,6 +272,9 @@ def finetune(cfg: FinetuneConfig) -> dict:
 
     from .policy import LearnedQuestioner
     from .pretrain import save
+    if not cfg.resolution:
+        from dialfred_performer.models import camera_resolution
+        cfg = dataclasses.replace(cfg, resolution=camera_resolution(cfg.model, Path(cfg.performer)))
     out = Path(cfg.out)
     commit = git_commit()
     torch.set_num_threads(1)

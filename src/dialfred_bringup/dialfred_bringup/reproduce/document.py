@@ -398,22 +398,36 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
                      dialogue=[(question_text(qa['type'], qa['noun']), qa['answer'] if qa['valid'] else '(no answer)')
                                for qa in r.dialogue])
                 for task, base, r in turned_around(rows)]
-    times, total = [], 0.0
-    for stage in STAGES[:-1]:
-        try:
-            s = json.loads((plan.run / 'stamps' / f'{stage}.json').read_text())
-            total += s.get('seconds', 0)
-            runs = s.get('runs', 1)
-            times.append(f'{stage}: {s.get("seconds", 0):.0f} s' + (f' (over {runs} runs: it was resumed)' if runs > 1 else ''))
-        except (OSError, ValueError):
-            times.append(f'{stage}: not run here' + (' (shipped)' if cfg.shipped and stage in TRAINING else ''))
-    times.append(f'total of the stages: {total / 60:.1f} min')
+    times = run_times(plan)
     return environment().get_template('results.md.j2').render(
         command='./dialfred reproduce' + (f' {mode}' if mode else ''), eval_dir=_relative(plan.eval_dir),
         quick=cfg.quick, settings=settings, table2=table2, table3=table3, table4=table4, extra=extra, returns=returns,
         map_rows=map_rows,
         plot_name=plot_name, holds=what_holds(rows), why=why_lines(plan, rows), asked=asked, examples=examples,
         times=times)
+
+
+def run_times(plan: Plan) -> list[str]:
+    """One line per stage with its seconds from its stamp, and the total."""
+    cfg = plan.cfg
+    times, total = [], 0.0
+    for stage in STAGES[:-1]:
+        try:
+            s = json.loads((plan.run / 'stamps' / f'{stage}.json').read_text())
+            items = (s.get('report') or {}).get('items') or {}
+            reused = [i for i in items.values() if i.get('reused')]
+            # an item reused from an earlier run of the same inputs cost its time then
+            seconds = s.get('seconds', 0) + sum(i.get('seconds', 0) for i in reused)
+            total += seconds
+            runs = s.get('runs', 1)
+            notes = ([f'over {runs} runs: it was resumed'] if runs > 1 else []) + \
+                ([f'{len(reused)} of its {len(items)} items done by an earlier run of the same inputs, their '
+                  'time included'] if reused else [])
+            times.append(f'{stage}: {seconds:.0f} s' + (f' ({"; ".join(notes)})' if notes else ''))
+        except (OSError, ValueError):
+            times.append(f'{stage}: not run here' + (' (shipped)' if cfg.shipped and stage in TRAINING else ''))
+    times.append(f'total of the stages: {total / 60:.1f} min')
+    return times
 
 
 def setting_name(key: str) -> str:

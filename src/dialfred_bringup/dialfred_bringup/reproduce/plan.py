@@ -248,10 +248,11 @@ class Plan:
         return base
 
     def rl_config(self, name: str) -> dict:
+        run = RL_RUNS[name]
         base = dict(init=str(self.pretrain_dir / 'best.pt'), performer=str(self.performer_checkpoint),
-                    split='valid_seen', out=str(self.run / 'questioner' / name), resolution=RESOLUTION,
-                    workers=self.cfg.workers, seed=self.cfg.seed, progress=self.cfg.progress,
-                    perturb_probability=PERTURB_PROBABILITY, **RL_RUNS[name])
+                    split='valid_seen', out=str(self.run / 'questioner' / name),
+                    resolution=camera(run.get('model', 'et')), workers=self.cfg.workers, seed=self.cfg.seed,
+                    progress=self.cfg.progress, perturb_probability=PERTURB_PROBABILITY, **run)
         if self.cfg.quick:
             base.update(updates=2, episodes_per_update=8, max_steps=30, limit=16)
         return base
@@ -281,7 +282,7 @@ class Plan:
                           perturb_probability=PERTURB_PROBABILITY, limit=limit,
                           workers=self.cfg.workers,
                           out=(self.check_dir if check else self.eval_dir) / f'{s.split}_{s.key}.jsonl',
-                          seed=self.cfg.seed, resolution=RESOLUTION, checkpoint=self.performer_checkpoint)
+                          seed=self.cfg.seed, resolution=camera(s.performer), checkpoint=self.performer_checkpoint)
 
     def check_settings(self) -> list:
         """The settings the check stage plays through the graph: all of them (quick: the first with a learned
@@ -294,6 +295,13 @@ class Plan:
     def available(self, s: Setting) -> bool:
         """Whether the setting's questioner checkpoint exists (only shipped ones can be missing)."""
         return not s.questioner.startswith('rl:') or self.questioner_checkpoint(s.questioner[3:]).exists()
+
+
+def camera(model: str) -> int:
+    """The camera pixels a performer model plays at (dialfred_performer.models.camera_resolution): the E.T.
+    at the resolution the pipeline trains it at, the map performer at its own camera."""
+    from dialfred_performer.models import MAP_CAMERA
+    return MAP_CAMERA if model == 'map' else RESOLUTION
 
 
 TRAINING = ('demos', 'perception', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')

@@ -37,6 +37,14 @@ def newest_mtime(paths) -> float:
     return max(times)
 
 
+def file_sha256(path: Path) -> str:
+    """The sha256 of a file's bytes ('absent' if there is none)."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except FileNotFoundError:
+        return 'absent'
+
+
 def code_hash(paths: tuple[str, ...]) -> str:
     h = hashlib.sha256()
     for rel in paths:
@@ -86,6 +94,9 @@ def world_code_hash() -> str:
     return code_hash(tuple(files))
 
 
+# Stages of many items (RL runs, evaluation settings) stamped one by one (Runner.run_item): a change to the
+# stage's inputs reruns the items whose own inputs changed, and reuses the others.
+ITEMIZED = ('rl', 'eval')
 UPSTREAM = {
     'demos': (), 'perception': ('demos',), 'performer': ('demos', 'perception'), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
     'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
@@ -160,7 +171,7 @@ class Runner:
             self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
             return
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
-        if not resume:
+        if not resume and stage not in ITEMIZED:
             for path in outputs:
                 if path.is_dir():
                     shutil.rmtree(path)
@@ -256,36 +267,77 @@ class Runner:
         report = self.with_dialogues_env(lambda: pretrain(PretrainConfig(**c, resume=resume)))
         return {k: v for k, v in report.items() if isinstance(v, (int, float, str))}
 
+    def run_item(self, stage: str, item: str, inputs: dict, outputs: list[Path],
+                 action: Callable[[bool], dict]) -> dict:
+        """One RL run or evaluation setting of an itemized stage, stamped on its own (stamps/<stage>/<item>.json)
+        so that a change to one item reruns it alone: reuse it if it was done with these inputs, resume it if it
+        was cut off with them, else clear its outputs and run it. {'seconds', 'reused', **action's report}."""
+        from dialfred_sim.metrics import write_text_atomically
+        stamp = self.stamps_dir / stage / f'{item.replace("/", "_")}.json'
+        digest = sha256_of({'inputs': inputs, 'code': code_hash(CODE[stage])})
+        try:
+            old = json.loads(stamp.read_text())
+        except (OSError, ValueError):
+            old = None
+        if old and old.get('hash') == digest and old.get('status') == 'done':
+            self.log(f'{stage}: {item} reused (done before with the same inputs, {old.get("seconds", 0):.0f} s)')
+            return {**old.get('report', {}), 'seconds': old.get('seconds', 0.0), 'reused': True}
+        resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
+        if not resume:
+            for path in outputs:
+                if path.is_dir():
+                    shutil.rmtree(path)
+                elif path.exists():
+                    path.unlink()
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'running', 'inputs': inputs}, indent=1,
+                                                sort_keys=True, default=str) + '\n')
+        t0 = time.monotonic()
+        report = action(resume) or {}
+        seconds = round(time.monotonic() - t0, 1)
+        write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'done', 'inputs': inputs, 'report': report,
+                                                 'seconds': seconds}, indent=1, sort_keys=True, default=str) + '\n')
+        self.log(f'{stage}: {item} in {seconds:.1f} s')
+        return {**report, 'seconds': seconds, 'reused': False}
+
     def rl(self, resume: bool) -> dict:
         from dialfred_questioner.finetune import FinetuneConfig, finetune
-        out = {}
+        p, items = self.plan, {}
+        performer = file_sha256(p.performer_checkpoint)
         for name in RL_RUNS:
-            c = self.plan.rl_config(name)
+            c = p.rl_config(name)
             folder = Path(c['out'])
-            if (folder / 'final.pt').exists() and resume:
-                self.log(f'rl: {name} done before the cut-off')
-                continue
-            t0 = time.monotonic()
-            report = finetune(FinetuneConfig(**c, resume=resume and (folder / 'last.pt').exists()))
-            out[name] = {'sr': report.get('sr'), 'nq': report.get('nq'), 'seconds': round(time.monotonic() - t0, 1)}
-            self.log(f'rl: {name} in {out[name]["seconds"]:.1f} s (last update: SR {report.get("sr")}, '
-                     f'NQ {report.get("nq")})')
-        return out
+
+            def run(resume: bool, c=c, folder=folder) -> dict:
+                report = finetune(FinetuneConfig(**c, resume=resume and (folder / 'last.pt').exists()))
+                return {'sr': report.get('sr'), 'nq': report.get('nq')}
+            inputs = {'config': c, 'performer': performer, 'init': file_sha256(Path(c['init']))}
+            items[name] = self.run_item('rl', name, inputs, [folder], run)
+        return {'items': items}
 
     def eval(self, resume: bool) -> dict:
         from dialfred_bringup.baselines import run_baseline
-        self.plan.eval_dir.mkdir(parents=True, exist_ok=True)
-        out = {}
+        p, items = self.plan, {}
+        p.eval_dir.mkdir(parents=True, exist_ok=True)
+        performer = file_sha256(p.performer_checkpoint)
         for s in settings():
-            if not self.plan.available(s):
+            if not p.available(s):
                 self.log(f'eval: {s.split} {s.key}: no questioner checkpoint, left out')
                 continue
-            config = self.plan.eval_config(s)
-            t0 = time.monotonic()
-            run_baseline(config, self.cfg.progress)     # run_eval, and its wall time in <results>.runs.jsonl
-            out[f'{s.split}/{s.key}'] = round(time.monotonic() - t0, 1)
-            self.log(f'eval: {s.split} {s.key} in {out[f"{s.split}/{s.key}"]:.1f} s')
-        return {'seconds': out}
+            config = p.eval_config(s)
+            questioner = s.questioner
+            if questioner.startswith('rl:'):
+                questioner = file_sha256(p.questioner_checkpoint(questioner[3:]))
+            inputs = {'setting': dataclasses.asdict(s), 'config': dataclasses.asdict(config), 'performer': performer,
+                      'questioner': questioner}
+            # the results file and its companions (summary, runs, lock, tasks record): <split>_<key>.*
+            outputs = sorted(p.eval_dir.glob(f'{s.split}_{s.key}.*'))
+
+            def run(resume: bool, config=config) -> dict:
+                run_baseline(config, self.cfg.progress)     # resumes a cut-off results file; its wall time in
+                return {}                                   # <results>.runs.jsonl
+            items[f'{s.split}/{s.key}'] = self.run_item('eval', f'{s.split}/{s.key}', inputs, outputs, run)
+        return {'items': items}
 
     def check(self, resume: bool) -> dict:
         """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
