@@ -328,6 +328,7 @@ def test_the_rl_and_eval_stages_rerun_when_the_perception_code_changes():
 def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
     runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
     ran = []
+    code = ('pyproject.toml',)
 
     def item(name, inputs, fail=False):
         out = tmp_path / name
@@ -338,7 +339,7 @@ def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
             if fail:
                 raise KeyboardInterrupt
             return {'made': name}
-        return runner.run_item('rl', name, inputs, [out], action)
+        return runner.run_item('rl', name, inputs, code, [out], action)
 
     assert item('a', {'lr': 1})['reused'] is False and item('b', {'lr': 1})['reused'] is False
     again = item('a', {'lr': 1})
@@ -350,6 +351,17 @@ def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
         item('c', {'lr': 1}, fail=True)
     assert item('c', {'lr': 1})['reused'] is False and ran[-1] == ('c', True)   # cut off: resumed, not cleared
     assert (tmp_path / 'run' / 'stamps' / 'rl' / 'c.json').exists()
+    code = ('pyproject.toml', 'README.md')                      # its code changed: rerun
+    assert item('a', {'lr': 1})['reused'] is False and ran[-1] == ('a', False)
+
+
+def test_the_map_performers_code_reruns_only_its_own_items():
+    from dialfred_bringup.reproduce.stages import CODE, MODEL_CODE
+    mapper = 'src/dialfred_performer/dialfred_performer/mapper/agent.py'
+    assert mapper in MODEL_CODE['map'] and mapper not in MODEL_CODE['et']
+    assert set(MODEL_CODE['et']) < set(MODEL_CODE['map'])
+    for stage in ('rl', 'eval'):
+        assert set(MODEL_CODE['map']) <= set(CODE[stage])
 
 
 def test_the_run_times_count_the_reused_items_time(tmp_path):

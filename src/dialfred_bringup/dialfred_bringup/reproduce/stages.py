@@ -57,10 +57,15 @@ PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_que
     'src/dialfred_sim/dialfred_sim'
 UP = 'src/dialfred_bringup/dialfred_bringup'
 MAPPER = tuple(f'{PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map'))
-# What plays the performer in an episode (the rl and eval stages): both models, over the perception network.
-AGENT = (f'{PERF}/agent.py', f'{PERF}/models.py', f'{PERF}/model.py', f'{PERF}/preprocess.py', f'{PERF}/perception.py',
-         *(f'{PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
-                                                'heads')), *MAPPER)
+# What plays each performer model in an episode: the rl and eval stages' items of that model hash it (the
+# map performer is made from the E.T.'s checkpoint, so its code is the E.T.'s and the mapper's).
+ET_CODE = (f'{PERF}/agent.py', f'{PERF}/models.py', f'{PERF}/model.py', f'{PERF}/preprocess.py', f'{PERF}/perception.py',
+           *(f'{PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
+                                                  'heads')))
+MODEL_CODE = {'et': ET_CODE, 'map': (*ET_CODE, *MAPPER)}
+RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py')
+EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py',
+             f'{QUES}/policy.py', f'{SIM}/metrics.py')
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -70,10 +75,8 @@ CODE = {
     'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
-    'rl': (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py',
-           *AGENT),
-    'eval': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py',
-             f'{QUES}/policy.py', f'{SIM}/metrics.py', *AGENT),
+    'rl': (*RL_CODE, *MODEL_CODE['map']),
+    'eval': (*EVAL_CODE, *MODEL_CODE['map']),
     'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
     'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
@@ -267,14 +270,14 @@ class Runner:
         report = self.with_dialogues_env(lambda: pretrain(PretrainConfig(**c, resume=resume)))
         return {k: v for k, v in report.items() if isinstance(v, (int, float, str))}
 
-    def run_item(self, stage: str, item: str, inputs: dict, outputs: list[Path],
+    def run_item(self, stage: str, item: str, inputs: dict, code: tuple[str, ...], outputs: list[Path],
                  action: Callable[[bool], dict]) -> dict:
         """One RL run or evaluation setting of an itemized stage, stamped on its own (stamps/<stage>/<item>.json)
-        so that a change to one item reruns it alone: reuse it if it was done with these inputs, resume it if it
-        was cut off with them, else clear its outputs and run it. {'seconds', 'reused', **action's report}."""
+        so that a change to one item reruns it alone: reuse it if it was done with these inputs and this code, resume it
+        if it was cut off with them, else clear its outputs and run it. {'seconds', 'reused', **action's report}."""
         from dialfred_sim.metrics import write_text_atomically
         stamp = self.stamps_dir / stage / f'{item.replace("/", "_")}.json'
-        digest = sha256_of({'inputs': inputs, 'code': code_hash(CODE[stage])})
+        digest = sha256_of({'inputs': inputs, 'code': code_hash(code)})
         try:
             old = json.loads(stamp.read_text())
         except (OSError, ValueError):
@@ -312,7 +315,8 @@ class Runner:
                 report = finetune(FinetuneConfig(**c, resume=resume and (folder / 'last.pt').exists()))
                 return {'sr': report.get('sr'), 'nq': report.get('nq')}
             inputs = {'config': c, 'performer': performer, 'init': file_sha256(Path(c['init']))}
-            items[name] = self.run_item('rl', name, inputs, [folder], run)
+            items[name] = self.run_item('rl', name, inputs, (*RL_CODE, *MODEL_CODE[c.get('model', 'et')]), [folder],
+                                        run)
         return {'items': items}
 
     def eval(self, resume: bool) -> dict:
@@ -336,7 +340,8 @@ class Runner:
             def run(resume: bool, config=config) -> dict:
                 run_baseline(config, self.cfg.progress)     # resumes a cut-off results file; its wall time in
                 return {}                                   # <results>.runs.jsonl
-            items[f'{s.split}/{s.key}'] = self.run_item('eval', f'{s.split}/{s.key}', inputs, outputs, run)
+            items[f'{s.split}/{s.key}'] = self.run_item('eval', f'{s.split}/{s.key}', inputs,
+                                                        (*EVAL_CODE, *MODEL_CODE[s.performer]), outputs, run)
         return {'items': items}
 
     def check(self, resume: bool) -> dict:
