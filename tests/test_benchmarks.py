@@ -170,3 +170,20 @@ def test_perception_recall_counts_objects_and_what_it_found():
     report = run_bench('perception_recall', '--every', '400', '--resolution', '64')
     row = report['recall']['64']['all']
     assert row['objects'] >= 1 and 0 <= row['found'] <= row['objects']
+
+
+@pytest.mark.slow   # a benchmark script end to end (replays two map performer episodes)
+def test_map_pickup_failures_classifies_replayed_failures(tmp_path):
+    from dialfred_sim.tasks.split_files import load_split
+    picks = [t for t in load_split('valid_unseen') if t.task_type == 'Pick'][:2]
+    # a synthetic results file: two Pick tasks recorded as failed, for the benchmark to replay
+    row = dict(split='valid_unseen', success=False, goal_conditions_met=0, goal_conditions_total=1, steps=1,
+               expert_length=1, questions=0, failed_actions=0, invalid_questions=0, end_reason='stop', error='',
+               agent='map-test', oracle='', seed=0, wall_s=0.0, privileged=False, dialogue=[])
+    results = tmp_path / 'results.jsonl'
+    results.write_text(''.join(json.dumps({**row, 'task_id': t.task_id, 'task_type': t.task_type}) + '\n'
+                               for t in picks))
+    report = run_bench('map_pickup_failures', str(results), '--questioner', 'none', '--limit', '2', timeout=400)
+    assert report['episodes'] == 2 and sum(report['classes'].values()) == 2
+    assert set(report['classes']) <= {'never_near', 'near_never_labelled', 'labelled'}
+    assert {e['task_id'] for e in report['by_episode']} == {t.task_id for t in picks}
