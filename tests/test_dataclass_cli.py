@@ -158,3 +158,15 @@ def test_the_option_tables_of_the_docs_are_made_from_the_dataclasses():
     assert '<!-- options: dialfred_bringup.evaluation:EvalConfig -->' in (REPO / 'docs' / 'evaluation.md').read_text()
     assert '| `--limit N` | only the first N tasks of the split (none: all) | `none` |' in (
         REPO / 'docs' / 'evaluation.md').read_text()
+
+
+def test_a_resume_counts_a_field_its_saved_config_lacks_as_the_default():
+    from dialfred_sim.dataclass_cli import config_changes
+    from dialfred_questioner.finetune import FinetuneConfig
+    cfg = FinetuneConfig(init='a.pt', out='o')
+    saved = dataclasses.asdict(cfg)
+    del saved['model']                                   # a run started before --model existed
+    assert config_changes(saved, cfg, ()) == {}
+    other = FinetuneConfig(init='a.pt', out='o', model='map')
+    assert config_changes(saved, other, ()) == {'model': ('et', 'map')}
+    assert config_changes({**saved, 'lr': 0.5}, cfg, ('lr',)) == {}

@@ -271,9 +271,12 @@ def command_line(module: str, config) -> str:
 def config_changes(saved: dict, cfg, allowed: Sequence[str]) -> dict:
     """{field: (saved value, value now)} for each field of the dataclass config `cfg` that differs
     from `saved` (the config a run was started with, as a dict), except the fields in `allowed`:
-    what makes a --resume of that run refuse."""
+    what makes a --resume of that run refuse. A field the saved config lacks (the run began before the field
+    existed) counts as its default, the behaviour the run had then."""
     now = dataclasses.asdict(cfg)
-    return {k: (saved.get(k), now[k]) for k in now if k not in allowed and saved.get(k) != now[k]}
+    defaults = {f.name: f.default for f in dataclasses.fields(cfg) if f.default is not dataclasses.MISSING}
+    was = {k: saved.get(k, defaults.get(k)) for k in now}
+    return {k: (was[k], now[k]) for k in now if k not in allowed and was[k] != now[k]}
 
 
 def _markdown_text(text: str) -> str:
