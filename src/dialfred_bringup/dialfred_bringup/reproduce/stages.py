@@ -37,6 +37,15 @@ def newest_mtime(paths) -> float:
     return max(times)
 
 
+def clear(paths) -> None:
+    """Remove these files and folders (those that exist)."""
+    for path in paths:
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+
+
 def file_sha256(path: Path) -> str:
     """The sha256 of a file's bytes ('absent' if there is none)."""
     try:
@@ -175,11 +184,7 @@ class Runner:
             return
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
         if not resume and stage not in ITEMIZED:
-            for path in outputs:
-                if path.is_dir():
-                    shutil.rmtree(path)
-                elif path.exists():
-                    path.unlink()
+            clear(outputs)
         why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
         # A resumed stage's time includes its cut-off runs: each lasted from its start until its
         # outputs were last written (the newest modification time under them).
@@ -287,11 +292,7 @@ class Runner:
             return {**old.get('report', {}), 'seconds': old.get('seconds', 0.0), 'reused': True}
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
         if not resume:
-            for path in outputs:
-                if path.is_dir():
-                    shutil.rmtree(path)
-                elif path.exists():
-                    path.unlink()
+            clear(outputs)
         stamp.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'running', 'inputs': inputs}, indent=1,
                                                 sort_keys=True, default=str) + '\n')
