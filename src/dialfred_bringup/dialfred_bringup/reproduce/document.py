@@ -14,7 +14,7 @@ from ..paths import REPO
 
 
 from ..report_page import environment
-from .plan import (TRAINING, weights_sha256, EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SPLITS, STAGES, Setting, settings)
+from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SPLITS, STAGES, Setting, settings)
 
 
 # --------------------------------------------------------------------------------------------- the report
@@ -360,7 +360,8 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
         if perf.exists() else f'- performer: `{_relative(perf)}` (absent)',
         '- questioners: ' + ('the shipped checkpoints in `' + _relative(SHIPPED_QUESTIONERS) + '/`' if cfg.shipped
                              else f'fine-tuned by the rl stage in `{_relative(plan.run / "questioner")}/`') + ', played greedily',
-        f'- evaluation: the `et` performer (the map performer\'s table: `map`, over the same perception network) at {RESOLUTION} px, played {through}, seed {cfg.seed}, '
+        f'- evaluation: the `et` performer at {camera("et")} px (the map performer\'s table: `map`, over the same '
+        f'perception network, its camera at {camera("map")} px area-averaged to the network\'s {RESOLUTION} px), played {through}, seed {cfg.seed}, '
         + (f'the first {plan.eval_limit} tasks of each split' if plan.eval_limit else 'every task of each split')
         + f'; perturbed oracle: one type\'s answers withheld with probability {PERTURB_PROBABILITY}',
         check_line(plan),
