@@ -190,6 +190,9 @@ def test_the_map_performers_settings_play_the_map_model_with_its_own_rl_question
     graph = plan.eval_config(mapped['map_all_qas'], check=True)
     assert graph.performer == 'map' and graph.questioner == 'all'
     assert plan.eval_config(reproduce.settings()[0]).agent == 'et'
+    # each performer plays at its own camera, in the evaluations, the graph check and the RL run
+    assert local.resolution == graph.resolution == plan.rl_config('map_rl_anytime')['resolution'] == 128
+    assert plan.eval_config(reproduce.settings()[0]).resolution == plan.rl_config('rl_anytime')['resolution'] == 64
 
 
 def test_bad_settings_are_refused():
