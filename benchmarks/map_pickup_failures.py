@@ -39,7 +39,6 @@ def measure(results: Path, checkpoint: Path, questioner: str, limit: int, resolu
     from dialfred_sim.episode import play, run
     from dialfred_sim.metrics import load_results
     from dialfred_sim.protocol import episode_seed
-
     from dialfred_sim.tasks.split_files import load_split
 
     rows = load_results(results)
