@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -338,6 +339,8 @@ def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
         def action(resume):
             ran.append((name, resume))
             out.mkdir(exist_ok=True)
+            if fail:
+                time.sleep(0.3)                                     # the cut-off run's time, up to its last output
             (out / 'part').write_text('x')
             if fail:
                 raise KeyboardInterrupt
@@ -352,8 +355,11 @@ def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
     assert not (tmp_path / 'b' / 'stale').exists() and ran[-1] == ('b', False)
     with pytest.raises(KeyboardInterrupt):
         item('c', {'lr': 1}, fail=True)
-    assert item('c', {'lr': 1})['reused'] is False and ran[-1] == ('c', True)   # cut off: resumed, not cleared
-    assert (tmp_path / 'run' / 'stamps' / 'rl' / 'c.json').exists()
+    resumed = item('c', {'lr': 1})
+    assert resumed['reused'] is False and ran[-1] == ('c', True)   # cut off: resumed, not cleared
+    stamp = json.loads((tmp_path / 'run' / 'stamps' / 'rl' / 'c.json').read_text())
+    assert stamp['runs'] == 2 and stamp['seconds'] >= 0.3 > stamp['seconds_this_run']   # the cut-off run counts
+    assert resumed['seconds'] == stamp['seconds']
     code = ('pyproject.toml', 'README.md')                      # its code changed: rerun
     assert item('a', {'lr': 1})['reused'] is False and ran[-1] == ('a', False)
 

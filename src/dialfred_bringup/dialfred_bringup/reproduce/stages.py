@@ -37,6 +37,13 @@ def newest_mtime(paths) -> float:
     return max(times)
 
 
+def time_before(old: dict, outputs) -> tuple[float, int]:
+    """(seconds, runs) of a cut-off stage or item's earlier runs, from its 'running' stamp: each run lasted
+    from its start until its outputs were last written (the newest modification time under them)."""
+    cut_off = max(0.0, newest_mtime(outputs) - old.get('started_at', time.time()))
+    return old.get('seconds_before', 0.0) + cut_off, old.get('runs', 1) + 1
+
+
 def clear(paths) -> None:
     """Remove these files and folders (those that exist)."""
     for path in paths:
@@ -186,10 +193,7 @@ class Runner:
         if not resume and stage not in ITEMIZED:
             clear(outputs)
         why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
-        # A resumed stage's time includes its cut-off runs: each lasted from its start until its
-        # outputs were last written (the newest modification time under them).
-        before, runs = (old.get('seconds_before', 0.0) + max(0.0, newest_mtime(outputs) - old.get('started_at', time.time())),
-                        old.get('runs', 1) + 1) if resume else (0.0, 1)
+        before, runs = time_before(old, outputs) if resume else (0.0, 1)
         self.log(f'{stage}: running ({why}, {digest[:12]})')
         self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'running', 'inputs': inputs,
                                  'started_at': time.time(), 'seconds_before': round(before, 1), 'runs': runs})
@@ -293,15 +297,19 @@ class Runner:
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
         if not resume:
             clear(outputs)
+        before, runs = time_before(old, outputs) if resume else (0.0, 1)
         stamp.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'running', 'inputs': inputs}, indent=1,
-                                                sort_keys=True, default=str) + '\n')
+        write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'running', 'inputs': inputs,
+                                                 'started_at': time.time(), 'seconds_before': round(before, 1),
+                                                 'runs': runs}, indent=1, sort_keys=True, default=str) + '\n')
         t0 = time.monotonic()
         report = action(resume) or {}
-        seconds = round(time.monotonic() - t0, 1)
+        this_run = time.monotonic() - t0
+        seconds = round(before + this_run, 1)
         write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'done', 'inputs': inputs, 'report': report,
-                                                 'seconds': seconds}, indent=1, sort_keys=True, default=str) + '\n')
-        self.log(f'{stage}: {item} in {seconds:.1f} s')
+                                                 'seconds': seconds, 'seconds_this_run': round(this_run, 1),
+                                                 'runs': runs}, indent=1, sort_keys=True, default=str) + '\n')
+        self.log(f'{stage}: {item} in {this_run:.1f} s' + (f' ({seconds:.1f} s over {runs} runs)' if runs > 1 else ''))
         return {**report, 'seconds': seconds, 'reused': False}
 
     def rl(self, resume: bool) -> dict:
