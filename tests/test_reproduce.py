@@ -383,5 +383,9 @@ def test_the_run_times_count_the_reused_items_time(tmp_path):
         'a': {'seconds': 40.0, 'reused': False}, 'b': {'seconds': 300.0, 'reused': True}}}}))
     times = run_times(plan)
     assert 'perception: 100 s' in times
-    assert 'rl: 350 s (1 of its 2 items done by an earlier run of the same inputs, their time included)' in times
-    assert 'demos: not run here' in times and times[-1] == 'total of the stages: 7.5 min'
+    assert 'rl: 340 s (1 of its 2 items done by an earlier run of the same inputs, their time included)' in times
+    # a resumed stage: the items it reuses ran in its own cut-off run, whose time its seconds already hold
+    (stamps / 'rl.json').write_text(json.dumps({'seconds': 400.0, 'runs': 2, 'report': {'items': {
+        'a': {'seconds': 40.0, 'reused': False}, 'b': {'seconds': 300.0, 'reused': True}}}}))
+    assert 'rl: 340 s (over 2 runs: it was resumed; 1 of its 2 items' in '\n'.join(run_times(plan))
+    assert 'demos: not run here' in times and times[-1] == 'total of the stages: 7.3 min'

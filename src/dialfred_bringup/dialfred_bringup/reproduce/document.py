@@ -417,8 +417,10 @@ def run_times(plan: Plan) -> list[str]:
             s = json.loads((plan.run / 'stamps' / f'{stage}.json').read_text())
             items = (s.get('report') or {}).get('items') or {}
             reused = [i for i in items.values() if i.get('reused')]
-            # an item reused from an earlier run of the same inputs cost its time then
-            seconds = s.get('seconds', 0) + sum(i.get('seconds', 0) for i in reused)
+            # An itemized stage costs the sum of its items' times, each counting its own cut-off runs: an item
+            # reused from an earlier run cost its time then (in an earlier stage run whose time the stage's
+            # own seconds may or may not hold, so they are not added).
+            seconds = sum(i.get('seconds', 0) for i in items.values()) if items else s.get('seconds', 0)
             total += seconds
             runs = s.get('runs', 1)
             notes = ([f'over {runs} runs: it was resumed'] if runs > 1 else []) + \
