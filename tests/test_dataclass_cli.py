@@ -144,8 +144,7 @@ def test_the_et_performer_defaults_to_its_checkpoints_resolution_the_map_perform
     # the map performer plays at its own camera (128 px, area-averaged to its 64 px network), whatever file
     from dialfred_performer.models import MAP_CAMERA
     assert EvalConfig(agent='map').resolution == EvalConfig(performer='map').resolution == MAP_CAMERA == 128
-    wide = Path(SHIPPED_CHECKPOINT).with_name('perception_wide.pt')
-    assert EvalConfig(agent='map', checkpoint=wide).resolution == MAP_CAMERA
+    assert EvalConfig(agent='map', checkpoint=SHIPPED_CHECKPOINT).resolution == MAP_CAMERA
 
 
 def test_the_option_tables_of_the_docs_are_made_from_the_dataclasses():

@@ -310,16 +310,15 @@ def test_where_the_document_is_copied():
     assert reproduce.ReproduceConfig(doc='none').doc_target is None
 
 
-def test_the_full_run_trains_the_shipped_wide_perception_network_with_its_recorded_command():
-    from dialfred_performer.perception import PerceptionConfig, load_perception
-    from dialfred_bringup.paths import REPO
-    shipped = REPO / 'src/dialfred_performer/dialfred_performer/checkpoints/perception_wide.pt'
-    recorded = load_perception(shipped)[1]['command'].split()
+def test_the_full_runs_perception_recipe_is_the_network_the_shipped_performer_carries():
+    from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
+    from dialfred_performer.perception import PerceptionConfig
+    shipped = load_checkpoint(SHIPPED_CHECKPOINT)[0].visual.net.config
     planned = PerceptionConfig(**reproduce.Plan(reproduce.ReproduceConfig()).perception_config())
-    for field in ('c1', 'c2', 'c3', 'decoder', 'frames', 'batch_size', 'lr', 'small_objects', 'object_weight',
-                  'val_fraction', 'seed', 'threads'):
-        flag = '--' + field.replace('_', '-')
-        assert type(getattr(planned, field))(recorded[recorded.index(flag) + 1]) == getattr(planned, field), field
+    for field in ('c1', 'c2', 'c3', 'decoder'):
+        assert getattr(planned, field) == getattr(shipped, field), field
+    assert shipped.resolution == reproduce.plan.camera('et') == 64
+    assert (planned.frames, planned.small_objects, planned.seed) == (400_000, 0.5, 0)
 
 
 def test_the_rl_and_eval_stages_rerun_when_the_perception_code_changes():

@@ -8,7 +8,7 @@ from pathlib import Path
 
 PERFORMER_MODELS = ('et', 'map')
 # The map performer's camera: 128 px frames, area-averaged down to its network's input. Over
-# perception_wide.pt (a 64 px network), valid_unseen instruction only: 45.0 SR, against 41.7 with a camera
+# the shipped et.pt's network (64 px), valid_unseen instruction only: 45.0 SR, against 41.7 with a camera
 # of the network's own 64 px (an averaged frame keeps objects thinner than one of the network's pixels).
 MAP_CAMERA = 128
 
