@@ -35,6 +35,7 @@ def loaders():
     from dialfred_bringup.compare_runs import compare_weights
     from dialfred_bringup.reproduce.plan import weights_sha256
     from dialfred_performer.agent import PerformerAgent
+    from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import load_checkpoint, read_state
     from dialfred_performer.perception import load_perception
     from dialfred_questioner.policy import LearnedQuestioner
@@ -46,6 +47,7 @@ def loaders():
         return compare_weights(path.parent / 'a', path.parent / 'b', 3)
 
     return {'performer checkpoint': load_checkpoint, 'performer agent': PerformerAgent.from_checkpoint,
+            'map performer': MapAgent.from_checkpoint,
             'training state (pretrain/finetune/perception --resume)': read_state, 'perception': load_perception,
             'questioner': LearnedQuestioner.from_checkpoint, 'reproduce weights digest': weights_sha256,
             'compare_runs --parts weights': compare}

@@ -187,6 +187,24 @@ def test_the_shipped_performer_carries_the_wide_perception_network_and_it_drives
     assert labels.shape == conf.shape == depth.shape == (32, 32) and torch.isfinite(torch.from_numpy(depth)).all()
 
 
+def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_one(tmp_path):
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.model import CheckpointError, load_checkpoint
+    from dialfred_performer.perception import save_perception
+    net = load_checkpoint(SHIPPED)[0].visual.net
+    save_perception(tmp_path / 'perception.pt', net)
+    rgb = np.random.default_rng(1).integers(0, 255, (64, 64, 3), dtype=np.uint8)
+    from_file = MapAgent.from_checkpoint(tmp_path / 'perception.pt').perceive(rgb)
+    from_performer = MapAgent.from_checkpoint(SHIPPED).perceive(rgb)
+    assert all(np.array_equal(a, b) for a, b in zip(from_file, from_performer))
+    cut = tmp_path / 'cut.pt'
+    cut.write_bytes(SHIPPED.read_bytes()[:100_000])
+    with pytest.raises(CheckpointError, match='not a readable checkpoint'):
+        MapAgent.from_checkpoint(cut)
+    with pytest.raises(FileNotFoundError):
+        MapAgent.from_checkpoint(tmp_path / 'missing.pt')
+
+
 def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
     from dialfred_performer.agent import PerformerAgent
     from dialfred_performer.mapper.agent import MapAgent

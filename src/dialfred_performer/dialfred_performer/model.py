@@ -236,14 +236,16 @@ def read_state(path: Path) -> dict:
     return state
 
 
-def load_checkpoint(path: Path) -> tuple[Performer, Vocabulary, dict]:
+def load_checkpoint(path: Path, state: Optional[dict] = None) -> tuple[Performer, Vocabulary, dict]:
     """(model in eval mode, vocabulary, {'git_commit', 'command', 'extra', 'config'}) from a checkpoint
-    of `save_checkpoint`. FileNotFoundError if there is none; CheckpointError saying what is wrong if
-    it is not readable, lacks a part, or its weights do not fit its config and vocabulary."""
+    of `save_checkpoint` (`state`: its `read_state(path)`, when the caller has read it already).
+    FileNotFoundError if there is none; CheckpointError saying what is wrong if it is not readable,
+    lacks a part, or its weights do not fit its config and vocabulary."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f'no performer checkpoint at {path}')
-    state = read_state(path)
+    if state is None:
+        if not path.is_file():
+            raise FileNotFoundError(f'no performer checkpoint at {path}')
+        state = read_state(path)
     missing = [k for k in REQUIRED_KEYS if k not in state]
     if missing:
         raise CheckpointError(f'{path}: missing {missing} (a performer checkpoint has {list(REQUIRED_KEYS)})')

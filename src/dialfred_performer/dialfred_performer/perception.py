@@ -186,13 +186,15 @@ def save_perception(path: Path, net: Perception, extra: Optional[dict] = None) -
     tmp.replace(path)
 
 
-def load_perception(path: Path) -> tuple[Perception, dict]:
-    """(network in eval mode, extra) of a save_perception file (weights_only: no pickled code runs)."""
+def load_perception(path: Path, state: Optional[dict] = None) -> tuple[Perception, dict]:
+    """(network in eval mode, extra) of a save_perception file (weights_only: no pickled code runs;
+    `state`: the file's dict, when the caller has read it already)."""
     path = Path(path)
-    if not path.is_file():
+    if state is None and not path.is_file():
         raise FileNotFoundError(f'no perception checkpoint at {path} (made by python -m {MODULE})')
     try:
-        state = torch.load(path, map_location='cpu', weights_only=True)
+        if state is None:
+            state = torch.load(path, map_location='cpu', weights_only=True)
         if state.get('format') != PERCEPTION_FORMAT:
             raise PerceptionCheckpointError(f'{path}: format {state.get("format")!r}, not {PERCEPTION_FORMAT!r}')
         net = Perception(PerceptionNetConfig(**state['config']))

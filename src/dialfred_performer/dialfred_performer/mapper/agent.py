@@ -84,13 +84,13 @@ class MapAgent:
     @classmethod
     def from_checkpoint(cls, path: Path) -> 'MapAgent':
         """From a perception performer's checkpoint (its frozen network) or a perception.pt file."""
+        from ..model import load_checkpoint, read_state
         from ..perception import PERCEPTION_FORMAT, load_perception
-        state = torch.load(Path(path), map_location='cpu', weights_only=True) if Path(path).is_file() else {}
+        state = read_state(path)                      # once: either file is read from this dict
         if state.get('format') == PERCEPTION_FORMAT:
-            net, _ = load_perception(path)
+            net, _ = load_perception(path, state)
             return cls(net, net.config.resolution)
-        from ..model import load_checkpoint
-        model, _, info = load_checkpoint(path)
+        model, _, info = load_checkpoint(path, state)
         if info['config'].visual != 'perception':
             raise ValueError(f'{path}: the map performer needs a perception network; this performer '
                              f'sees through a {info["config"].visual!r} encoder')
