@@ -99,6 +99,10 @@ def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setu
     assert same(weights(tmp_path / 'one' / 'final.pt'), weights(tmp_path / 'cut' / 'final.pt'))
     lines = (tmp_path / 'cut' / 'metrics.jsonl').read_text().splitlines()
     assert [json.loads(l)['update'] for l in lines] == [1, 2, 3]
+    seconds = [json.loads(l)['seconds'] for l in lines]
+    # the resumed run's time goes on from the cut (update 2 took about as long as update 1, start-up included)
+    assert seconds == sorted(seconds) and seconds[1] >= 1.4 * seconds[0] > 0, seconds
+    assert torch.load(tmp_path / 'cut' / 'final.pt', weights_only=True)['extra']['seconds'] == seconds[-1]
     with pytest.raises(ValueError, match='lr'):
         finetune(config(setup, tmp_path / 'cut', updates=4, resume=True, lr=0.5))
 

@@ -292,7 +292,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
     if n_tasks == 0:
         raise ValueError(f'the split {cfg.split!r} has no tasks')
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    update = 0
+    update, seconds_before = 0, 0.0
     log_path = out / 'metrics.jsonl'
     if cfg.resume:
         state = read_state(out / 'last.pt')
@@ -306,6 +306,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
         lines = [l for l in log_path.read_text().splitlines() if json.loads(l)['update'] <= update] \
             if log_path.exists() else []
         log_path.write_text(''.join(l + '\n' for l in lines))
+        seconds_before = json.loads(lines[-1]).get('seconds', 0.0) if lines else 0.0   # the cut-off run's time
     else:
         out.mkdir(parents=True, exist_ok=True)
         log_path.write_text('')
@@ -316,7 +317,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
         save(path, model, init.vocab, visual_state, performer_info, cfg, commit, extra=extra, timing=timing,
              module=MODULE, reads_dialogue=cfg.dialogue)
 
-    t0 = time.monotonic()
+    t0 = time.monotonic() - seconds_before             # 'seconds' counts the whole run, cut-off runs included
     report: dict = {}
     ctx = multiprocessing.get_context('spawn')
     cfg_json = json.dumps(dataclasses.asdict(cfg))
