@@ -187,6 +187,26 @@ def test_the_shipped_performer_carries_the_wide_perception_network_and_it_drives
     assert labels.shape == conf.shape == depth.shape == (32, 32) and torch.isfinite(torch.from_numpy(depth)).all()
 
 
+def test_a_failed_pickup_of_what_the_task_puts_down_does_not_trade_the_step_back_and_forth():
+    """valid_unseen/000015 starts with the laptop in hand. Its first Put fails; the agent fetched the laptop,
+    whose Pickup failed (the hand holds it), and then put again at the same cell: Put, Pickup, Put, ... until the
+    tenth failed action, each rule resetting the other's failures. A failed Pickup now confirms the hand."""
+    from dialfred_oracle.local import EnvServer
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.episode import play, run
+    from dialfred_sim.tasks.split_files import get_task
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.models import MAP_CAMERA
+
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    act, decided = agent.act, []
+    agent.act = lambda obs: decided.append(act(obs)) or decided[-1]
+    state = run(play(agent, seed=0, asks=False), EnvServer(DialfredEnv(resolution=MAP_CAMERA), get_task('valid_unseen/000015')))
+    names = [d[0] for d in decided]
+    assert names[:2] == ['Put', 'Pickup'] and agent.held_confirmed     # the failed Pickup confirmed the hand
+    assert 'Pickup' not in names[2:] and state.end_reason != 'max_failures'
+
+
 def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_one(tmp_path):
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import CheckpointError, load_checkpoint
