@@ -187,3 +187,10 @@ def test_map_pickup_failures_classifies_replayed_failures(tmp_path):
     assert report['episodes'] == 2 and sum(report['classes'].values()) == 2
     assert set(report['classes']) <= {'never_near', 'near_never_labelled', 'labelled'}
     assert {e['task_id'] for e in report['by_episode']} == {t.task_id for t in picks}
+
+
+def test_rl_update_times_both_ways_of_scoring_and_finds_the_same_numbers():
+    report = run_bench('rl_update', '--long', '12', '--repeats', '1', '--threads', '1')
+    assert report['synthetic'] is True and report['decisions'] == 63 * 8 + 12
+    assert report['seconds_one_batch'] > 0 and report['seconds_chunked'] > 0
+    assert report['max_abs_difference'] < 1e-4

@@ -95,3 +95,42 @@ def test_a_tiny_supervised_run_learns_which_question_fits():
     assert loss.item() < 0.05
     got_types, got_nouns, _ = model.sample(model.encode(ids, types, valid, image, steps), greedy=True)
     assert got_types.tolist() == qtypes.tolist() and got_nouns.tolist() == nouns.tolist()
+
+
+def test_length_chunks_group_equal_lengths_within_the_budget_and_cover_every_row_once():
+    from dialfred_questioner.policy import length_chunks
+    lengths = [5, 3, 5, 9, 3, 5, 40, 5]
+    chunks = length_chunks(lengths, token_budget=12)
+    assert sorted(k for c in chunks for k in c) == list(range(len(lengths)))
+    assert all(len({lengths[k] for k in c}) == 1 for c in chunks)           # one length per chunk
+    assert all(len(c) * lengths[c[0]] <= 12 or len(c) == 1 for c in chunks)  # the budget, or a row alone
+    assert [lengths[c[0]] for c in chunks] == sorted(lengths[c[0]] for c in chunks)
+    assert chunks == [[1, 4], [0, 2], [5, 7], [3], [6]]
+    assert length_chunks([]) == []
+
+
+def test_scoring_records_by_length_chunks_gives_one_padded_batch_s_numbers_in_the_records_order():
+    """The RL update scores its decisions over chunks of one length (a long dialogue beside short ones
+    made the padded batch's backward pass grow with its length squared); the numbers, and their
+    gradients, must be those of the single padded batch."""
+    from dialfred_questioner.policy import Record, batch_records, score_records
+    model, vocab = make()
+    model.eval()
+    g = torch.Generator().manual_seed(1)
+    qa = AskedQA(QA(Question('location', 'apple'), True, 'the apple is to your left in the fridge .'), 0)
+    records = []
+    for k in range(9):
+        lang = encode_language(vocab, INSTRUCTIONS[k % 4], [qa] * (k % 3 + (6 if k == 4 else 0)))
+        records.append(Record(lang.ids, lang.types, torch.randn(8, generator=g), k, k % len(TYPE_TOKENS), k % 4))
+    b = batch_records(records)
+    enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
+    whole = (model.log_prob(enc, b['types'], b['nouns']), model.entropy(enc, b['types']), model.value(enc))
+    whole[0].sum().backward()
+    grad = model.encoder.weight_hh_l0.grad.clone()
+    model.zero_grad()
+    chunked = score_records(model, records, token_budget=40)
+    for a, c in zip(whole, chunked):
+        assert torch.allclose(a, c, atol=1e-5)
+    chunked[0].sum().backward()
+    assert torch.allclose(grad, model.encoder.weight_hh_l0.grad, atol=1e-5)
+    assert [t.shape for t in score_records(model, [])] == [torch.Size([0])] * 3

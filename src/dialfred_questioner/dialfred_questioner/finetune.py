@@ -207,7 +207,7 @@ def rollout_chunks(jobs: list, workers: int, per_worker: int = 8) -> list[list]:
 
 def update_step(model: Questioner, opt, episodes: list[dict], cfg: FinetuneConfig) -> dict:
     """One actor-critic step on every decision of `episodes` (complete episodes, in order)."""
-    from .policy import batch_records
+    from .policy import score_records
     records, rewards, ends, starts = [], [], [], []
     for ep in episodes:
         if ep['records']:
@@ -223,12 +223,8 @@ def update_step(model: Questioner, opt, episodes: list[dict], cfg: FinetuneConfi
         played = [ep for ep in episodes if ep['records']]
         baseline = group_baseline([float(returns[k]) for k in starts], [ep['group'] for ep in played],
                                   [len(ep['records']) for ep in played])
-    b = batch_records(records)
     model.eval()           # no dropout: the log-probabilities of the policy that played
-    enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
-    log_probs = model.log_prob(enc, b['types'], b['nouns'])
-    entropies = model.entropy(enc, b['types'])
-    values = model.value(enc)
+    log_probs, entropies, values = score_records(model, records)
     loss, parts = actor_critic_loss(log_probs, values, entropies, returns, cfg.value_weight, cfg.entropy,
                                     baseline=baseline)
     opt.zero_grad()

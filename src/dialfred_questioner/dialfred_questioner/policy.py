@@ -115,6 +115,46 @@ def batch_records(records: Sequence[Record]) -> dict:
             'types': torch.tensor([r.qtype for r in records]), 'nouns': torch.tensor([r.noun for r in records])}
 
 
+# Tokens per chunk of `score_records`.
+TOKEN_BUDGET = 16_384
+
+
+def length_chunks(lengths: Sequence[int], token_budget: int = TOKEN_BUDGET) -> list[list[int]]:
+    """Indices of `lengths` grouped by equal length (in increasing order), each group cut into chunks of
+    at most `token_budget` tokens (a row longer than the budget is a chunk of its own). On CPU the
+    backward pass of a packed LSTM over rows of different lengths grows with rows x length squared;
+    over rows of one length it is linear."""
+    order = sorted(range(len(lengths)), key=lambda k: (lengths[k], k))
+    chunks, current = [], []
+    for k in order:
+        if current and (lengths[k] != lengths[current[0]] or (len(current) + 1) * lengths[k] > token_budget):
+            chunks.append(current)
+            current = []
+        current.append(k)
+    if current:
+        chunks.append(current)
+    return chunks
+
+
+def score_records(model: Questioner, records: Sequence[Record],
+                  token_budget: int = TOKEN_BUDGET) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(log p of each record's question, the policy's entropy, the critic's value) [B], in the records'
+    order, computed over chunks of records of one length (`length_chunks`): the same numbers as one
+    padded batch, at a cost that grows with the tokens read, not with rows x the longest squared."""
+    if not records:
+        return torch.empty(0), torch.empty(0), torch.empty(0)
+    parts = []
+    for chunk in length_chunks([len(r.lang_ids) for r in records], token_budget):
+        b = batch_records([records[k] for k in chunk])
+        enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
+        parts.append((torch.tensor(chunk), model.log_prob(enc, b['types'], b['nouns']),
+                      model.entropy(enc, b['types']), model.value(enc)))
+    index = torch.cat([p[0] for p in parts])
+    inverse = torch.empty_like(index)
+    inverse[index] = torch.arange(len(index))
+    return tuple(torch.cat([p[j] for p in parts])[inverse] for j in (1, 2, 3))
+
+
 class LearnedQuestioner:
     name = 'learned'
 
