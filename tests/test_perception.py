@@ -105,6 +105,20 @@ def performer(prepared, tmp_path_factory):
     return out / 'last.pt', perception / 'perception.pt'
 
 
+@pytest.fixture(scope='module')
+def reach_performer(prepared, tmp_path_factory):
+    """The same, with the reach input (the action head reads the predicted distance under the pointer)."""
+    from dialfred_performer.train import main as train_main
+    folder, perception = prepared
+    out = tmp_path_factory.mktemp('reach')
+    assert train_main(['--demonstrations', str(folder), '--out', str(out), '--perception',
+                       str(perception / 'perception.pt'), '--resolution', '32', '--max-updates', '3',
+                       '--batch-size', '4', '--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '32',
+                       '--val-fraction', '0.3', '--no-progress', '--threads', '1', '--reach-input',
+                       '--lr', '0.05', '--warmup-updates', '1']) == 0
+    return out / 'last.pt', perception / 'perception.pt'
+
+
 def test_the_performer_keeps_the_perception_network_as_trained_and_points_at_pixels(performer):
     checkpoint, perception = performer
     model, _, info = load_checkpoint(checkpoint)
@@ -121,13 +135,15 @@ def test_the_performer_keeps_the_perception_network_as_trained_and_points_at_pix
     assert not model.visual.net.training              # frozen means its norms never switch to training either
 
 
-def test_the_agent_reads_rgb_only(performer):
+@pytest.mark.parametrize('which', ['performer', 'reach_performer'])
+def test_the_agent_reads_rgb_only(which, request):
     """No label reaches the agent: with the simulator's depth and segmentation removed from every
-    observation, it takes the same actions at the same pixels."""
+    observation, it takes the same actions at the same pixels (with the reach input too: its
+    distances are the network's)."""
     from dialfred_performer.agent import PerformerAgent
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
-    checkpoint, _ = performer
+    checkpoint, _ = request.getfixturevalue(which)
     task = load_split('valid_unseen')[0]
     runs = []
     for strip in (False, True):
@@ -172,3 +188,56 @@ def test_a_questioner_pretrained_against_the_perception_performer_sees_through_i
     _, record = q.decide(rgb, load_split('valid_unseen')[0].instruction, [], 0)
     with torch.no_grad():
         assert torch.allclose(record.image, model.encode_frames(frame_tensor(rgb, 32)[None])[0][0])
+
+
+def test_the_reach_input_reads_the_network_s_distance_under_the_pointer(reach_performer):
+    """With reach_input each pixel's key carries the network's predicted distance (view-axis depth
+    along the pixel's ray), and the action head adds what the reach features say."""
+    from dialfred_performer.model import REACH_METRES, reach_features
+    from dialfred_performer.nn.enc_perceived import pixel_ray_lengths
+    checkpoint, _ = reach_performer
+    model, _, _ = load_checkpoint(checkpoint)
+    assert model.config.reach_input
+    frames = torch.rand(2, 3, 32, 32)
+    emb, grid = model.encode_frames(frames)
+    assert grid.shape == (2, 32 * 32, model.config.pointer_key + 1)
+    with torch.no_grad():
+        depth = model.visual.net.heads(model.visual.net(frames).fine)[1]
+    metres = F.interpolate(depth[:, None], size=(32, 32), mode='nearest')[:, 0] * pixel_ray_lengths(32)
+    assert torch.allclose(grid[..., -1], metres.flatten(1))
+    # the features: mass within reach, the expected and the best pixel's distance
+    logits = torch.tensor([[0.0, 0.0, 9.0]])
+    f = reach_features(logits, torch.tensor([[1.0, 3.0, REACH_METRES + 0.5]]))
+    p = torch.softmax(logits, -1)[0]
+    assert torch.allclose(f, torch.tensor([[(p[0] + 3 * p[1] + 2.0 * p[2]) / 2, p[0], 1.0]]))
+    assert any(float(w.detach().abs().sum()) > 0 for w in model.reach_head.parameters())   # it was trained
+
+
+def test_the_reach_performer_acts_as_it_was_trained_step_by_step(reach_performer, prepared):
+    """Teacher-forced training (`forward`, which points with keys made without gradient at every step),
+    the whole-episode decode and the incremental decode_step give the same action and pointer logits."""
+    from dialfred_performer.data import DemonstrationDataset, collate
+    checkpoint, _ = reach_performer
+    model, vocab, _ = load_checkpoint(checkpoint)
+    model.eval()
+    ds = DemonstrationDataset(prepared[0], vocab, 32, model.config.max_tokens, seed=0, grid_size=32)
+    batch = collate([ds[0]])
+    with torch.no_grad():
+        out = model(batch)
+        T = batch['frames'].shape[1]
+        emb, grid = model.encode_frames(batch['frames'][0])
+        actions, pointer = model.decode(batch['lang_ids'], batch['lang_types'], batch['lang_steps'],
+                                        batch['lang_valid'], emb[None], grid[None], batch['previous_actions'],
+                                        batch['step_valid'])
+    assert torch.allclose(out['action_logits'], actions, atol=1e-4)
+    assert torch.allclose(out['pointer_logits'], pointer[batch['target_cells'] >= 0], atol=1e-4)
+    cache = model.encoder.empty_cache()
+    steps = batch['lang_steps'][0][batch['lang_valid'][0]]
+    for t in range(T):                                 # the agent's path: each QA's tokens from their step on
+        known = int((steps <= t).sum())
+        a, ptr, cache = model.decode_step(cache, batch['lang_ids'][0, :known], batch['lang_types'][0, :known],
+                                          int((steps <= t - 1).sum()) if t else 0, emb[t], grid[t],
+                                          int(batch['previous_actions'][0, t]), t)
+        if t == 0:
+            assert torch.allclose(a, actions[0, 0], atol=1e-4) and torch.allclose(ptr, pointer[0, 0], atol=1e-4)
+    assert torch.allclose(a, actions[0, T - 1], atol=1e-4)

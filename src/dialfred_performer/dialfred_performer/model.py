@@ -54,6 +54,9 @@ class PerformerConfig:
                                    # (dialfred_performer.perception), frozen, and a pointer over every pixel
     perception_net: str = ''       # visual='perception': the network's sizes (JSON of PerceptionNetConfig)
     pointer_key: int = 32          # visual='perception': the size of each pixel's pointer key
+    reach_input: bool = False      # visual='perception': the action head also reads how far away what the
+                                   # pointer points at is (the network's predicted distance under the
+                                   # pointer's distribution: `reach_features`), gradient-free
 
     def __post_init__(self):
         if self.visual not in ('cnn', 'perception'):
@@ -72,13 +75,30 @@ def build_visual(config: PerformerConfig) -> nn.Module:
     around a perception network. The questioner builds its frozen copy of a performer's encoder here too."""
     if config.visual == 'perception':
         return PerceivedFrames(config.d_model, config.pointer_key,
-                               Perception(PerceptionNetConfig(**json.loads(config.perception_net))))
+                               Perception(PerceptionNetConfig(**json.loads(config.perception_net))),
+                               distance=config.reach_input)
     return VisualEncoder(config.d_model, config.resolution)
+
+
+# The reach input (PerformerConfig.reach_input): the simulator's reach, and what the action head reads.
+REACH_METRES = 1.5
+REACH_FEATURES = ('expected distance / 2 m', 'pointer mass within reach', 'distance at the best pixel / 2 m')
+
+
+def reach_features(pointer_logits: torch.Tensor, distances: torch.Tensor) -> torch.Tensor:
+    """Pointer logits [..., C] and each pixel's predicted distance [..., C] (metres) -> [..., 3]
+    (REACH_FEATURES): how far away what the pointer points at is, and how much of it lies within reach."""
+    p = torch.softmax(pointer_logits, -1)
+    best = distances.gather(-1, pointer_logits.argmax(-1, keepdim=True))[..., 0]
+    return torch.stack([(p * distances).sum(-1) / 2, (p * (distances < REACH_METRES)).sum(-1), best / 2], -1)
 
 
 class Performer(nn.Module):
     def __init__(self, config: PerformerConfig, vocab_size: int):
         super().__init__()
+        if config.reach_input and config.visual != 'perception':
+            raise ValueError('reach_input needs a perception network (train with --perception PATH): the '
+                             'distances are its predictions')
         self.config = config
         self.vocab_size = vocab_size
         d = config.d_model
@@ -91,6 +111,21 @@ class Performer(nn.Module):
         self.actions = ActionEmbedding(len(ACTIONS), d)
         self.encoder = MultimodalEncoder(d, config.heads, config.layers, config.ff, config.max_steps, config.dropout)
         self.action_head = ActionHead(d, len(ACTIONS))
+        if config.reach_input:
+            self.reach_head = nn.Sequential(nn.Linear(len(REACH_FEATURES), 32), nn.ReLU(), nn.Linear(32, len(ACTIONS)))
+            nn.init.zeros_(self.reach_head[2].weight)      # starts as the action head alone
+            nn.init.zeros_(self.reach_head[2].bias)
+
+    def heads(self, h: torch.Tensor, grid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The step outputs h [..., d] over their frames' grids [..., C, k] (with reach_input, [..., C, k + 1]:
+        the last channel is each pixel's predicted distance) -> (action logits [..., 13], pointer logits [..., C])."""
+        if not self.config.reach_input:
+            return self.action_head(h), self.pointer_head(h, grid)
+        pointer = self.pointer_head(h, grid[..., :-1])
+        return self._actions(h, pointer, grid[..., -1]), pointer
+
+    def _actions(self, h: torch.Tensor, pointer: torch.Tensor, distances: torch.Tensor) -> torch.Tensor:
+        return self.action_head(h) + self.reach_head(reach_features(pointer.detach(), distances))
 
     def encode_frames(self, frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """frames [N, 3, R, R] -> (embedding [N, d], grid [N, C, k]: a key per pointer cell)."""
@@ -107,7 +142,7 @@ class Performer(nn.Module):
         """Language [B, L], frame embeddings [B, T, d] with grids [B, T, C, k], previous actions
         [B, T] and valid steps [B, T] -> (action logits [B, T, 13], pointer logits [B, T, C])."""
         h = self.hidden(lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions, step_valid)
-        return self.action_head(h), self.pointer_head(h, grid)
+        return self.heads(h, grid)
 
     @torch.no_grad()
     def decode_step(self, cache, lang_ids: torch.Tensor, lang_types: torch.Tensor, first_new: int,
@@ -119,7 +154,7 @@ class Performer(nn.Module):
         lang = self.language(lang_ids[None], lang_types[None])[0, first_new:]
         action = self.actions(torch.tensor([[previous_action]]))[0, 0]
         h, cache = self.encoder.step(cache, lang, frame_embedding, action, t)
-        return self.action_head(h), self.pointer_head(h, grid), cache
+        return (*self.heads(h, grid), cache)
 
     def forward(self, batch: dict) -> dict:
         """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],
@@ -128,14 +163,22 @@ class Performer(nn.Module):
         B, T = frames.shape[:2]
         has_target = batch['target_cells'] >= 0
         flat = frames.reshape(B * T, *frames.shape[2:])
-        if isinstance(self.visual, PerceivedFrames):       # keys only for the frames that need them
-            emb, keys = self.visual(flat, keys_for=has_target.reshape(-1))
+        every = None
+        if isinstance(self.visual, PerceivedFrames):       # keys with gradient only for the frames that need them
+            emb, keys, every = self.visual.perceive(flat, keys_for=has_target.reshape(-1),
+                                                    all_keys=self.config.reach_input)
         else:
             emb, grid = self.visual(flat)
             keys = grid.view(B, T, grid.shape[1], -1)[has_target]
         h = self.hidden(batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
                         emb.view(B, T, -1), batch['previous_actions'], batch['step_valid'])
-        return {'action_logits': self.action_head(h), 'pointer_logits': self.pointer_head(h[has_target], keys)}
+        if every is None:
+            return {'action_logits': self.action_head(h), 'pointer_logits': self.pointer_head(h[has_target], keys)}
+        every = every.view(B, T, *every.shape[1:])
+        with torch.no_grad():                              # where the pointer would point at every step
+            pointer_all = self.pointer_head(h, every[..., :-1])
+        return {'action_logits': self._actions(h, pointer_all, every[..., -1]),
+                'pointer_logits': self.pointer_head(h[has_target], keys[..., :-1])}
 
 
 def pointer_ce(logits: torch.Tensor, targets: torch.Tensor, reduction: str = 'mean') -> torch.Tensor:

@@ -184,6 +184,8 @@ def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:
     """(the performer's config, the perception weights or None): with --perception, the model sees
     through that network (its sizes go into the config, its weights into the performer)."""
     if not cfg.perception:
+        if cfg.model.reach_input:
+            raise ValueError('--reach-input needs --perception PATH: the distances are the network\'s predictions')
         return cfg.model, None
     from .perception import load_perception
     net, _ = load_perception(Path(cfg.perception))

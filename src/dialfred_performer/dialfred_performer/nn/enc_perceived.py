@@ -20,14 +20,23 @@ from torch import nn
 POOLED = 4          # the coarse map is pooled to POOLED x POOLED cells for the frame embedding
 
 
+def pixel_ray_lengths(size: int) -> torch.Tensor:
+    """[size, size]: the length of each pixel's ray per metre of view-axis depth (90 degree field of view)."""
+    u = (torch.arange(size, dtype=torch.float32) + 0.5) / size * 2 - 1
+    return torch.sqrt(1 + u[None, :] ** 2 + u[:, None] ** 2)
+
+
 class PerceivedFrames(nn.Module):
-    def __init__(self, d_model: int, d_key: int, net: nn.Module):
-        """`net`: a dialfred_performer.perception.Perception (its weights are loaded into it later)."""
+    def __init__(self, d_model: int, d_key: int, net: nn.Module, distance: bool = False):
+        """`net`: a dialfred_performer.perception.Perception (its weights are loaded into it later).
+        With `distance`, each pixel's key carries one more channel, last: the network's predicted
+        distance to what the pixel shows (metres along its ray), for the performer's reach input."""
         super().__init__()
         self.net = net
         self.net.requires_grad_(False)
         c = net.config
         self.d_model = d_model
+        self.distance = distance
         self.embed = nn.Sequential(nn.Linear(c.c3 * POOLED * POOLED, d_model), nn.LayerNorm(d_model))
         self.key = nn.Conv2d(c.decoder + c.c1, d_key, 1)
 
@@ -38,16 +47,35 @@ class PerceivedFrames(nn.Module):
 
     def forward(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None):
         """frames [N, 3, R, R] -> (embedding [N, d], keys [N, R*R, k]); with `keys_for` (bool [N]), the
-        keys of those frames only [K, R*R, k]."""
+        keys of those frames only [K, R*R, k]. With `distance`, keys [.., R*R, k + 1] (`distances`)."""
+        emb, keys, _ = self.perceive(frames, keys_for)
+        return emb, keys
+
+    def perceive(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None, all_keys: bool = False):
+        """As forward, and with `all_keys` also every frame's keys computed without gradient (None
+        otherwise): (embedding, keys, all keys)."""
         with torch.no_grad():
             out = self.net(frames)
         emb = self._embed(out.coarse)
-        fine, stem = out.fine, out.stem
-        if keys_for is not None:
-            fine, stem = fine[keys_for], stem[keys_for]
-        fine = F.interpolate(fine, size=stem.shape[-2:], mode='bilinear', align_corners=False)
-        keys = self.key(torch.cat([fine, stem], 1)).flatten(2).transpose(1, 2)
-        return emb, keys
+        keys = self._keys(out.fine, out.stem, keys_for)
+        every = None
+        if all_keys:
+            with torch.no_grad():
+                every = keys.detach() if keys_for is None else self._keys(out.fine, out.stem, None)
+        return emb, keys, every
+
+    def _keys(self, fine: torch.Tensor, stem: torch.Tensor, rows: Optional[torch.Tensor]) -> torch.Tensor:
+        if rows is not None:
+            fine, stem = fine[rows], stem[rows]
+        up = F.interpolate(fine, size=stem.shape[-2:], mode='bilinear', align_corners=False)
+        keys = self.key(torch.cat([up, stem], 1)).flatten(2).transpose(1, 2)
+        if not self.distance:
+            return keys
+        with torch.no_grad():
+            depth = self.net.heads(fine)[1]                        # [N, R/2, R/2] metres along the view axis
+            depth = F.interpolate(depth[:, None], size=stem.shape[-2:], mode='nearest')[:, 0]
+            metres = (depth * pixel_ray_lengths(depth.shape[-1]).to(depth)).flatten(1)
+        return torch.cat([keys, metres[..., None]], -1)
 
     def embedding(self, frames: torch.Tensor) -> torch.Tensor:
         """The frame embeddings [N, d] alone (the network's encoder only: no decoder, no pointer keys)."""
