@@ -93,30 +93,28 @@ def test_a_damaged_perception_checkpoint_is_refused(tmp_path):
         load_perception(tmp_path / 'missing.pt')
 
 
-@pytest.fixture(scope='module')
-def performer(prepared, tmp_path_factory):
+def tiny_performer(prepared, out, *extra: str):
+    """A perception performer trained for 3 updates on the prepared slice: (its last.pt, perception.pt)."""
     from dialfred_performer.train import main as train_main
     folder, perception = prepared
-    out = tmp_path_factory.mktemp('performer')
     assert train_main(['--demonstrations', str(folder), '--out', str(out), '--perception',
                        str(perception / 'perception.pt'), '--resolution', '32', '--max-updates', '3',
                        '--batch-size', '4', '--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '32',
-                       '--val-fraction', '0.3', '--no-progress', '--threads', '1']) == 0
+                       '--val-fraction', '0.3', '--no-progress', '--threads', '1', *extra]) == 0
     return out / 'last.pt', perception / 'perception.pt'
+
+
+@pytest.fixture(scope='module')
+def performer(prepared, tmp_path_factory):
+    return tiny_performer(prepared, tmp_path_factory.mktemp('performer'))
 
 
 @pytest.fixture(scope='module')
 def reach_performer(prepared, tmp_path_factory):
-    """The same, with the reach input (the action head reads the predicted distance under the pointer)."""
-    from dialfred_performer.train import main as train_main
-    folder, perception = prepared
-    out = tmp_path_factory.mktemp('reach')
-    assert train_main(['--demonstrations', str(folder), '--out', str(out), '--perception',
-                       str(perception / 'perception.pt'), '--resolution', '32', '--max-updates', '3',
-                       '--batch-size', '4', '--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '32',
-                       '--val-fraction', '0.3', '--no-progress', '--threads', '1', '--reach-input',
-                       '--lr', '0.05', '--warmup-updates', '1']) == 0
-    return out / 'last.pt', perception / 'perception.pt'
+    """With the reach input (the action head reads the predicted distance under the pointer); a high
+    learning rate so that 3 updates move its layer away from zero."""
+    return tiny_performer(prepared, tmp_path_factory.mktemp('reach'), '--reach-input', '--lr', '0.05',
+                          '--warmup-updates', '1')
 
 
 def test_the_performer_keeps_the_perception_network_as_trained_and_points_at_pixels(performer):
