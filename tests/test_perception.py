@@ -209,6 +209,13 @@ def test_the_reach_input_reads_the_network_s_distance_under_the_pointer(reach_pe
     p = torch.softmax(logits, -1)[0]
     assert torch.allclose(f, torch.tensor([[(p[0] + 3 * p[1] + 2.0 * p[2]) / 2, p[0], 1.0]]))
     assert any(float(w.detach().abs().sum()) > 0 for w in model.reach_head.parameters())   # it was trained
+    # training points at every frame without making its keys: the same logits as the keys give
+    queries = torch.randn(2, model.config.pointer_key)
+    with torch.no_grad():
+        _, _, out = model.visual.perceive(frames)
+        folded = model.visual.pointer_logits(out, queries)
+    assert torch.allclose(folded, torch.einsum('nd,ncd->nc', queries, grid[..., :-1]), atol=1e-4)
+    assert torch.allclose(model.visual.distances(out), grid[..., -1])
 
 
 def test_the_reach_performer_acts_as_it_was_trained_step_by_step(reach_performer, prepared):

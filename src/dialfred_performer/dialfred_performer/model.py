@@ -163,21 +163,20 @@ class Performer(nn.Module):
         B, T = frames.shape[:2]
         has_target = batch['target_cells'] >= 0
         flat = frames.reshape(B * T, *frames.shape[2:])
-        every = None
-        if isinstance(self.visual, PerceivedFrames):       # keys with gradient only for the frames that need them
-            emb, keys, every = self.visual.perceive(flat, keys_for=has_target.reshape(-1),
-                                                    all_keys=self.config.reach_input)
+        if isinstance(self.visual, PerceivedFrames):       # keys only for the frames that need them
+            emb, keys, out = self.visual.perceive(flat, keys_for=has_target.reshape(-1))
         else:
             emb, grid = self.visual(flat)
             keys = grid.view(B, T, grid.shape[1], -1)[has_target]
         h = self.hidden(batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
                         emb.view(B, T, -1), batch['previous_actions'], batch['step_valid'])
-        if every is None:
+        if not self.config.reach_input:
             return {'action_logits': self.action_head(h), 'pointer_logits': self.pointer_head(h[has_target], keys)}
-        every = every.view(B, T, *every.shape[1:])
         with torch.no_grad():                              # where the pointer would point at every step
-            pointer_all = self.pointer_head(h, every[..., :-1])
-        return {'action_logits': self._actions(h, pointer_all, every[..., -1]),
+            queries = self.pointer_head.query(h).reshape(B * T, -1)
+            pointer_all = self.visual.pointer_logits(out, queries).view(B, T, -1) * self.pointer_head.scale
+            distances = self.visual.distances(out).view(B, T, -1)
+        return {'action_logits': self._actions(h, pointer_all, distances),
                 'pointer_logits': self.pointer_head(h[has_target], keys[..., :-1])}
 
 
