@@ -203,6 +203,7 @@ def test_the_reach_input_reads_the_network_s_distance_under_the_pointer(reach_pe
         depth = model.visual.net.heads(model.visual.net(frames).fine)[1]
     metres = F.interpolate(depth[:, None], size=(32, 32), mode='nearest')[:, 0] * pixel_ray_lengths(32)
     assert torch.allclose(grid[..., -1], metres.flatten(1))
+    assert torch.allclose(pixel_ray_lengths(2), torch.full((2, 2), 1.5 ** 0.5))   # 90 degrees: corners at +-0.5
     # the features: mass within reach, the expected and the best pixel's distance
     logits = torch.tensor([[0.0, 0.0, 9.0]])
     f = reach_features(logits, torch.tensor([[1.0, 3.0, REACH_METRES + 0.5]]))

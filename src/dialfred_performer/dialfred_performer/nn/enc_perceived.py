@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Optional
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -21,9 +22,11 @@ POOLED = 4          # the coarse map is pooled to POOLED x POOLED cells for the 
 
 
 def pixel_ray_lengths(size: int) -> torch.Tensor:
-    """[size, size]: the length of each pixel's ray per metre of view-axis depth (90 degree field of view)."""
-    u = (torch.arange(size, dtype=torch.float32) + 0.5) / size * 2 - 1
-    return torch.sqrt(1 + u[None, :] ** 2 + u[:, None] ** 2)
+    """[size, size]: the length of each pixel's ray per metre of view-axis depth (the camera's rays:
+    mapper.geometry.pixel_rays)."""
+    from ..mapper.geometry import pixel_rays
+    u, v = pixel_rays(size)
+    return torch.from_numpy(np.sqrt(1 + u ** 2 + v ** 2)).float()
 
 
 class PerceivedFrames(nn.Module):
