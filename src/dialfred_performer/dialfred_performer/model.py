@@ -163,7 +163,7 @@ class Performer(nn.Module):
         B, T = frames.shape[:2]
         has_target = batch['target_cells'] >= 0
         flat = frames.reshape(B * T, *frames.shape[2:])
-        if isinstance(self.visual, PerceivedFrames):       # keys only for the frames that need them
+        if isinstance(self.visual, PerceivedFrames):       # keys (no distances) only for the frames that need them
             emb, keys, out = self.visual.perceive(flat, keys_for=has_target.reshape(-1))
         else:
             emb, grid = self.visual(flat)
@@ -177,7 +177,7 @@ class Performer(nn.Module):
             pointer_all = self.visual.pointer_logits(out, queries).view(B, T, -1) * self.pointer_head.scale
             distances = self.visual.distances(out).view(B, T, -1)
         return {'action_logits': self._actions(h, pointer_all, distances),
-                'pointer_logits': self.pointer_head(h[has_target], keys[..., :-1])}
+                'pointer_logits': self.pointer_head(h[has_target], keys)}
 
 
 def pointer_ce(logits: torch.Tensor, targets: torch.Tensor, reduction: str = 'mean') -> torch.Tensor:

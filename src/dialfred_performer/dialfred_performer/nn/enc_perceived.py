@@ -51,24 +51,23 @@ class PerceivedFrames(nn.Module):
     def forward(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None):
         """frames [N, 3, R, R] -> (embedding [N, d], keys [N, R*R, k]); with `keys_for` (bool [N]), the
         keys of those frames only [K, R*R, k]. With `distance`, keys [.., R*R, k + 1] (`distances`)."""
-        emb, keys, _ = self.perceive(frames, keys_for)
-        return emb, keys
+        emb, keys, out = self.perceive(frames, keys_for)
+        if not self.distance:
+            return emb, keys
+        fine = out.fine if keys_for is None else out.fine[keys_for]
+        return emb, torch.cat([keys, self._distances(fine, out.stem.shape[-1])[..., None]], -1)
 
     def perceive(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None):
-        """As forward, and the network's output (PerceptionOutput, without gradient) for
-        `pointer_logits` and `distances`: (embedding, keys, output)."""
+        """As forward without the distance channel, and the network's output (PerceptionOutput, without
+        gradient) for `pointer_logits` and `distances`: (embedding, keys [.., R*R, k], output)."""
         with torch.no_grad():
             out = self.net(frames)
-        return self._embed(out.coarse), self._keys(out.fine, out.stem, keys_for), out
-
-    def _keys(self, fine: torch.Tensor, stem: torch.Tensor, rows: Optional[torch.Tensor]) -> torch.Tensor:
-        if rows is not None:
-            fine, stem = fine[rows], stem[rows]
+        fine, stem = out.fine, out.stem
+        if keys_for is not None:
+            fine, stem = fine[keys_for], stem[keys_for]
         up = F.interpolate(fine, size=stem.shape[-2:], mode='bilinear', align_corners=False)
         keys = self.key(torch.cat([up, stem], 1)).flatten(2).transpose(1, 2)
-        if not self.distance:
-            return keys
-        return torch.cat([keys, self._distances(fine, stem.shape[-1])[..., None]], -1)
+        return self._embed(out.coarse), keys, out
 
     @torch.no_grad()
     def _distances(self, fine: torch.Tensor, size: int) -> torch.Tensor:
