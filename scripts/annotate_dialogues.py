@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
 import sys
 import time
 from pathlib import Path
@@ -29,6 +28,7 @@ from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annota
     ANNOTATION_RESOLUTION, ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL,
     LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics,
     evidence, expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
+from dialfred_sim.processes import worker_pool
 from dialfred_sim.protocol import QUESTION_TEMPLATES, QUESTION_TYPES
 from dialfred_sim.tasks import SPLIT_SIZES
 
@@ -82,9 +82,8 @@ def run_split(split: str, job, workers: int, limit: int = 0) -> list[dict]:
     n = len(load_split(split)[:limit or None])
     chunks = [(k, min(k + CHUNK, n)) for k in range(0, n, CHUNK)]
     out, t0, shown = [], time.monotonic(), 0.0
-    ctx = multiprocessing.get_context('spawn')
-    with ctx.Pool(max(1, workers), initializer=_init_worker, initargs=(split,),
-                  maxtasksperchild=CHUNKS_PER_WORKER) as pool:
+    with worker_pool(max(1, workers), initializer=_init_worker, initargs=(split,),
+                     maxtasksperchild=CHUNKS_PER_WORKER) as pool:
         for rows in pool.imap(job, chunks):
             out.extend(rows)
             elapsed = time.monotonic() - t0

@@ -16,9 +16,10 @@ tables this way and checks a slice of every setting through the graph.
 
 from __future__ import annotations
 
-import multiprocessing
 import time
 from typing import Callable
+
+from dialfred_sim.processes import worker_pool
 
 _W: dict = {}
 
@@ -73,7 +74,6 @@ def play_local(config, jobs: list, on_result: Callable) -> None:
     if not jobs:
         return
     workers = max(1, min(config.workers, len(jobs)))
-    ctx = multiprocessing.get_context('spawn')
-    with ctx.Pool(workers, initializer=_init_worker, initargs=(config,)) as pool:
+    with worker_pool(workers, initializer=_init_worker, initargs=(config,)) as pool:
         for result in pool.imap_unordered(_play_job, jobs, chunksize=1):
             on_result(result)

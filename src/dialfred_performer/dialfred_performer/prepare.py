@@ -21,7 +21,6 @@ Each stage is skipped when its output is complete. Prints a JSON report with eac
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import resource
 import sys
@@ -34,6 +33,7 @@ from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir,
 from dialfred_sim.tasks.splits import SPLIT_SIZES
 
 from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_sim.processes import worker_pool
 from .malloc import ensure_malloc_settings
 from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
 from .preprocess import Vocabulary
@@ -163,7 +163,7 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
         elif workers == 1:
             _dialogue_worker(*args[0])
         else:
-            with multiprocessing.get_context('spawn').Pool(workers) as pool:
+            with worker_pool(workers) as pool:
                 result = pool.starmap_async(_dialogue_worker, args)
                 while not result.ready():
                     result.wait(1.0)

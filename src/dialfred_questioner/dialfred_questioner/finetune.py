@@ -33,7 +33,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import multiprocessing
 import random
 import sys
 import time
@@ -45,6 +44,7 @@ import numpy as np
 import torch
 
 from dialfred_sim.dataclass_cli import arg, config_changes, parse
+from dialfred_sim.processes import worker_pool
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
 from dialfred_performer.models import PERFORMER_MODELS
 
@@ -315,9 +315,8 @@ def finetune(cfg: FinetuneConfig) -> dict:
 
     t0 = time.monotonic() - seconds_before             # 'seconds' counts the whole run, cut-off runs included
     report: dict = {}
-    ctx = multiprocessing.get_context('spawn')
     cfg_json = json.dumps(dataclasses.asdict(cfg))
-    with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(cfg_json,)) as pool:
+    with worker_pool(cfg.workers, initializer=_init_worker, initargs=(cfg_json,)) as pool:
         while update < cfg.updates:
             plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed, cfg.samples_per_task)
             jobs = [(update * cfg.episodes_per_update + k, t, s, z) for k, (t, s, z) in enumerate(plan)]

@@ -17,7 +17,6 @@ reset; seconds instead of about 10 min for train, and the same bytes: tested).
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import sys
 import time
@@ -28,6 +27,7 @@ from typing import Optional
 import numpy as np
 
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
+from dialfred_sim.processes import worker_pool
 
 CACHE_ENV = 'DIALFRED_QUESTIONER_CACHE'
 CHUNK = 64
@@ -83,8 +83,7 @@ def build_first_frames(split: str, resolution: int = 64, out: Optional[Path] = N
         return out
     chunks = [(split, resolution, k, min(k + CHUNK, len(tasks))) for k in range(0, len(tasks), CHUNK)]
     parts, t0, done = [], time.monotonic(), 0
-    ctx = multiprocessing.get_context('spawn')
-    with ctx.Pool(max(1, workers), maxtasksperchild=50) as pool:
+    with worker_pool(max(1, workers), maxtasksperchild=50) as pool:
         for frames in pool.imap(_render_chunk, chunks):
             parts.append(frames)
             done += len(frames)

@@ -31,7 +31,6 @@ finished build.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import sys
 import time
@@ -42,6 +41,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..dataclass_cli import REQUIRED, arg, from_args, parser_for
+from ..processes import worker_pool
 from .splits import SPLIT_SIZES, load_split
 
 CACHE_ENV = 'DIALFRED_DEMO_DIR'
@@ -261,7 +261,7 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     if workers == 1:
         _run_with_progress(None, args, out, len(tasks), progress)
     else:
-        with multiprocessing.get_context('spawn').Pool(workers) as pool:
+        with worker_pool(workers) as pool:
             _run_with_progress(pool, args, out, len(tasks), progress)
     done = _done_records(out)
     missing = [k for k in range(len(tasks)) if k not in done]

@@ -129,9 +129,8 @@ def _worker_play(split: str, split_seed: Optional[int], index: int) -> Optional[
 
 def _played_in_workers(split: str, split_seed: Optional[int], workers: int) -> Iterator[tuple[int, Optional[dict]]]:
     """(index, row) of episodes 0, 1, 2, ... in order, played by `workers` processes a few episodes ahead."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn'))
+    from ..processes import worker_executor
+    pool = worker_executor(workers)
     ahead: deque = deque()
     try:
         index = 0
