@@ -2,8 +2,10 @@
 it is there, else untrained: the time does not depend on the weights) on one CPU thread: ms per step
 at steps 1, 20, 60 and 200 of an episode with a 3-QA dialogue, on random 128x128 frames resized to the
 model's resolution. The incremental agent (the default: a step computes its own tokens against cached
-keys and values) and the baseline that reads the whole episode again at every step, in the same run.
-Prints JSON.
+keys and values; over a perception network without the reach input it makes a frame's pointer keys
+only when it interacts), the same making the keys at every step, and the baseline that reads the whole
+episode again at every step, in the same run. Prints JSON (with the share of interaction decisions:
+those steps make the keys in every setting).
 
     ./dialfred bench performer_decision [--repeats 5] [--checkpoint PATH]
 """
@@ -19,7 +21,7 @@ import numpy as np
 import torch
 
 from dialfred_performer.agent import PerformerAgent
-from dialfred_performer.model import SHIPPED_CHECKPOINT, Performer, PerformerConfig, load_checkpoint
+from dialfred_performer.model import INTERACTIONS, SHIPPED_CHECKPOINT, Performer, PerformerConfig, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_sim.protocol import QA, Question
 from dialfred_sim.tasks import PublicTask
@@ -44,16 +46,20 @@ def main() -> None:
         config = model.config
     else:
         model = Performer(config, len(vocab))
-    agent = PerformerAgent(model, vocab)
+    class EagerPointer(PerformerAgent):
+        lazy_pointer = False
     task = PublicTask('bench/0', 'FloorPlan1', 'bench', instruction, ('apple', 'fridge'))
-    rng = np.random.default_rng(0)
     report = {'checkpoint': str(checkpoint) if checkpoint.is_file() else None,
               'config': {'resolution': config.resolution, 'd_model': config.d_model, 'layers': config.layers,
                          'visual': config.visual},
               'threads': torch.get_num_threads(), 'repeats': REPEATS}
-    for name, incremental in (('incremental', True), ('whole_episode', False)):
-        agent.incremental = incremental
+    for name, incremental, cls in (('incremental', True, PerformerAgent),
+                                   ('incremental_keys_every_step', True, EagerPointer),
+                                   ('whole_episode', False, PerformerAgent)):
+        agent = cls(model, vocab, incremental)
         times = {s: [] for s in STEPS}
+        interactions = 0
+        rng = np.random.default_rng(0)           # the same frames for every setting
         for r in range(REPEATS):
             agent.reset(task, seed=r)
             for qtype, noun, text in zip(('location', 'appearance', 'direction'), ('apple', 'apple', ''), answers):
@@ -61,12 +67,14 @@ def main() -> None:
             for step in range(1, STEPS[-1] + 1):
                 frame = rng.integers(0, 256, (128, 128, 3), dtype=np.uint8)
                 t0 = time.perf_counter()
-                agent.act(frame)
+                action, _, _ = agent.act(frame)
                 dt = (time.perf_counter() - t0) * 1000
+                interactions += action in INTERACTIONS
                 if step in times:
                     times[step].append(dt)
         report[name] = {'ms_per_step_median': {f'step_{k}': round(float(np.median(v)), 2) for k, v in times.items()},
-                        'ms_per_step_max': {f'step_{k}': round(float(np.max(v)), 2) for k, v in times.items()}}
+                        'ms_per_step_max': {f'step_{k}': round(float(np.max(v)), 2) for k, v in times.items()},
+                        'interaction_share': round(interactions / (REPEATS * STEPS[-1]), 3)}
     print(json.dumps(report))
 
 

@@ -247,3 +247,42 @@ def test_the_reach_performer_acts_as_it_was_trained_step_by_step(reach_performer
         if t == 0:
             assert torch.allclose(a, actions[0, 0], atol=1e-4) and torch.allclose(ptr, pointer[0, 0], atol=1e-4)
     assert torch.allclose(a, actions[0, T - 1], atol=1e-4)
+
+
+def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_every_step(performer):
+    """A performer without the reach input makes a frame's keys only when it interacts (lazy_pointer):
+    the same action logits bit for bit as an agent that makes them at every step, the same pointer when
+    it acts, and the same decisions when the dialogue outgrows the cache (the keys of earlier steps
+    are then made from their frames)."""
+    from dialfred_performer.agent import PerformerAgent
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+
+    class Eager(PerformerAgent):
+        lazy_pointer = False
+
+    checkpoint, _ = performer
+    lazy, eager = PerformerAgent.from_checkpoint(checkpoint), Eager.from_checkpoint(checkpoint)
+    assert lazy.lazy_pointer and not eager.lazy_pointer
+    task = load_split('valid_unseen')[0]
+    env = DialfredEnv(resolution=32)
+    obs, _ = env.reset(options={'task': task})
+    lazy.reset(task)
+    eager.reset(task)
+    for t in range(10):
+        if t == 6:
+            unmade = sum(g is None for g in lazy._grids)
+            lazy._cache = eager._cache = None          # as when QAs outgrow max_tokens: the whole episode again
+        a, b = lazy._outputs(obs), eager._outputs(obs)
+        assert torch.equal(a[0], b[0]), t
+        if a[1] is None:
+            assert torch.equal(lazy._pointer(a[7], a[8])[1], b[1]), t
+        else:
+            assert torch.equal(a[1], b[1]), t
+        decision = lazy.act(obs)
+        assert decision == eager.act(obs)
+        name, x, y = decision
+        obs, *_ = env.step({'action': 'RotateLeft' if name in ('Stop', 'MoveAhead') else name,
+                            **({'pixel': (x, y)} if x >= 0 else {})})
+    assert unmade >= 1 and all(g is not None for g in lazy._grids[:6])     # made on demand for the fallback
+    env.close()

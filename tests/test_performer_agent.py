@@ -69,7 +69,7 @@ def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():
     assert proc.returncode == 0, proc.stderr[-2000:]
     report = json.loads(proc.stdout[proc.stdout.index('{'):])
     assert report['threads'] == 1
-    for path in ('incremental', 'whole_episode'):
+    for path in ('incremental', 'incremental_keys_every_step', 'whole_episode'):
         assert set(report[path]['ms_per_step_median']) == {'step_1', 'step_20', 'step_60', 'step_200'}
 
 

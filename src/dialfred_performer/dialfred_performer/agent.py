@@ -25,6 +25,7 @@ from dialfred_sim.protocol import ACTIONS, QA, Decision, image_array
 
 from .data import START
 from .model import INTERACTION_IDS, Performer, load_checkpoint
+from .nn import PerceivedFrames
 from .nn.heads import cell_centre_pixel
 from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 
@@ -75,7 +76,8 @@ class PerformerAgent:
         self.dialogue: list[AskedQA] = []
         self.step = 0
         self._embeddings: list[torch.Tensor] = []     # [d] per past step
-        self._grids: list[torch.Tensor] = []          # [C, d] per past step
+        self._grids: list[Optional[torch.Tensor]] = []   # [C, d] per past step (None: not made yet, see _grid)
+        self._frames: list[torch.Tensor] = []         # [1, 3, R, R] per past step
         self._previous_actions: list[int] = [START]
         self._pending: Optional[tuple] = None        # (observation, (step, dialogue length), outputs)
         self._cache = self.model.encoder.empty_cache() if self.incremental else None
@@ -96,34 +98,60 @@ class PerformerAgent:
         """The language the model reads now (preprocess.encode_language over the dialogue so far)."""
         return encode_language(self.vocab, self.instruction, self.dialogue, self.config.max_tokens)
 
+    @property
+    def lazy_pointer(self) -> bool:
+        """Whether a step makes its frame's pointer keys only when it acts on the frame: the action of a
+        performer over a perception network without the reach input does not depend on them, and the
+        network's decoder and the key layer are about half of a step's perception."""
+        return isinstance(self.model.visual, PerceivedFrames) and not self.config.reach_input
+
+    def _grid(self, t: int) -> torch.Tensor:
+        """Step t's pointer keys [C, k], made from its frame on first use (the same numbers as at the step)."""
+        if self._grids[t] is None:
+            self._grids[t] = self.model.encode_frames(self._frames[t])[1][0]
+        return self._grids[t]
+
     @torch.inference_mode()
     def _outputs(self, observation: Any) -> tuple:
-        """(action logits [13], pointer logits [C], (height, width), frame embedding, grid, extended
-        cache or None, language tokens) for the current step and observation."""
+        """(action logits [13], pointer logits [C] or None (lazy_pointer: made by `_pointer` when an
+        interaction needs them), the frame's (height, width), frame embedding, grid or None, extended
+        cache or None, language tokens, the step's output h or None, the frame tensor) for the current
+        step and observation."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, len(self.dialogue))
         if self._pending is not None and self._pending[0] is observation and self._pending[1] == key:
             return self._pending[2]
         rgb = observation_rgb(observation)
-        emb, grid = self.model.encode_frames(frame_tensor(rgb, self.config.resolution)[None])
+        frame = frame_tensor(rgb, self.config.resolution)[None]
+        if self.lazy_pointer:
+            emb, grid = self.model.visual.embedding(frame), None
+        else:
+            emb, grid = self.model.encode_frames(frame)
         lang = self.language_input()
         if self._cache is not None and len(lang) < len(encode_language(self.vocab, self.instruction, self.dialogue)):
             self._cache = None           # QAs were dropped to fit max_tokens: positions moved
         if self._cache is not None:
-            action_logits, pointer_logits, cache = self.model.decode_step(
-                self._cache, torch.tensor(lang.ids), torch.tensor(lang.types), self._lang_cached, emb[0], grid[0],
+            h, cache = self.model.step_output(
+                self._cache, torch.tensor(lang.ids), torch.tensor(lang.types), self._lang_cached, emb[0],
                 self._previous_actions[-1], self.step)
-            result = (action_logits, pointer_logits, rgb.shape[:2], emb[0], grid[0], cache, len(lang))
+            if grid is None:
+                action_logits, pointer_logits = self.model.action_head(h), None
+            else:
+                action_logits, pointer_logits = self.model.heads(h, grid[0])
+            result = (action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h, frame)
         else:
             ids = torch.tensor([lang.ids], dtype=torch.long)
             embeddings = torch.stack([*self._embeddings, emb[0]])[None]
-            grids = torch.stack([*self._grids, grid[0]])[None]
+            if grid is None:
+                grid = self.model.encode_frames(frame)[1]
+            grids = torch.stack([*(self._grid(t) for t in range(self.step)), grid[0]])[None]
             T = embeddings.shape[1]
             action_logits, pointer_logits = self.model.decode(
                 ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
                 embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
-            result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid[0], None, len(lang))
+            result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid, None, len(lang),
+                      None, frame)
         self._pending = (observation, key, result)
         return result
 
@@ -131,16 +159,25 @@ class PerformerAgent:
         """Probabilities over ACTIONS of the next action given `observation`."""
         return torch.softmax(self._outputs(observation)[0], -1).numpy()
 
+    @torch.inference_mode()
+    def _pointer(self, h: torch.Tensor, frame: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(the frame's grid [1, C, k], the pointer logits [C]) of a step whose output is h (lazy_pointer)."""
+        grid = self.model.encode_frames(frame)[1]
+        return grid, self.model.pointer_head(h, grid[0])
+
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
         in the observation's frame."""
-        action_logits, pointer_logits, (height, width), emb, grid, cache, n_lang = self._outputs(observation)
+        action_logits, pointer_logits, (height, width), emb, grid, cache, n_lang, h, frame = self._outputs(observation)
         action = int(action_logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
+            if pointer_logits is None:
+                grid, pointer_logits = self._pointer(h, frame)
             x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width, height)
         self._embeddings.append(emb)
-        self._grids.append(grid)
+        self._grids.append(None if grid is None else grid[0])
+        self._frames.append(frame)
         self._previous_actions.append(action)
         if self._cache is not None:
             self._cache, self._lang_cached = cache, n_lang

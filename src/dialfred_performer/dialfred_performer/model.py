@@ -151,10 +151,16 @@ class Performer(nn.Module):
         language so far (lang_ids, lang_types [L]; the tokens from `first_new` on became known at
         step t), the frame's embedding [d] and grid [C, d], the previous action. Returns (action
         logits [13], pointer logits [C], the extended cache)."""
+        h, cache = self.step_output(cache, lang_ids, lang_types, first_new, frame_embedding, previous_action, t)
+        return (*self.heads(h, grid), cache)
+
+    @torch.no_grad()
+    def step_output(self, cache, lang_ids: torch.Tensor, lang_types: torch.Tensor, first_new: int,
+                    frame_embedding: torch.Tensor, previous_action: int, t: int) -> tuple[torch.Tensor, object]:
+        """decode_step before the heads: (the step's output h [d], the extended cache)."""
         lang = self.language(lang_ids[None], lang_types[None])[0, first_new:]
         action = self.actions(torch.tensor([[previous_action]]))[0, 0]
-        h, cache = self.encoder.step(cache, lang, frame_embedding, action, t)
-        return (*self.heads(h, grid), cache)
+        return self.encoder.step(cache, lang, frame_embedding, action, t)
 
     def forward(self, batch: dict) -> dict:
         """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],
