@@ -276,7 +276,7 @@ def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_ev
         a, b = lazy._outputs(obs), eager._outputs(obs)
         assert torch.equal(a[0], b[0]), t
         if a[1] is None:
-            assert torch.equal(lazy._pointer(a[7], a[8])[1], b[1]), t
+            assert torch.equal(lazy._pointer(a[7], a[9])[1], b[1]), t
         else:
             assert torch.equal(a[1], b[1]), t
         decision = lazy.act(obs)

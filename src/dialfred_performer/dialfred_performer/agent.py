@@ -108,15 +108,15 @@ class PerformerAgent:
     def _grid(self, t: int) -> torch.Tensor:
         """Step t's pointer keys [C, k], made from its frame on first use (the same numbers as at the step)."""
         if self._grids[t] is None:
-            self._grids[t] = self.model.encode_frames(self._frames[t])[1][0]
+            self._grids[t] = self.model.visual.keys_of(self.model.visual.net.encode(self._frames[t]))[0]
         return self._grids[t]
 
     @torch.inference_mode()
     def _outputs(self, observation: Any) -> tuple:
         """(action logits [13], pointer logits [C] or None (lazy_pointer: made by `_pointer` when an
         interaction needs them), the frame's (height, width), frame embedding, grid or None, extended
-        cache or None, language tokens, the step's output h or None, the frame tensor) for the current
-        step and observation."""
+        cache or None, language tokens, the step's output h or None, the frame tensor, the network's
+        encoder maps or None) for the current step and observation."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, len(self.dialogue))
@@ -124,8 +124,10 @@ class PerformerAgent:
             return self._pending[2]
         rgb = observation_rgb(observation)
         frame = frame_tensor(rgb, self.config.resolution)[None]
+        encoded = None
         if self.lazy_pointer:
-            emb, grid = self.model.visual.embedding(frame), None
+            emb, encoded = self.model.visual.embedding_and_encoded(frame)     # keys_of(encoded) if it interacts
+            grid = None
         else:
             emb, grid = self.model.encode_frames(frame)
         lang = self.language_input()
@@ -139,19 +141,19 @@ class PerformerAgent:
                 action_logits, pointer_logits = self.model.action_head(h), None
             else:
                 action_logits, pointer_logits = self.model.heads(h, grid[0])
-            result = (action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h, frame)
+            result = (action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h, frame, encoded)
         else:
             ids = torch.tensor([lang.ids], dtype=torch.long)
             embeddings = torch.stack([*self._embeddings, emb[0]])[None]
             if grid is None:
-                grid = self.model.encode_frames(frame)[1]
+                grid = self.model.visual.keys_of(encoded)
             grids = torch.stack([*(self._grid(t) for t in range(self.step)), grid[0]])[None]
             T = embeddings.shape[1]
             action_logits, pointer_logits = self.model.decode(
                 ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
                 embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
             result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid, None, len(lang),
-                      None, frame)
+                      None, frame, encoded)
         self._pending = (observation, key, result)
         return result
 
@@ -160,20 +162,22 @@ class PerformerAgent:
         return torch.softmax(self._outputs(observation)[0], -1).numpy()
 
     @torch.inference_mode()
-    def _pointer(self, h: torch.Tensor, frame: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(the frame's grid [1, C, k], the pointer logits [C]) of a step whose output is h (lazy_pointer)."""
-        grid = self.model.encode_frames(frame)[1]
+    def _pointer(self, h: torch.Tensor, encoded: tuple) -> tuple[torch.Tensor, torch.Tensor]:
+        """(the frame's grid [1, C, k], the pointer logits [C]) of a step whose output is h and whose frame's
+        encoder maps are `encoded` (lazy_pointer)."""
+        grid = self.model.visual.keys_of(encoded)
         return grid, self.model.pointer_head(h, grid[0])
 
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
         in the observation's frame."""
-        action_logits, pointer_logits, (height, width), emb, grid, cache, n_lang, h, frame = self._outputs(observation)
+        action_logits, pointer_logits, (height, width), emb, grid, cache, n_lang, h, frame, encoded = \
+            self._outputs(observation)
         action = int(action_logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
             if pointer_logits is None:
-                grid, pointer_logits = self._pointer(h, frame)
+                grid, pointer_logits = self._pointer(h, encoded)
             x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width, height)
         self._embeddings.append(emb)
         self._grids.append(None if grid is None else grid[0])

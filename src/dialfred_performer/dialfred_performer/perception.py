@@ -95,7 +95,8 @@ class Perception(nn.Module):
         self.colour_head = nn.Conv2d(c.decoder, 3, 1)
         self.register_buffer('mean', torch.tensor([0.5, 0.5, 0.5]).view(1, 3, 1, 1), persistent=False)
 
-    def _encode(self, frames: torch.Tensor):
+    def encode(self, frames: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The encoder's maps (stem, R/2, R/4, R/8): `decode` of them is `forward` of the frames."""
         stem = self.stem(frames - self.mean)
         f1 = self.down1(stem)
         f2 = self.down2(f1)
@@ -103,13 +104,16 @@ class Perception(nn.Module):
 
     def coarse(self, frames: torch.Tensor) -> torch.Tensor:
         """The R/8 map alone (PerceptionOutput.coarse), without the decoder."""
-        return self._encode(frames)[3]
+        return self.encode(frames)[3]
 
-    def forward(self, frames: torch.Tensor) -> PerceptionOutput:
-        stem, f1, f2, f3 = self._encode(frames)
+    def decode(self, encoded: tuple[torch.Tensor, ...]) -> PerceptionOutput:
+        stem, f1, f2, f3 = encoded
         up = F.interpolate(self.top(f3), scale_factor=2, mode='nearest') + self.lateral2(f2)
         up = F.interpolate(self.smooth2(up), scale_factor=2, mode='nearest') + self.lateral1(f1)
         return PerceptionOutput(f3, self.smooth1(up), stem)
+
+    def forward(self, frames: torch.Tensor) -> PerceptionOutput:
+        return self.decode(self.encode(frames))
 
     def heads(self, fine: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """fine [N, c, R/2, R/2] -> (class logits [N, K, R/2, R/2], depth m [N, R/2, R/2], colour [N, 3, R/2, R/2])."""

@@ -176,10 +176,14 @@ class MapAgent:
         conf, labels = prob.max(0)
         return labels.numpy(), conf.numpy(), metres[0].numpy()
 
+    def sense(self, observation: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the agent makes of an observation: `perceive` of its RGB frame (a diagnostic subclass may
+        read something else: benchmarks/map_perception_ceiling.py)."""
+        return self.perceive(self.rgb)
+
     def _update(self, observation: Any) -> None:
-        rgb = observation_rgb(observation)
-        self.rgb = rgb
-        labels, conf, depth = self.perceive(rgb)
+        self.rgb = observation_rgb(observation)
+        labels, conf, depth = self.sense(observation)
         if self.step == 0:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
         else:

@@ -65,9 +65,24 @@ class PerceivedFrames(nn.Module):
         fine, stem = out.fine, out.stem
         if keys_for is not None:
             fine, stem = fine[keys_for], stem[keys_for]
+        return self._embed(out.coarse), self._keys(fine, stem), out
+
+    def _keys(self, fine: torch.Tensor, stem: torch.Tensor) -> torch.Tensor:
         up = F.interpolate(fine, size=stem.shape[-2:], mode='bilinear', align_corners=False)
-        keys = self.key(torch.cat([up, stem], 1)).flatten(2).transpose(1, 2)
-        return self._embed(out.coarse), keys, out
+        return self.key(torch.cat([up, stem], 1)).flatten(2).transpose(1, 2)
+
+    def embedding_and_encoded(self, frames: torch.Tensor) -> tuple[torch.Tensor, tuple]:
+        """(the frame embeddings [N, d], the network's encoder maps): `keys_of` the maps gives the frames'
+        keys later, without running the encoder again (the same numbers as `forward`)."""
+        with torch.no_grad():
+            encoded = self.net.encode(frames)
+        return self._embed(encoded[3]), encoded
+
+    def keys_of(self, encoded: tuple) -> torch.Tensor:
+        """The keys [N, R*R, k] (no distance channel) of the frames whose encoder maps are `encoded`."""
+        with torch.no_grad():
+            out = self.net.decode(encoded)
+        return self._keys(out.fine, out.stem)
 
     @torch.no_grad()
     def _distances(self, fine: torch.Tensor, size: int) -> torch.Tensor:
