@@ -194,3 +194,17 @@ def test_rl_update_times_both_ways_of_scoring_and_finds_the_same_numbers():
     assert report['synthetic'] is True and report['decisions'] == 63 * 8 + 12
     assert report['seconds_one_batch'] > 0 and report['seconds_chunked'] > 0
     assert report['max_abs_difference'] < 1e-4
+
+
+@pytest.mark.slow   # a benchmark script end to end (eight short map performer episodes)
+def test_map_perception_ceiling_plays_both_sights_with_and_without_questions(tmp_path):
+    report = run_bench('map_perception_ceiling', '--limit', '8', '--shard', '0/4', '--out', str(tmp_path),
+                       '--no-progress', timeout=400)
+    assert set(report['settings']) == {'network/none', 'network/all', 'truth/none', 'truth/all'}
+    assert all(s['n'] == 2 for s in report['settings'].values())
+    assert report['settings']['network/all']['NQ'] > 0 == report['settings']['network/none']['NQ']
+    truth = [json.loads(line) for line in (tmp_path / 'truth_all.jsonl').read_text().splitlines()]
+    assert all(r['privileged'] and r['agent'].endswith('+truth-sight') for r in truth)
+    again = run_bench('map_perception_ceiling', '--limit', '8', '--shard', '0/4', '--out', str(tmp_path),
+                      '--no-progress')     # resumed: nothing left to play, the same report
+    assert again['settings'] == report['settings']

@@ -277,3 +277,38 @@ def test_the_belief_map_is_pictured_recorded_and_filmed_beside_the_camera(tmp_pa
     h, w = ep.frames[0][2].shape[:2]
     assert all(frame.shape == (h, w + h, 3) for frame, _ in shots)
     assert not (pictures[-1] == np.array(TARGET, np.uint8)).all(-1).all()
+
+
+def test_the_ground_truth_sight_of_the_ceiling_benchmark_labels_cells_from_the_simulator():
+    """benchmarks/map_perception_ceiling.py's privileged reference: a cell one body fills gets that body's
+    class, a cell where an object shows on at least a quarter of its pixels gets an object's class, and
+    each cell's depth is the depth image's mean over it."""
+    import importlib.util
+    from pathlib import Path
+
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks.demonstrations import label_classes
+    from dialfred_sim.tasks.split_files import get_task
+    from dialfred_performer.mapper.agent import MapAgent
+
+    path = Path(__file__).resolve().parents[1] / 'benchmarks' / 'map_perception_ceiling.py'
+    spec = importlib.util.spec_from_file_location('map_perception_ceiling', path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    env = DialfredEnv(resolution=128, max_steps=5)
+    obs, _ = env.reset(options={'task': get_task('valid_unseen/000012')})
+    agent = bench.truth_sight(MapAgent).from_checkpoint(SHIPPED)
+    agent.attach(env)
+    labels, conf, depth = agent.sense(obs)
+    assert labels.shape == conf.shape == depth.shape == (32, 32) and (conf == 1).all()
+    ids, names = env.world.instance_table()
+    class_id = {name: k for k, name in enumerate(label_classes())}
+    body_class = {b: class_id.get(env.world.objects[n].type_name if n in env.world.objects else n, 0)
+                  for b, n in zip(ids, names)}
+    pixels = np.vectorize(lambda b: body_class.get(int(b), 0))(obs['segmentation']).reshape(32, 4, 32, 4)
+    pixels = pixels.transpose(0, 2, 1, 3).reshape(32, 32, 16)
+    whole = (pixels == pixels[..., :1]).all(-1)
+    assert whole.sum() > 100 and (labels[whole] == pixels[whole][:, 0]).all()
+    some_object = ((pixels >= 4).sum(-1) >= 4)
+    assert (labels[some_object] >= 4).all()
+    assert depth == pytest.approx(obs['depth'].reshape(32, 4, 32, 4).mean(axis=(1, 3)), abs=1e-5)
