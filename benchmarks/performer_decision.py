@@ -7,7 +7,7 @@ only when it interacts), the same making the keys at every step, and the baselin
 episode again at every step, in the same run. Prints JSON (with the share of interaction decisions:
 those steps make the keys in every setting).
 
-    ./dialfred bench performer_decision [--repeats 5] [--checkpoint PATH]
+    ./dialfred bench performer_decision [--repeats 5] [--checkpoint PATH] [--last-step 200]
 """
 
 from __future__ import annotations
@@ -30,10 +30,12 @@ STEPS = (1, 20, 60, 200)
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--repeats', type=int, default=5, help='episodes of 200 steps')
+    ap.add_argument('--repeats', type=int, default=5, help='episodes (of --last-step steps each)')
     ap.add_argument('--checkpoint', default=str(SHIPPED_CHECKPOINT), help='the performer (default: the shipped one)')
+    ap.add_argument('--last-step', type=int, default=STEPS[-1], choices=STEPS, help='episodes end at this step')
     args = ap.parse_args()
     REPEATS, checkpoint = args.repeats, Path(args.checkpoint)
+    steps = tuple(s for s in STEPS if s <= args.last_step)
     torch.set_num_threads(1)
     torch.manual_seed(0)
     config = PerformerConfig()
@@ -57,14 +59,14 @@ def main() -> None:
                                    ('incremental_keys_every_step', True, EagerPointer),
                                    ('whole_episode', False, PerformerAgent)):
         agent = cls(model, vocab, incremental)
-        times = {s: [] for s in STEPS}
+        times = {s: [] for s in steps}
         interactions = 0
         rng = np.random.default_rng(0)           # the same frames for every setting
         for r in range(REPEATS):
             agent.reset(task, seed=r)
             for qtype, noun, text in zip(('location', 'appearance', 'direction'), ('apple', 'apple', ''), answers):
                 agent.hear(QA(Question(qtype, noun), True, text))
-            for step in range(1, STEPS[-1] + 1):
+            for step in range(1, steps[-1] + 1):
                 frame = rng.integers(0, 256, (128, 128, 3), dtype=np.uint8)
                 t0 = time.perf_counter()
                 action, _, _ = agent.act(frame)
@@ -74,7 +76,7 @@ def main() -> None:
                     times[step].append(dt)
         report[name] = {'ms_per_step_median': {f'step_{k}': round(float(np.median(v)), 2) for k, v in times.items()},
                         'ms_per_step_max': {f'step_{k}': round(float(np.max(v)), 2) for k, v in times.items()},
-                        'interaction_share': round(interactions / (REPEATS * STEPS[-1]), 3)}
+                        'interaction_share': round(interactions / (REPEATS * steps[-1]), 3)}
     print(json.dumps(report))
 
 
