@@ -87,6 +87,24 @@ def test_paths_go_around_what_is_blocked_and_say_when_there_is_none():
     assert distance_field(free, goals)[0, 0] == UNREACHABLE
 
 
+def test_waves_stopped_at_the_agent_give_the_same_move_from_there():
+    """distance_field(until=point) stops once the waves reach the point: the point's distance and the
+    move from it are those of the whole field, from every point, heading and random map."""
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        free = rng.random((15, 15)) > 0.3
+        goals = rng.random((15, 15)) > 0.97
+        whole = distance_field(free, goals)
+        for a in range(15):
+            for b in range(15):
+                part = distance_field(free, goals, until=(a, b))
+                assert part[a, b] == whole[a, b]
+                assert (part >= whole).all() and (part[part < UNREACHABLE] == whole[part < UNREACHABLE]).all()
+                for heading in (0, 90, 180, 270):
+                    pose = Pose(a - 7, b - 7, heading)
+                    assert next_move(part, pose, 7) == next_move(whole, pose, 7)
+
+
 def test_the_map_marks_obstacles_and_objects_and_goals_within_reach():
     smap = SemanticMap(n_classes=10, map_m=8.0)
     pts = np.zeros((2, 2, 3))

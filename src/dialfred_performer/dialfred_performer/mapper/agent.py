@@ -444,7 +444,7 @@ class MapAgent:
         cx, cy, height = self.map.object_cells(k)
         if len(cx):
             goals = reach_goals(self.map, cx, cy, height)
-            dist = distance_field(free, goals)
+            dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
             here = dist[self.pose.i + off, self.pose.j + off]
             if here == 0:
                 move = self._face(cx, cy, height)
@@ -506,7 +506,7 @@ class MapAgent:
                     keep = diff <= 67.5
                     if keep.any():
                         goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
-                        dist = distance_field(free, goals)
+                        dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
                         if dist[self.pose.i + off, self.pose.j + off] == 0:
                             move = self._face(cx[keep], cy[keep], height[keep])
                             if move is not None:
@@ -538,7 +538,7 @@ class MapAgent:
             toward = goals & self._cone(fact[1], fact[0].bearing_deg)
             goals = toward if toward.any() else goals
         if goals.any():
-            dist = distance_field(free, goals)
+            dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
             if dist[self.pose.i + off, self.pose.j + off] < UNREACHABLE:
                 move = next_move(dist, self.pose, off)
                 if move is not None and self._loop_guard(move):
@@ -556,7 +556,7 @@ class MapAgent:
             goals[i + off, j + off] = False
         if not goals.any():
             return None
-        dist = distance_field(free, goals)
+        dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
         if dist[self.pose.i + off, self.pose.j + off] >= UNREACHABLE:
             return None
         move = next_move(dist, self.pose, off)

@@ -152,23 +152,31 @@ class SemanticMap:
         return seen[cx[:, None], cy[None, :]]
 
 
-def distance_field(free: np.ndarray, goals: np.ndarray, max_waves: int = 400) -> np.ndarray:
+def distance_field(free: np.ndarray, goals: np.ndarray, max_waves: int = 400,
+                   until: Optional[tuple[int, int]] = None) -> np.ndarray:
     """Moves (4-connected over `free`) from every grid point to the nearest `goals` point; goal
-    points count even where not free. UNREACHABLE where none can be reached."""
+    points count even where not free. UNREACHABLE where none can be reached. With `until` (a grid
+    point), the waves stop once they reach it: every point nearer the goals than it, and it, have
+    their distance, farther ones may be left UNREACHABLE (enough for `next_move` from there, which
+    reads the point and its neighbours: one of them is nearer, and a farther one is never chosen)."""
     dist = np.full(free.shape, UNREACHABLE, np.int64)
     frontier = goals.copy()
     dist[frontier] = 0
     passable = free | goals
+    unknown = dist == UNREACHABLE
     for wave in range(1, max_waves):
+        if until is not None and not unknown[until]:
+            break
         grown = np.zeros_like(frontier)
         grown[1:, :] |= frontier[:-1, :]
         grown[:-1, :] |= frontier[1:, :]
         grown[:, 1:] |= frontier[:, :-1]
         grown[:, :-1] |= frontier[:, 1:]
-        grown &= passable & (dist == UNREACHABLE)
+        grown &= passable & unknown
         if not grown.any():
             break
         dist[grown] = wave
+        unknown &= ~grown
         frontier = grown
     return dist
 
