@@ -77,7 +77,7 @@ class PerformerAgent:
         self.step = 0
         self._embeddings: list[torch.Tensor] = []     # [d] per past step
         self._grids: list[Optional[torch.Tensor]] = []   # [C, d] per past step (None: not made yet, see _grid)
-        self._frames: list[torch.Tensor] = []         # [1, 3, R, R] per past step
+        self._frames: list[Optional[torch.Tensor]] = []   # [1, 3, R, R] per past step whose keys are not made
         self._previous_actions: list[int] = [START]
         self._pending: Optional[tuple] = None        # (observation, (step, dialogue length), outputs)
         self._cache = self.model.encoder.empty_cache() if self.incremental else None
@@ -181,7 +181,7 @@ class PerformerAgent:
             x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width, height)
         self._embeddings.append(emb)
         self._grids.append(None if grid is None else grid[0])
-        self._frames.append(frame)
+        self._frames.append(frame if grid is None else None)         # kept only to make the keys later
         self._previous_actions.append(action)
         if self._cache is not None:
             self._cache, self._lang_cached = cache, n_lang
