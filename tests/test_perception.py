@@ -84,6 +84,25 @@ def test_training_writes_a_checkpoint_and_metrics_and_the_same_seed_gives_the_sa
     assert all(torch.equal(first[k], again[k]) for k in first)          # the same seed, the same weights
 
 
+def test_bf16_training_keeps_fp32_weights_and_learns_and_an_unknown_precision_is_refused(prepared, tmp_path):
+    """--precision bf16 autocasts the training steps only: the weights stay fp32, the run learns (its
+    validation, in fp32, improves) and differs from the fp32 run; a precision it does not know is refused."""
+    folder, _ = prepared
+    args = ['--demonstrations', str(folder), '--frames', '96', '--batch-size', '16', '--validate-every', '3',
+            '--val-fraction', '0.3', '--val-frames', '32', '--no-progress', *TINY]
+    assert perception_main([*args, '--out', str(tmp_path / 'bf16'), '--precision', 'bf16']) == 0
+    assert perception_main([*args, '--out', str(tmp_path / 'fp32')]) == 0
+    bf16 = torch.load(tmp_path / 'bf16' / 'last.pt', weights_only=True)['state_dict']
+    fp32 = torch.load(tmp_path / 'fp32' / 'last.pt', weights_only=True)['state_dict']
+    assert all(v.dtype == torch.float32 for v in bf16.values() if v.is_floating_point())
+    assert any(not torch.equal(bf16[k], fp32[k]) for k in fp32)
+    rows = [json.loads(line) for line in (tmp_path / 'bf16' / 'metrics.jsonl').read_text().splitlines()]
+    assert rows[-1]['val']['loss'] < rows[0]['val']['loss'] or rows[-1]['val']['cell_accuracy'] > 0.3
+    with pytest.raises(SystemExit) as refused:
+        perception_main([*args, '--out', str(tmp_path / 'x'), '--precision', 'fp16'])
+    assert refused.value.code == 2 and not (tmp_path / 'x').exists()
+
+
 def test_a_damaged_perception_checkpoint_is_refused(tmp_path):
     from dialfred_performer.perception import PerceptionCheckpointError
     (tmp_path / 'p.pt').write_bytes(b'not a checkpoint')

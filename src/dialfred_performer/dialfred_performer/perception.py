@@ -236,6 +236,8 @@ class PerceptionConfig:
     validate_every: int = arg(500, 'updates between validations (and last.pt)')
     seed: int = arg(0, 'the seed of the initial weights and of the frames drawn')
     threads: int = arg(2, 'torch threads')
+    precision: str = arg('fp32', "the training steps' arithmetic: fp32, or bf16 (autocast: the convolutions in "
+                                 'bfloat16, the weights and the validation in fp32)')
     resume: bool = arg(False, 'go on from --out/last.pt')
     progress: bool = arg(True, 'a progress bar on stderr')
 
@@ -247,6 +249,8 @@ class PerceptionConfig:
             raise ValueError(f'--val-fraction must be in (0, 1), got {self.val_fraction}')
         if not math.isfinite(self.lr) or self.lr <= 0:
             raise ValueError(f'--lr must be a positive number, got {self.lr}')
+        if self.precision not in ('fp32', 'bf16'):
+            raise ValueError(f'--precision takes fp32 or bf16, got {self.precision!r}')
 
 
 def frame_split(demo, fraction: float) -> tuple[np.ndarray, np.ndarray]:
@@ -336,8 +340,9 @@ def train_perception(cfg: PerceptionConfig) -> dict:
             frames, classes, depth = load_batch(demo, train_rows[rng.integers(len(train_rows), size=cfg.batch_size)])
             if rng.random() < 0.5:                                  # a mirrored room is a room too
                 frames, classes, depth = frames.flip(-1), classes.flip(-1), depth.flip(-1)
-            loss, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight,
-                                      cfg.small_objects)
+            with torch.autocast('cpu', dtype=torch.bfloat16, enabled=cfg.precision == 'bf16'):
+                loss, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight,
+                                              cfg.small_objects)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
