@@ -15,7 +15,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Optional
 
-PARENT_POLL_S = 1.0
+PARENT_POLL_S = 0.25
 
 
 def watch_parent(poll_s: float = PARENT_POLL_S) -> None:
