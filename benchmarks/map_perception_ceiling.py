@@ -35,19 +35,11 @@ def truth_sight(agent_cls):
 
     class GroundTruthSight(agent_cls):
         def attach(self, env) -> None:
-            from dialfred_sim.tasks.demonstrations import label_classes
             self.env = env
-            self.label_id = {name: k for k, name in enumerate(label_classes())}
 
         def sense(self, observation):
-            world = self.env.world
-            ids, names = world.instance_table()
-            table = np.zeros(max(ids, default=0) + 2, np.int64)      # body id + 1 -> class; no body -> 0
-            for body, name in zip(ids, names):
-                obj = world.objects.get(name)
-                table[body + 1] = self.label_id.get(obj.type_name if obj is not None else name, 0)
-            seg = np.asarray(observation['segmentation'])
-            classes = table[np.clip(seg, -1, len(table) - 2) + 1]
+            from dialfred_sim.tasks.demonstrations import pixel_classes
+            classes = pixel_classes(self.env.world, np.asarray(observation['segmentation'])).astype(np.int64)
             s = self.resolution // 2                                # the network's cells
             b = classes.shape[0] // s
             k = len(self.classes)
@@ -109,10 +101,11 @@ def measure(shard: str, limit: int, workers: int, out: Path, checkpoint: str, se
             progress: bool) -> dict:
     from tqdm import tqdm
 
+    from dialfred_bringup.shards import parse_shard
     from dialfred_sim.metrics import EpisodeResult, load_results
     from dialfred_sim.processes import worker_pool
     from dialfred_sim.tasks.split_files import load_split
-    k, n = (int(x) for x in shard.split('/'))
+    k, n = parse_shard(shard)
     tasks = [(i, t) for i, t in enumerate(load_split('valid_unseen')[:limit or None]) if i % n == k]
     out.mkdir(parents=True, exist_ok=True)
     done: dict = {}
@@ -165,12 +158,11 @@ def main() -> None:
     ap.add_argument('--resolution', type=int, default=128, help='camera pixels (the map performer plays at 128)')
     ap.add_argument('--no-progress', action='store_true')
     args = ap.parse_args()
+    from dialfred_bringup.shards import parse_shard
     try:
-        k, n = (int(x) for x in args.shard.split('/'))
-        if not 0 <= k < n:
-            raise ValueError
-    except ValueError:
-        raise SystemExit(f'--shard takes K/N with 0 <= K < N, got {args.shard!r}') from None
+        parse_shard(args.shard)
+    except ValueError as exc:
+        raise SystemExit(f'--shard: {exc}') from None
     print(json.dumps(measure(args.shard, args.limit, args.workers, args.out, args.checkpoint, args.seed,
                              args.resolution, not args.no_progress), indent=1))
 

@@ -30,6 +30,7 @@ finished build.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import sys
@@ -61,21 +62,32 @@ class FrameLabels:
 
     def __init__(self, classes: np.ndarray, depth: np.ndarray, targets: np.ndarray):
         self.classes, self.depth, self.targets = classes, depth, targets
-        self.class_id = {name: k for k, name in enumerate(label_classes())}
 
     def write(self, k: int, env, obs: dict, target: str = '') -> None:
         """Row k: the labels of observation `obs` of `env`; `target` the object id of the action taken
         from it (its pixels go to targets.npy)."""
         seg = obs['segmentation']
-        ids, names = env.world.instance_table()
-        table = np.zeros(max(ids, default=0) + 2, np.uint8)       # body id + 1 -> class; -1 (no body) -> 0
-        for body, name in zip(ids, names):
-            obj = env.world.objects.get(name)
-            table[body + 1] = self.class_id.get(obj.type_name if obj is not None else name, 0)
-        self.classes[k] = table[np.clip(seg, -1, len(table) - 2) + 1]
+        self.classes[k] = pixel_classes(env.world, seg)
         self.depth[k] = np.minimum(np.round(obs['depth'] / DEPTH_STEP), 255).astype(np.uint8)
         obj = env.world.objects.get(target) if target else None
         self.targets[k] = np.packbits(seg == obj.body) if obj is not None else 0
+
+
+@functools.lru_cache(maxsize=1)
+def _class_ids() -> dict[str, int]:
+    return {name: k for k, name in enumerate(label_classes())}
+
+
+def pixel_classes(world, segmentation: np.ndarray) -> np.ndarray:
+    """Each pixel's label class (uint8: `label_classes()`'s index; 0 where no body shows) from a
+    segmentation of `world`'s bodies."""
+    class_id = _class_ids()
+    ids, names = world.instance_table()
+    table = np.zeros(max(ids, default=0) + 2, np.uint8)       # body id + 1 -> class; -1 (no body) -> 0
+    for body, name in zip(ids, names):
+        obj = world.objects.get(name)
+        table[body + 1] = class_id.get(obj.type_name if obj is not None else name, 0)
+    return table[np.clip(segmentation, -1, len(table) - 2) + 1]
 
 
 def default_dir(split: str, resolution: int) -> Path:
