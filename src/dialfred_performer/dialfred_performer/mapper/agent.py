@@ -8,14 +8,17 @@ current step of the instruction's plan (`language.parse_instruction`) picks the 
 
 - the step's object is seen within reach in this frame: act on it, clicking the cell of its mask
   nearest the mask's centre among those within reach (an appearance answer's colour picks among
-  several masks);
+  several masks; a mask out of the direction a location answer gave is passed over);
 - it is on the map: walk to the nearest grid point from which it can be reached, turn to it and tilt
-  the camera to its height; if it still is not in reach there, give that place up;
+  the camera to its height; if it still is not in reach there, give that place up. With a location
+  answer, the places in its direction come first, then a look that way, and only then the others;
 - it has not been seen: look around once, then go where answers point (a location answer's
   direction and receptacle, a direction answer's turn), else to the nearest unexplored edge of the map.
 
-Nothing privileged is read: not the simulator's depth, segmentation, pose, held object or error
-text (a test removes them from every observation and gets the same episode).
+What is seen where the hand carries an object is left off the map (it would block the grid point
+ahead in every direction the agent turns to). Nothing privileged is read: not the simulator's depth,
+segmentation, pose, held object or error text (a test removes them from every observation and gets
+the same episode).
 
 `action_probabilities(observation)` is the agent's confusion signal for the model-confusion
 questioner: sure when it acts on what it sees, less so when walking to a mapped place, unsure when
@@ -45,7 +48,7 @@ from ..preprocess import frame_tensor
 from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon,
                        points_in_agent_frame, ray_distance, to_map_frame)
 from .language import Fact, InstructionError, Step, parse_answer, parse_instruction
-from .semantic_map import UNREACHABLE, SemanticMap, distance_field, next_move, reach_goals, unexamined_goals
+from .semantic_map import TIGHT_CELLS, UNREACHABLE, SemanticMap, distance_field, next_move, reach_goals, unexamined_goals
 
 STRUCTURE = 4                    # label classes below this are nothing, Floor, Wall, Ceiling
 FLOOR = 1
@@ -118,6 +121,7 @@ class MapAgent:
         self.approached = False
         self.macro: deque[str] = deque()
         self.anchors: dict[str, tuple[float, float]] = {}     # type -> map point of the instance acted on
+        self.cone_spent: set[str] = set()      # types whose location answer's direction was searched in vain
         self.last_ray: Optional[float] = None
         self.visits: Counter = Counter()
         self.confidence = EXPLORING
@@ -190,13 +194,19 @@ class MapAgent:
             self._dead_reckon(_success(observation))
         self.labels, self.conf = labels, conf
         self.ray = ray_distance(depth)
-        points = to_map_frame(points_in_agent_frame(depth, self.pose.horizon), self.pose)
+        local = points_in_agent_frame(depth, self.pose.horizon)
+        points = to_map_frame(local, self.pose)
         self.points = points
+        mapped = self.ray
         if self.held is not None:
             ray = self.ray.copy()
             ray[self.hand_window()] = np.inf          # the object in hand is not part of the room
             self.ray = ray
-        self.map.update(points, labels, conf, self.ray, FLOOR, STRUCTURE)
+            # Nor is it an obstacle: what is seen where the hand carries things is left off the map
+            # (else it walls the agent in, a step ahead in every direction it turns to).
+            mapped = ray.copy()
+            mapped[carried_volume(local)] = np.inf
+        self.map.update(points, labels, conf, mapped, FLOOR, STRUCTURE)
         self.map.visited.add((self.pose.i, self.pose.j))
         if not self.held_known and self.step == 0:
             # A put, heat, cool or clean instruction is given with the object in hand 91% of the time
@@ -377,6 +387,11 @@ class MapAgent:
             inside = comp & reach
             if not inside.any():
                 continue
+            rows, cols = np.nonzero(comp)
+            p = self.points[rows, cols].mean(0)
+            cone = self._answered_cone(step.target, p[:1], p[1:2])
+            if cone is not None and not cone[0]:
+                continue                      # not where the location answer said
             score = -float(inside.sum())
             if colour is not None:
                 named = self._colour_of(comp)
@@ -420,6 +435,17 @@ class MapAgent:
             return 2.0 * diff + (500.0 if diff > 67.5 else 0.0)
         return 0.0
 
+    def _answered_cone(self, type_name: str, x: np.ndarray, y: np.ndarray) -> Optional[np.ndarray]:
+        """Which map points (x, y) lie in the direction a location answer gave for `type_name` (within
+        67.5 degrees of it, seen from where the answer was heard); None without such an answer, or
+        once an instance of the type has been acted on (that one is the one)."""
+        fact = self.facts.get(('location', type_name))
+        if fact is None or type_name in self.anchors or type_name in self.cone_spent:
+            return None
+        f, at = fact
+        bearings = np.array([bearing_deg(at, float(a), float(b)) for a, b in zip(x, y)])
+        return np.abs((bearings - f.bearing_deg + 180.0) % 360.0 - 180.0) <= 67.5
+
     def _colour_wanted(self, step: Step) -> Optional[str]:
         name = step.held if step.kind == 'put' else step.target
         fact = self.facts.get(('appearance', name))
@@ -440,29 +466,55 @@ class MapAgent:
             self.confidence = WALKING
             return self.turns.popleft()
         free = self.map.traversable()
-        off = self.map.node_offset()
         cx, cy, height = self.map.object_cells(k)
-        if len(cx):
-            goals = reach_goals(self.map, cx, cy, height)
-            dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
-            here = dist[self.pose.i + off, self.pose.j + off]
-            if here == 0:
-                move = self._face(cx, cy, height)
+        cone = self._answered_cone(step.target, *self.map.cell_centre(cx, cy)) if len(cx) else None
+        if cone is not None:
+            # A location answer: the instances in its direction first, then a look there, and only
+            # then the others (the answer's direction is spent).
+            if cone.any():
+                move = self._approach(k, step, free, cx[cone], cy[cone], height[cone])
                 if move is not None:
-                    self.confidence = WALKING
                     return move
-                # At a place from which it should be in reach and facing it, yet not in reach: give it up.
-                x, y = self.map.cell_centre(cx, cy)
-                d = (x - self.pose.xy[0]) ** 2 + (y - self.pose.xy[1]) ** 2
-                n = int(np.argmin(d))
-                self.map.exclude(k, float(x[n]), float(y[n]))
-                return self._navigate(k, step)
-            if here < UNREACHABLE:
-                move = next_move(dist, self.pose, off)
-                if move is not None and self._loop_guard(move):
-                    self.confidence = WALKING
-                    return move
-        return self._explore(k, step, free)
+            move = self._explore(k, step, free)
+            if move is not None:
+                return move
+            self.cone_spent.add(step.target)
+        if len(cx):
+            move = self._approach(k, step, free, cx, cy, height)
+            if move is not None:
+                return move
+        return self._explore(k, step, free) if cone is None else None
+
+    def _approach(self, k: int, step: Step, free: np.ndarray, cx, cy, height) -> Optional[str]:
+        """The next move towards where the cells (cx, cy) of class k can be reached; None when there
+        is no way."""
+        off = self.map.node_offset()
+        goals = reach_goals(self.map, cx, cy, height)
+        at = (self.pose.i + off, self.pose.j + off)
+        dist = distance_field(free, goals, until=at)
+        here = dist[at]
+        if here >= UNREACHABLE and goals.any():
+            # No way with the safe clearance (an obstacle a cell too near on the far side walls it
+            # in): plan with the tight one, and let failed moves tell.
+            dist = distance_field(self.map.traversable(TIGHT_CELLS), goals, until=at)
+            here = dist[at]
+        if here == 0:
+            move = self._face(cx, cy, height)
+            if move is not None:
+                self.confidence = WALKING
+                return move
+            # At a place from which it should be in reach and facing it, yet not in reach: give it up.
+            x, y = self.map.cell_centre(cx, cy)
+            d = (x - self.pose.xy[0]) ** 2 + (y - self.pose.xy[1]) ** 2
+            n = int(np.argmin(d))
+            self.map.exclude(k, float(x[n]), float(y[n]))
+            return self._navigate(k, step)
+        if here < UNREACHABLE:
+            move = next_move(dist, self.pose, off)
+            if move is not None and self._loop_guard(move):
+                self.confidence = WALKING
+                return move
+        return None
 
     def _loop_guard(self, move: str) -> bool:
         key = (self.pose.i, self.pose.j, self.pose.heading, self.pose.horizon, move)
@@ -641,6 +693,16 @@ class MapAgent:
 
 
 HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object (ahead, left, height)
+
+
+CARRIED_M = (0.8, 0.45, 0.45)       # a held object's points: nearer ahead, to either side, higher than these
+
+
+def carried_volume(local: np.ndarray) -> np.ndarray:
+    """[S, S] bool: the points (in the agent's frame: forward, left, height) where an object carried
+    in the hand may be seen (HAND_M, give or take the largest pickupable object's half size)."""
+    ahead, side, low = CARRIED_M
+    return (local[..., 0] < ahead) & (np.abs(local[..., 1]) < side) & (local[..., 2] > low)
 
 
 def hand_cell(horizon: float, size: int) -> tuple[int, int]:

@@ -6,10 +6,12 @@ that are not floor for obstacles, and each object class predicted at a point for
 (with the point's height, which decides from how far the object can be reached). A MoveAhead that
 failed marks the grid point ahead as blocked, whatever the map says.
 
-Paths: the agent moves on the grid of STEP_M points. `distance_field(goals)` is the number of moves
-from every grid point to the nearest goal point over points believed free (unknown counts as free,
-so the agent explores optimistically), by breadth-first waves over the whole grid at once (numpy:
-a few milliseconds on one core). `next_action` turns the field into the agent's next move.
+Paths: the agent moves on the grid of STEP_M points; a point is free when no obstacle cell lies
+around it (SAFE_CELLS; where that leaves no way, the tighter TIGHT_CELLS). `distance_field(goals)`
+is the number of moves from every grid point to the nearest goal point over points believed free
+(unknown counts as free, so the agent explores optimistically), by breadth-first waves over the
+whole grid at once (numpy: a few milliseconds on one core). `next_action` turns the field into the
+agent's next move. A point a MoveAhead failed into is never free, nor a goal.
 """
 
 from __future__ import annotations
@@ -30,6 +32,11 @@ OBSTACLE_MIN_M, OBSTACLE_MAX_M = 0.08, 1.8
 MAX_RANGE_M = 4.0              # predicted depth further than this is not mapped
 CLOSE_M = 1.6                  # a surface seen from nearer than this has been looked at closely
 UNREACHABLE = 1 << 20
+# The cells (offsets from the cell whose corner is a grid point) whose obstacles block the point: the
+# agent's 0.2 m disc is taken as the 3 x 3 cells from one cell before the point to two after it, and,
+# where that leaves the agent no way to a goal, as the 2 x 2 cells centred on the point.
+SAFE_CELLS = tuple((dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1))
+TIGHT_CELLS = tuple((dx, dy) for dx in (-1, 0) for dy in (-1, 0))
 
 
 class SemanticMap:
@@ -118,15 +125,14 @@ class SemanticMap:
         """[n, n] bool: cells believed occupied (seen as an obstacle twice, and more often than as floor)."""
         return (self.occupied >= 2.0) & (self.occupied > 0.5 * self.free)
 
-    def traversable(self) -> np.ndarray:
-        """[nodes, nodes] bool: grid points believed free for the agent (unknown counts as free)."""
+    def traversable(self, cells: tuple = SAFE_CELLS) -> np.ndarray:
+        """[nodes, nodes] bool: grid points believed free for the agent (unknown counts as free): no
+        obstacle in `cells` around them, no MoveAhead failed into them, or stood on."""
         occ = self.obstacles()
-        # A grid point sits on a cell corner region; the agent's 0.2 m disc covers the 3x3 cells around it.
-        pad = np.pad(occ, 1)
         near = np.zeros_like(occ)
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                near |= pad[1 + dx:1 + dx + self.n, 1 + dy:1 + dy + self.n]
+        pad = np.pad(occ, 2)
+        for dx, dy in cells:
+            near |= pad[2 + dx:2 + dx + self.n, 2 + dy:2 + dy + self.n]
         off = self.node_offset()
         ii = np.arange(self.nodes) - off
         cx, cy = self.cell_of(ii * STEP_M + 1e-6, ii * STEP_M + 1e-6)
@@ -228,6 +234,9 @@ def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray, height: np.nd
             continue
         d2 = (ii[lo_i:hi_i + 1, None] - x) ** 2 + (ii[None, lo_j:hi_j + 1] - y) ** 2
         goals[lo_i:hi_i + 1, lo_j:hi_j + 1] |= (d2 <= r * r) & (d2 >= 0.2 ** 2)
+    for (i, j) in smap.blocked:                 # a MoveAhead failed into it: no goal, however near
+        if 0 <= i + off < smap.nodes and 0 <= j + off < smap.nodes:
+            goals[i + off, j + off] = False
     return goals
 
 
