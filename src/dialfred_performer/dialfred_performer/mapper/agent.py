@@ -57,6 +57,7 @@ MIN_TARGET_CELLS = 1
 MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
 SCAN_TURNS = 3                   # turns of the first look around
 SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
+ANSWER_CONE_DEG = 67.5           # half a location answer's 45-degree direction bin, and one bin more either side
 REPLAN = 'replan'                # _navigate changed the plan: decide again
 # Attributes a decision reads but never changes (shared with the copy action_probabilities decides on).
 _SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points',
@@ -396,7 +397,7 @@ class MapAgent:
             if colour is not None:
                 named = self._colour_of(comp)
                 score += 0.0 if named == colour else 1000.0
-            score += self._place_penalty(step.target, comp)
+            score += self._place_penalty(step.target, p)
             if best_score is None or score < best_score:
                 best, best_score = (comp, inside), score
         if best is None:
@@ -420,31 +421,28 @@ class MapAgent:
         p = self.points[r, c]
         return (r, c), (float(p[0]), float(p[1]))
 
-    def _place_penalty(self, type_name: str, comp: np.ndarray) -> float:
-        """How far a mask of `type_name` lies from the instance acted on before (an opened fridge is the
-        one to put into and close), else from where a location answer said it is."""
-        rows, cols = np.nonzero(comp)
-        p = self.points[rows, cols].mean(0)
+    def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
+        """How far a mask of `type_name` centred on map point p lies from the instance acted on before
+        (an opened fridge is the one to put into and close), else from where a location answer said it is."""
         anchor = self.anchors.get(type_name)
         if anchor is not None:
             return 100.0 * math.hypot(p[0] - anchor[0], p[1] - anchor[1])
         fact = self.facts.get(('location', type_name))
         if fact is not None:
             f, at = fact
-            diff = abs((bearing_deg(at, float(p[0]), float(p[1])) - f.bearing_deg + 180.0) % 360.0 - 180.0)
-            return 2.0 * diff + (500.0 if diff > 67.5 else 0.0)
+            diff = float(off_bearing(at, f.bearing_deg, p[:1], p[1:2])[0])
+            return 2.0 * diff + (500.0 if diff > ANSWER_CONE_DEG else 0.0)
         return 0.0
 
     def _answered_cone(self, type_name: str, x: np.ndarray, y: np.ndarray) -> Optional[np.ndarray]:
         """Which map points (x, y) lie in the direction a location answer gave for `type_name` (within
-        67.5 degrees of it, seen from where the answer was heard); None without such an answer, or
+        ANSWER_CONE_DEG of it, seen from where the answer was heard); None without such an answer, or
         once an instance of the type has been acted on (that one is the one)."""
         fact = self.facts.get(('location', type_name))
         if fact is None or type_name in self.anchors or type_name in self.cone_spent:
             return None
         f, at = fact
-        bearings = np.array([bearing_deg(at, float(a), float(b)) for a, b in zip(x, y)])
-        return np.abs((bearings - f.bearing_deg + 180.0) % 360.0 - 180.0) <= 67.5
+        return off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
 
     def _colour_wanted(self, step: Step) -> Optional[str]:
         name = step.held if step.kind == 'put' else step.target
@@ -553,9 +551,7 @@ class MapAgent:
                 cx, cy, height = self.map.object_cells(rk)
                 if len(cx):
                     x, y = self.map.cell_centre(cx, cy)
-                    bearings = np.array([bearing_deg(at, float(a), float(b)) for a, b in zip(x, y)])
-                    diff = np.abs((bearings - f.bearing_deg + 180) % 360 - 180)
-                    keep = diff <= 67.5
+                    keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
                     if keep.any():
                         goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
                         dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
@@ -616,7 +612,7 @@ class MapAgent:
             return 'RotateLeft' if self._loop_guard('RotateLeft') else None
         return move if self._loop_guard(move) else None
 
-    def _cone(self, at: Pose, bearing: float, half_width: float = 67.5) -> np.ndarray:
+    def _cone(self, at: Pose, bearing: float, half_width: float = ANSWER_CONE_DEG) -> np.ndarray:
         """[nodes, nodes] bool: grid points within half_width degrees of `bearing` seen from `at`."""
         off = self.map.node_offset()
         ii = np.arange(self.map.nodes) - off
@@ -693,6 +689,12 @@ class MapAgent:
 
 
 HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object (ahead, left, height)
+
+
+def off_bearing(at: Pose, bearing: float, x, y) -> np.ndarray:
+    """Degrees (0-180) between `bearing` and the bearing of each map point (x, y) seen from `at`."""
+    seen = np.array([bearing_deg(at, float(a), float(b)) for a, b in zip(x, y)])
+    return np.abs((seen - bearing + 180.0) % 360.0 - 180.0)
 
 
 CARRIED_M = (0.8, 0.45, 0.45)       # a held object's points: nearer ahead, to either side, higher than these
