@@ -456,3 +456,40 @@ def test_a_grid_point_a_move_failed_into_is_never_a_goal():
     assert not goals[off + 1, off] and goals[off, off]
     dist = distance_field(smap.traversable(), goals)
     assert next_move(dist, Pose(0, 0, 0), off) is None          # at a goal already: no move into the blocked one
+
+
+def test_an_appearance_answer_picks_the_mask_of_its_colour_among_pickupable_things_only():
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.language import Fact
+    from dialfred_sim.world.palette import PALETTE
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Pick up the apple.'})())
+    s, px = 32, 128                                     # the perception grid and the camera's pixels
+    agent.labels = np.zeros((s, s), np.int64)
+    agent.conf = np.ones((s, s), np.float32)
+    agent.ray = np.full((s, s), 1.0, np.float32)        # everything within reach
+    agent.points = np.zeros((s, s, 3), np.float32)
+    agent.points[..., 0] = 1.0
+    agent.points[..., 1] = np.linspace(1.0, -1.0, s)[None, :]
+    agent.rgb = np.zeros((px, px, 3), np.uint8)
+    scale = px // s
+
+    def paint(type_name, colour):
+        a, b = (4, 10) if colour == 'red' else (20, 28)
+        agent.labels[10:14, a:b] = agent.class_id[type_name]
+        agent.rgb[10 * scale:14 * scale, a * scale:b * scale] = (np.array(PALETTE[colour]) * 0.8).astype(np.uint8)
+
+    for type_name in ('Apple', 'Faucet'):
+        agent.labels[:] = 0
+        paint(type_name, 'red')                          # the smaller mask, on the left
+        paint(type_name, 'green')                        # the larger one, on the right
+        k = agent.class_id[type_name]
+        step = Step('pickup' if type_name == 'Apple' else 'toggle_on', type_name)
+        assert agent._target_pixel(k, step)[0][1] >= 20                  # unanswered: the larger mask
+        agent.facts[('appearance', type_name)] = (Fact('appearance', type_name, colour='red'), Pose(0, 0, 0))
+        (_, col), _ = agent._target_pixel(k, step)
+        # a pickupable thing: the red one; a fixed one: the answer is not read off its mask
+        assert (col < 10) if type_name == 'Apple' else (col >= 20), (type_name, col)
+    # a put step reads the colour given for the receptacle, not for what is held
+    agent.facts[('appearance', 'Apple')] = (Fact('appearance', 'Apple', colour='red'), Pose(0, 0, 0))
+    assert agent._colour_wanted(Step('put', 'CounterTop', held='Apple')) is None

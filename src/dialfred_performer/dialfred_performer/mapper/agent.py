@@ -8,7 +8,7 @@ current step of the instruction's plan (`language.parse_instruction`) picks the 
 
 - the step's object is seen within reach in this frame: act on it, clicking the cell of its mask
   nearest the mask's centre among those within reach (an appearance answer's colour picks among
-  several masks; a mask out of the direction a location answer gave is passed over);
+  several masks of a pickupable type; a mask out of the direction a location answer gave is passed over);
 - it is on the map: walk to the nearest grid point from which it can be reached, turn to it and tilt
   the camera to its height; if it still is not in reach there, give that place up. With a location
   answer, the places in its direction come first, then a look that way, and only then the others;
@@ -445,8 +445,16 @@ class MapAgent:
         return off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
 
     def _colour_wanted(self, step: Step) -> Optional[str]:
-        name = step.held if step.kind == 'put' else step.target
-        fact = self.facts.get(('appearance', name))
+        """The colour an appearance answer gave for the step's target, if the target is pickupable.
+
+        Fixed things (a faucet, a lamp, a fridge) are left out: their predicted masks are few cells that
+        spill onto the wall or counter behind them, so the colour read off a mask names the background
+        (All QAs, valid_unseen: Turn off 52.4 -> 90.5 when they were left out), and a room rarely has two
+        of them side by side to choose between."""
+        kind = self.catalog.get(step.target)
+        if kind is None or not kind.pickupable:
+            return None
+        fact = self.facts.get(('appearance', step.target))
         return fact[0].colour if fact is not None else None
 
     def _colour_of(self, comp: np.ndarray) -> Optional[str]:
@@ -693,7 +701,8 @@ HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object
 
 def off_bearing(at: Pose, bearing: float, x, y) -> np.ndarray:
     """Degrees (0-180) between `bearing` and the bearing of each map point (x, y) seen from `at`."""
-    seen = np.array([bearing_deg(at, float(a), float(b)) for a, b in zip(x, y)])
+    x0, y0 = at.xy
+    seen = np.degrees(np.arctan2(np.asarray(y, dtype=float) - y0, np.asarray(x, dtype=float) - x0)) - at.heading
     return np.abs((seen - bearing + 180.0) % 360.0 - 180.0)
 
 
