@@ -38,7 +38,9 @@ def test_instructions_become_the_steps_their_task_type_implies():
 
 def test_answers_become_facts():
     f = parse_answer('location', 'The apple is to your left in the fridge.')
-    assert (f.kind, f.object_type, f.bearing_deg, f.receptacle) == ('location', 'Apple', 90.0, 'Fridge')
+    assert (f.kind, f.object_type, f.bearing_deg, f.receptacle, f.inside) == ('location', 'Apple', 90.0, 'Fridge', True)
+    f = parse_answer('location', 'The soap bar is to your rear left on the toilet.')
+    assert (f.object_type, f.receptacle, f.inside) == ('SoapBar', 'Toilet', False)    # on it: nothing to open
     assert parse_answer('location', 'You are holding the mug.').kind == 'held'
     assert parse_answer('appearance', 'The apple is red and made of food.').colour == 'red'
     assert parse_answer('direction', 'You should turn right.').turn_deg == -90

@@ -568,8 +568,8 @@ class MapAgent:
                             if move is not None:
                                 return move
                             t = self.catalog.get(f.receptacle)
-                            if t is not None and t.openable and f.receptacle not in self.opened and \
-                                    step.kind == 'pickup':
+                            if t is not None and t.openable and f.inside and f.receptacle not in self.opened \
+                                    and step.kind == 'pickup':
                                 self.plan.appendleft(Step('open', f.receptacle))
                                 self.plan.insert(2, Step('close', f.receptacle))
                                 return REPLAN

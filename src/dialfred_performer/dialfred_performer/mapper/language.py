@@ -201,7 +201,7 @@ def parse_instruction(sentence: str) -> Reading:
 # ---------------------------------------------------------------------- answers
 
 _BIN_RE = '|'.join(re.escape(b) for b in DIRECTION_BINS)
-_LOCATION = re.compile(rf'^the (?P<noun>.+?) is (?P<bin>{_BIN_RE})(?: (?:in|on) the (?P<recep>.+))?\.$')
+_LOCATION = re.compile(rf'^the (?P<noun>.+?) is (?P<bin>{_BIN_RE})(?: (?P<prep>in|on) the (?P<recep>.+))?\.$')
 _HOLDING = re.compile(r'^you are holding the (?P<noun>.+)\.$')
 _CARRIED = re.compile(r'^the (?P<noun>.+?) is (?:in|on) the (?P<recep>.+) you are holding\.$')
 _APPEARANCE = re.compile(r'^the (?P<noun>.+?) is (?P<colour>[a-z]+) and made of (?P<material>.+)\.$')
@@ -212,7 +212,7 @@ _TURNS = {TURN_LEFT.lower(): 90, TURN_RIGHT.lower(): -90, TURN_AROUND.lower(): 1
 @dataclass(frozen=True)
 class Fact:
     """What an answer says. kind: 'location' (bearing_deg from the agent's heading then, counter-
-    clockwise, and receptacle type or ''), 'held', 'appearance' (colour), 'direction' (turn_deg,
+    clockwise, and receptacle type or '', inside it or on it), 'held', 'appearance' (colour), 'direction' (turn_deg,
     counter-clockwise; stay when the expert ends where the agent is)."""
 
     kind: str
@@ -222,6 +222,7 @@ class Fact:
     colour: str = ''
     turn_deg: Optional[int] = None
     stay: bool = False
+    inside: bool = False      # location: in the receptacle (to be opened if it opens), not on it
 
 
 def parse_answer(question_type: str, answer: str) -> Optional[Fact]:
@@ -243,7 +244,7 @@ def parse_answer(question_type: str, answer: str) -> Optional[Fact]:
             if m:
                 recep = object_type(m.group('recep')) if m.group('recep') else ''
                 return Fact('location', object_type(m.group('noun')), DIRECTION_BINS.index(m.group('bin')) * 45.0,
-                            recep)
+                            recep, inside=m.group('prep') == 'in')
             return None
         if question_type == 'appearance':
             m = _APPEARANCE.match(text)
