@@ -292,11 +292,11 @@ def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_ev
             unmade = sum(g is None for g in lazy._grids)
             lazy._cache = eager._cache = None          # as when QAs outgrow max_tokens: the whole episode again
         a, b = lazy._outputs(obs), eager._outputs(obs)
-        assert torch.equal(a[0], b[0]), t
-        if a[1] is None:
-            assert torch.equal(lazy._pointer(a[7], a[9])[1], b[1]), t
+        assert torch.equal(a.action_logits, b.action_logits), t
+        if a.pointer_logits is None:
+            assert torch.equal(lazy._pointer(a.h, a.encoded)[1], b.pointer_logits), t
         else:
-            assert torch.equal(a[1], b[1]), t
+            assert torch.equal(a.pointer_logits, b.pointer_logits), t
         decision = lazy.act(obs)
         assert decision == eager.act(obs)
         name, x, y = decision

@@ -16,7 +16,7 @@ training uses. Each frame is encoded once; at every step the transformer reads t
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 import torch
@@ -42,6 +42,21 @@ def observation_rgb(observation: Any) -> np.ndarray:
     if getattr(rgb, 'encoding', None) != 'rgb8':
         raise ValueError(f'expected an rgb8 image, got encoding {getattr(rgb, "encoding", None)!r}')
     return image_array(rgb)
+
+
+class StepOutputs(NamedTuple):
+    """What the model makes of the current step's observation (PerformerAgent._outputs)."""
+
+    action_logits: torch.Tensor              # [13]
+    pointer_logits: Optional[torch.Tensor]   # [C]; None under lazy_pointer until an interaction needs them
+    frame_size: tuple[int, int]              # the observation frame's (height, width)
+    embedding: torch.Tensor                  # the frame's embedding
+    grid: Optional[torch.Tensor]             # the frame's pointer keys [1, C, k], or None (lazy_pointer)
+    cache: Optional[Any]                     # the decoder's cache extended by this step, or None
+    n_lang: int                              # language tokens read
+    h: Optional[torch.Tensor]                # the step's decoder output (incremental steps), or None
+    frame: torch.Tensor                      # the frame tensor
+    encoded: Optional[tuple]                 # the perception network's encoder maps (lazy_pointer), or None
 
 
 class PerformerAgent:
@@ -112,11 +127,8 @@ class PerformerAgent:
         return self._grids[t]
 
     @torch.inference_mode()
-    def _outputs(self, observation: Any) -> tuple:
-        """(action logits [13], pointer logits [C] or None (lazy_pointer: made by `_pointer` when an
-        interaction needs them), the frame's (height, width), frame embedding, grid or None, extended
-        cache or None, language tokens, the step's output h or None, the frame tensor, the network's
-        encoder maps or None) for the current step and observation."""
+    def _outputs(self, observation: Any) -> StepOutputs:
+        """The model's outputs for the current step and observation (computed once per step and dialogue)."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, len(self.dialogue))
@@ -141,7 +153,8 @@ class PerformerAgent:
                 action_logits, pointer_logits = self.model.action_head(h), None
             else:
                 action_logits, pointer_logits = self.model.heads(h, grid[0])
-            result = (action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h, frame, encoded)
+            result = StepOutputs(action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h,
+                                 frame, encoded)
         else:
             ids = torch.tensor([lang.ids], dtype=torch.long)
             embeddings = torch.stack([*self._embeddings, emb[0]])[None]
@@ -152,14 +165,14 @@ class PerformerAgent:
             action_logits, pointer_logits = self.model.decode(
                 ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
                 embeddings, grids, torch.tensor([self._previous_actions]), torch.ones(1, T, dtype=torch.bool))
-            result = (action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid, None, len(lang),
-                      None, frame, encoded)
+            result = StepOutputs(action_logits[0, -1], pointer_logits[0, -1], rgb.shape[:2], emb[0], grid, None,
+                                 len(lang), None, frame, encoded)
         self._pending = (observation, key, result)
         return result
 
     def action_probabilities(self, observation: Any) -> np.ndarray:
         """Probabilities over ACTIONS of the next action given `observation`."""
-        return torch.softmax(self._outputs(observation)[0], -1).numpy()
+        return torch.softmax(self._outputs(observation).action_logits, -1).numpy()
 
     @torch.inference_mode()
     def _pointer(self, h: torch.Tensor, encoded: tuple) -> tuple[torch.Tensor, torch.Tensor]:
@@ -171,20 +184,21 @@ class PerformerAgent:
     def act(self, observation: Any) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
         in the observation's frame."""
-        action_logits, pointer_logits, (height, width), emb, grid, cache, n_lang, h, frame, encoded = \
-            self._outputs(observation)
-        action = int(action_logits.argmax())
+        out = self._outputs(observation)
+        grid, pointer_logits = out.grid, out.pointer_logits
+        action = int(out.action_logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
             if pointer_logits is None:
-                grid, pointer_logits = self._pointer(h, encoded)
+                grid, pointer_logits = self._pointer(out.h, out.encoded)
+            height, width = out.frame_size
             x, y = cell_centre_pixel(int(pointer_logits.argmax()), self.config.grid_size, width, height)
-        self._embeddings.append(emb)
+        self._embeddings.append(out.embedding)
         self._grids.append(None if grid is None else grid[0])
-        self._frames.append(frame if grid is None else None)         # kept only to make the keys later
+        self._frames.append(out.frame if grid is None else None)     # kept only to make the keys later
         self._previous_actions.append(action)
         if self._cache is not None:
-            self._cache, self._lang_cached = cache, n_lang
+            self._cache, self._lang_cached = out.cache, out.n_lang
         self.step += 1
         self._pending = None
         return ACTIONS[action], x, y
