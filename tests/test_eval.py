@@ -133,6 +133,9 @@ def test_the_run_writes_its_results_and_a_summary_next_to_them(expert_run):
     assert summary['tasks'] == 8 and summary['failures'] == []
     assert summary['summary']['overall']['SR'] == 100.0
     assert list(summary['summary']['per_type']) == list(expert_run.summary['per_type'])
+    # the code the episodes were played at: this checkout's commit (+dirty when edited)
+    head = subprocess.run(['git', 'rev-parse', 'HEAD'], capture_output=True, text=True).stdout.strip()
+    assert summary['this_run']['code'].split('+')[0] == head and len(head) == 40
 
 
 @pytest.fixture(scope='module')

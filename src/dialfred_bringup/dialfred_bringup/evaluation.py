@@ -275,6 +275,7 @@ class EvalReport:
     restarts: int = 0       # workers restarted after a node died or hung (their episodes replayed)
 
     def to_json(self) -> dict:
+        from dialfred_performer.model import git_commit
         from dialfred_sim.metrics import failures
         c = self.config
         loop_s = self.wall_s - self.startup_s
@@ -290,7 +291,8 @@ class EvalReport:
             'results_file': str(c.results_path), 'tasks': len(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None,
-                         'restarts': self.restarts},
+                         'restarts': self.restarts,
+                         'code': git_commit()},     # the commit this run's episodes were played at ('+dirty': edited)
             'summary': self.summary,
             'failures': [{'task_id': r.task_id, 'task_type': r.task_type, 'end_reason': r.end_reason,
                           'error': r.error} for r in failures(self.results)],
