@@ -273,9 +273,9 @@ class EvalReport:
     wall_s: float           # the whole run, start-up included
     summary: dict
     restarts: int = 0       # workers restarted after a node died or hung (their episodes replayed)
+    code: str = ''          # the commit the run started at ('+dirty': an edited checkout)
 
     def to_json(self) -> dict:
-        from dialfred_performer.model import git_commit
         from dialfred_sim.metrics import failures
         c = self.config
         loop_s = self.wall_s - self.startup_s
@@ -292,7 +292,7 @@ class EvalReport:
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None,
                          'restarts': self.restarts,
-                         'code': git_commit()},     # the commit this run's episodes were played at ('+dirty': edited)
+                         'code': self.code},
             'summary': self.summary,
             'failures': [{'task_id': r.task_id, 'task_type': r.task_type, 'end_reason': r.end_reason,
                           'error': r.error} for r in failures(self.results)],
@@ -386,6 +386,7 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
 
 
 def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> EvalReport:
+    from dialfred_performer.model import git_commit
     from dialfred_sim.metrics import append_result, summarize, write_text_atomically
     from dialfred_sim.tasks import load_split
 
@@ -396,6 +397,7 @@ def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> Eva
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in selected if t.task_id not in done]
     ran, startup_s, restarts = 0, 0.0, 0
+    code = git_commit()
 
     def recorder(bar):
         """on_result of either path: the result line written at once (resumable), counted, shown."""
@@ -443,7 +445,7 @@ def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> Eva
                 for w in workers:
                     traces.update(w.traces)
     results = [done[t.task_id] for t in tasks]
-    report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts)
+    report = EvalReport(config, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts, code)
     write_text_atomically(config.summary_path, json.dumps(report.to_json(), indent=1) + '\n')
     return report
 
