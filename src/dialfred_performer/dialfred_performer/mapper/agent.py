@@ -45,7 +45,7 @@ from dialfred_sim.world.catalog import load_catalog
 
 from ..agent import observation_rgb
 from ..preprocess import frame_tensor
-from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon,
+from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon, off_bearing,
                        points_in_agent_frame, ray_distance, to_map_frame)
 from .language import Fact, InstructionError, Step, parse_answer, parse_instruction
 from .semantic_map import TIGHT_CELLS, UNREACHABLE, SemanticMap, distance_field, next_move, reach_goals, unexamined_goals
@@ -622,13 +622,8 @@ class MapAgent:
 
     def _cone(self, at: Pose, bearing: float, half_width: float = ANSWER_CONE_DEG) -> np.ndarray:
         """[nodes, nodes] bool: grid points within half_width degrees of `bearing` seen from `at`."""
-        off = self.map.node_offset()
-        ii = np.arange(self.map.nodes) - off
-        dx = (ii[:, None] - at.i) * STEP_M
-        dy = (ii[None, :] - at.j) * STEP_M
-        b = np.degrees(np.arctan2(dy, dx)) - at.heading
-        diff = np.abs((b - bearing + 180.0) % 360.0 - 180.0)
-        return diff <= half_width
+        metres = (np.arange(self.map.nodes) - self.map.node_offset()) * STEP_M
+        return off_bearing(at, bearing, metres[:, None], metres[None, :]) <= half_width
 
     def _observe(self, observation: Any) -> tuple:
         """Perceive the frame (once per step), then take in the answers heard since; its key."""
@@ -697,13 +692,6 @@ class MapAgent:
 
 
 HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object (ahead, left, height)
-
-
-def off_bearing(at: Pose, bearing: float, x, y) -> np.ndarray:
-    """Degrees (0-180) between `bearing` and the bearing of each map point (x, y) seen from `at`."""
-    x0, y0 = at.xy
-    seen = np.degrees(np.arctan2(np.asarray(y, dtype=float) - y0, np.asarray(x, dtype=float) - x0)) - at.heading
-    return np.abs((seen - bearing + 180.0) % 360.0 - 180.0)
 
 
 CARRIED_M = (0.8, 0.45, 0.45)       # a held object's points: nearer ahead, to either side, higher than these

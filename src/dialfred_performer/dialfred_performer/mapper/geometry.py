@@ -118,3 +118,11 @@ def bearing_deg(pose: Pose, x: float, y: float) -> float:
     x0, y0 = pose.xy
     b = (math.degrees(math.atan2(y - y0, x - x0)) - pose.heading + 180.0) % 360.0 - 180.0
     return 180.0 if b == -180.0 else b
+
+
+def off_bearing(at: Pose, bearing: float, x, y) -> np.ndarray:
+    """Degrees (0-180) between `bearing` and the bearing of each map point in arrays (x, y) seen from
+    `at` (`bearing_deg` of each point, measured from `bearing`)."""
+    x0, y0 = at.xy
+    seen = np.degrees(np.arctan2(np.asarray(y, dtype=float) - y0, np.asarray(x, dtype=float) - x0)) - at.heading
+    return np.abs((seen - bearing + 180.0) % 360.0 - 180.0)
