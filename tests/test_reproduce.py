@@ -241,6 +241,33 @@ def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatc
     assert 30.0 <= done['seconds'] < 40.0 and done['seconds_this_run'] < 5.0
 
 
+def test_a_cache_stage_is_timed_by_the_files_it_writes_and_never_cleared(tmp_path, monkeypatch):
+    runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
+    assert runner.outputs('demos') == [runner.plan.demos] and runner.outputs('frames') == [runner.plan.frames]
+    assert runner.outputs('dialogues') == [runner.plan.dialogue_dir / 'train.jsonl.gz']
+    inputs = {'x': 1}
+    monkeypatch.setattr(runner, 'stage_inputs', lambda stage: dict(inputs))
+    demos = runner.plan.demos
+
+    def cut_off(resume):
+        demos.mkdir(parents=True)
+        (demos / 'frames.npy').write_text('half')
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        runner.run_stage('demos', cut_off, runner.outputs('demos'))
+    stamp_path = tmp_path / 'run' / 'stamps' / 'demos.json'
+    stamp = json.loads(stamp_path.read_text())
+    stamp['started_at'] -= 30.0
+    stamp_path.write_text(json.dumps(stamp))
+    runner.run_stage('demos', lambda resume: {'resumed': resume}, runner.outputs('demos'))
+    done = json.loads(stamp_path.read_text())
+    assert done['runs'] == 2 and done['report'] == {'resumed': True} and done['seconds'] >= 30.0
+    inputs['x'] = 2                                             # new inputs: rewritten in place, not cleared
+    runner.run_stage('demos', lambda resume: {'resumed': resume}, runner.outputs('demos'))
+    assert (demos / 'frames.npy').read_text() == 'half'
+
+
 def test_the_frontier_plot_fits_its_legend_however_long_the_labels(tmp_path):
     from PIL import Image
     points = [(f'a setting with a rather long name number {k}', 10.0 + k, 0.2 * k) for k in range(24)]

@@ -116,6 +116,9 @@ def world_code_hash() -> str:
 # Stages of many items (RL runs, evaluation settings) stamped one by one (Runner.run_item): a change to the
 # stage's inputs reruns the items whose own inputs changed, and reuses the others.
 ITEMIZED = ('rl', 'eval')
+# Stages that fill caches outside the run's folder, shared with other commands: their files are rewritten in
+# place (the same inputs give the same bytes), never cleared.
+CACHES = ('demos', 'dialogues', 'frames')
 UPSTREAM = {
     'demos': (), 'perception': ('demos',), 'performer': ('demos', 'perception'), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
     'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
@@ -190,7 +193,7 @@ class Runner:
             self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
             return
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
-        if not resume and stage not in ITEMIZED:
+        if not resume and stage not in ITEMIZED and stage not in CACHES:
             clear(outputs)
         why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
         before, runs = time_before(old, outputs) if resume else (0.0, 1)
@@ -386,9 +389,13 @@ class Runner:
         return {'doc': str(paths[0]), 'plot': str(paths[1]), 'sha256': sha256_of(paths[0].read_bytes())}
 
     def outputs(self, stage: str) -> list[Path]:
+        """What `stage` writes: cleared before it runs with new inputs (CACHES' are rewritten in place
+        instead), and timed by their modification times when it was cut off."""
+        from dialfred_oracle.annotator import dialogue_path
         p = self.plan
+        dialogues = p.dialogue_dir / 'train.jsonl.gz' if p.dialogue_dir else dialogue_path('train')
         return {
-            'demos': [], 'dialogues': [], 'frames': [],          # caches: rewritten in place (same bytes)
+            'demos': [p.demos], 'dialogues': [dialogues], 'frames': [p.frames],
             'perception': [p.perception_dir], 'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
             'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir], 'check': [p.check_dir],
             'doc': [p.run / 'results.md', p.run / 'sr_nq.png'],
