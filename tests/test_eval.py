@@ -136,6 +136,27 @@ def test_the_run_writes_its_results_and_a_summary_next_to_them(expert_run):
     # the code the episodes were played at: this checkout's commit (+dirty when edited)
     head = subprocess.run(['git', 'rev-parse', 'HEAD'], capture_output=True, text=True).stdout.strip()
     assert summary['this_run']['code'].split('+')[0] == head and len(head) == 40
+    assert {r.code for r in in_file} == {summary['this_run']['code']}          # every row says it too
+    assert summary['played_at'] == {summary['this_run']['code']: 8}
+
+
+def test_a_resumed_file_of_another_commit_keeps_its_episodes_and_says_so(tmp_path, capfd):
+    path = tmp_path / 'resume.jsonl'
+    first = evaluate(path, limit=3)
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    old = [dict(row, code='0123456789abcdef' * 2 + '01234567') for row in lines[:2]] + [dict(lines[2], code='')]
+    path.write_text(''.join(json.dumps(row) + '\n' for row in old))   # two from another commit, one from before rows said
+    capfd.readouterr()
+    second = evaluate(path, limit=5)
+    assert second.ran == 2
+    err = capfd.readouterr().err
+    assert 'holds 3 episodes played at other commits (0123456789ab: 2, unrecorded: 1)' in err, err
+    summary = json.loads(second.config.summary_path.read_text())
+    code = summary['this_run']['code']
+    assert summary['played_at'] == {'0123456789abcdef' * 2 + '01234567': 2, code: 2, 'unrecorded': 1}
+    from dialfred_sim.metrics import same_episode
+    assert all(same_episode(a, b) for a, b in zip(first.results, second.results[:3]))
+    assert [r.code for r in first.results] != [r.code for r in second.results[:3]]
 
 
 @pytest.fixture(scope='module')

@@ -93,6 +93,18 @@ def test_a_result_written_before_dialogues_were_recorded_loads_with_none():
     assert old.dialogue == [] and old.questions == 2 and old.question_types == {}
 
 
+def test_a_result_written_before_rows_carried_their_commit_loads_unrecorded_and_compares_the_same():
+    from dialfred_sim.metrics import played_at, same_episode
+    good = json.loads(result(code='abc+dirty', wall_s=1.0).to_json())
+    del good['code']
+    old = EpisodeResult.from_json(json.dumps(good))
+    assert old.code == '' and played_at([old, result(code='abc'), result(code='abc')]) == {'abc': 2, 'unrecorded': 1}
+    assert same_episode(old, result(code='abc', wall_s=2.0))        # how and where it was played aside
+    assert not same_episode(old, result(code='abc', steps=11))
+    with pytest.raises(ValueError, match="field 'code' should be str"):
+        EpisodeResult.from_json(json.dumps({**good, 'code': 7}))
+
+
 def test_a_field_of_the_wrong_type_or_unknown_is_rejected():
     good = json.loads(result().to_json())
     with pytest.raises(ValueError, match="field 'steps' should be int"):

@@ -43,7 +43,7 @@ from typing import Optional
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
 TABLES_FROM, TABLES_TO = '## Table II', '## Run times'
-IGNORED_FIELDS = ('wall_s', 'agent')
+IGNORED_FIELDS = ('wall_s', 'code', 'agent')   # RUN_FIELDS (dialfred_sim.metrics) and the agent's name
 
 
 class MissingPart(Exception):

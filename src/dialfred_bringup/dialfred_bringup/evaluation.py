@@ -30,6 +30,7 @@ import os
 import sys
 import time
 import warnings
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -38,7 +39,7 @@ from dialfred_performer.models import PERFORMER_MODELS, camera_resolution, load_
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
-from dialfred_sim.metrics import ResultsFileError
+from dialfred_sim.metrics import ResultsFileError, played_at
 from dialfred_sim.protocol import QUESTION_TYPES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
@@ -289,6 +290,7 @@ class EvalReport:
                            else None),
             'limit': c.limit, 'shard': {'index': c.shard[0], 'count': c.shard[1]} if c.shard else None,
             'results_file': str(c.results_path), 'tasks': len(self.results),
+            'played_at': played_at(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None,
                          'restarts': self.restarts,
@@ -305,6 +307,20 @@ def run_namespace() -> str:
     docs/scaling.md), the host's name goes in too (/eval_<host>_<pid>): a pid is unique on one host only."""
     from dialfred_bringup.graph import discovery_spans_hosts, host_token
     return f'/eval_{host_token()}_{os.getpid()}' if discovery_spans_hosts() else f'/eval_{os.getpid()}'
+
+
+def short_commit(code: str) -> str:
+    """A commit as people read it: 12 hex digits, and '+dirty' if it has it."""
+    return code if code in ('unrecorded', 'unknown') else code[:12] + ('+dirty' if code.endswith('+dirty') else '')
+
+
+def warn_of_other_code(path, results, code: str) -> None:
+    """Say on stderr when a resumed results file holds episodes played at another commit than `code`."""
+    others = played_at([r for r in results if r.code != code])
+    if others:
+        print(f'warning: {path} holds {sum(others.values())} episodes played at other commits '
+              f'({", ".join(f"{short_commit(c)}: {n}" for c, n in others.items())}); this run is at {short_commit(code)}; '
+              'they are kept (choose another --out to play every episode at this commit)', file=sys.stderr)
 
 
 def resumable_results(config: EvalConfig, task_ids: list) -> dict:
@@ -398,11 +414,14 @@ def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> Eva
     jobs = [(k, t) for k, t in selected if t.task_id not in done]
     ran, startup_s, restarts = 0, 0.0, 0
     code = git_commit()
+    warn_of_other_code(config.results_path, done.values(), code)
 
     def recorder(bar):
-        """on_result of either path: the result line written at once (resumable), counted, shown."""
+        """on_result of either path: the result line (stamped with the code's commit) written at once
+        (resumable), counted, shown."""
         def record(result) -> None:
             nonlocal ran
+            result = dataclasses.replace(result, code=code)
             append_result(config.results_path, result)
             done[result.task_id] = result
             ran += 1

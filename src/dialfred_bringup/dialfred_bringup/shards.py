@@ -22,13 +22,13 @@ import json
 import re
 import sys
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Sequence
 
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
-                      summarize, write_text_atomically)
+                      played_at, same_episode, summarize, write_text_atomically)
 
 SHARD_NAME = re.compile(r'_shard(\d+)of(\d+)$')
 
@@ -233,7 +233,7 @@ def merge_shards(paths: Sequence, out: Path, partial: bool = False, tasks_path: 
         seen: dict[str, EpisodeResult] = {}
         for r in s.results:
             if r.task_id in seen:
-                same = replace(r, wall_s=0.0) == replace(seen[r.task_id], wall_s=0.0)
+                same = same_episode(r, seen[r.task_id])
                 raise ResultsFileError(f'{s.path}: task {r.task_id} appears twice'
                                        + ('' if same else ', with different results (a conflict)'))
             seen[r.task_id] = r
@@ -281,7 +281,7 @@ def merged_run(shards: list[ShardFile], results: list[EpisodeResult], out: Path,
         'resolution': first.get('resolution'),
         'workers': sum(s.run.get('workers') or 0 for s in shards),
         'through': first.get('through'), 'checkpoint': first.get('checkpoint'), 'limit': first.get('limit'),
-        'shard': None, 'results_file': str(out), 'tasks': len(results),
+        'shard': None, 'results_file': str(out), 'tasks': len(results), 'played_at': played_at(results),
         'this_run': {'episodes': episodes, 'startup_s': max((r.get('startup_s') or 0.0 for r in runs), default=0.0),
                      'wall_s': wall, 'episodes_per_s': round(episodes / wall, 3) if episodes and wall > 0 else None},
         'summary': summarize(results),

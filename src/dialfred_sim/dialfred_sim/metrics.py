@@ -20,7 +20,7 @@ import contextlib
 import json
 import os
 import warnings
-from dataclasses import MISSING, asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
@@ -60,6 +60,8 @@ class EpisodeResult:
     privileged: bool = False         # played by a reference agent that saw the task's solution (the expert)
     dialogue: list = field(default_factory=list)   # the questions asked, in order: {type, noun, valid, answer}
                                                    # (absent from results written before it was recorded)
+    code: str = ''                   # the commit of the code that played it ('+dirty': an edited checkout;
+                                     # '' in results written before it was recorded)
 
     def __post_init__(self):
         if self.end_reason not in END_REASONS:
@@ -130,7 +132,23 @@ _DIALOGUE_TYPES = {'type': str, 'noun': str, 'valid': bool, 'answer': str}
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
-                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list}
+                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list, 'code': str}
+# Fields that say how and where an episode was played, not what happened in it.
+RUN_FIELDS = ('wall_s', 'code')
+
+
+def played_at(results) -> dict:
+    """{commit: episodes} of these results ('unrecorded' for results written before rows carried it)."""
+    counts: dict = {}
+    for r in results:
+        counts[r.code or 'unrecorded'] = counts.get(r.code or 'unrecorded', 0) + 1
+    return dict(sorted(counts.items()))
+
+
+def same_episode(a: EpisodeResult, b: EpisodeResult) -> bool:
+    """Whether two results record the same episode, field for field except RUN_FIELDS."""
+    blank = {name: EpisodeResult.__dataclass_fields__[name].default for name in RUN_FIELDS}
+    return replace(a, **blank) == replace(b, **blank)
 
 
 def _has_type(value, want: type) -> bool:

@@ -361,7 +361,7 @@ class Runner:
         from dialfred_bringup.baselines import run_baseline
 
         from dialfred_bringup.evaluation import resumable_results
-        from dialfred_sim.metrics import write_text_atomically
+        from dialfred_sim.metrics import same_episode, write_text_atomically
         from dialfred_sim.tasks import load_split
         p = self.plan
         p.check_dir.mkdir(parents=True, exist_ok=True)
@@ -373,8 +373,7 @@ class Runner:
             ids = [t.task_id for t in load_split(s.split)[:config.limit]]
             graph = resumable_results(config, ids)
             tables = resumable_results(p.eval_config(s), ids)
-            differing = [i for i in ids if i not in tables or
-                         dataclasses.replace(graph[i], wall_s=0.0) != dataclasses.replace(tables[i], wall_s=0.0)]
+            differing = [i for i in ids if i not in tables or not same_episode(graph[i], tables[i])]
             report['settings'][f'{s.split}/{s.key}'] = {'episodes': len(ids), 'differing': differing,
                                                         'seconds': round(time.monotonic() - t0, 1)}
             self.log(f'check: {s.split} {s.key}: {len(ids) - len(differing)} of {len(ids)} episodes the same '
