@@ -210,19 +210,55 @@ def test_bad_settings_are_refused():
 def test_a_stage_skipped_after_the_simulators_rules_changed_says_so(tmp_path, monkeypatch, capsys):
     from dialfred_bringup.reproduce import stages
     runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
-    monkeypatch.setattr(runner, 'stage_inputs', lambda stage: {'x': 1})
+    monkeypatch.setattr(runner, 'stage_inputs', lambda stage, raw=False: {'x': 1})
     runner.run_stage('frames', lambda resume: {}, [])
     assert json.loads((tmp_path / 'run' / 'stamps' / 'frames.json').read_text())['world_code'] == stages.world_code_hash()
     runner.run_stage('frames', lambda resume: pytest.fail('rerun'), [])
     assert 'warning' not in capsys.readouterr().err
-    monkeypatch.setattr(stages, 'world_code_hash', lambda: 'another')
+    monkeypatch.setattr(stages, 'world_code_hash', lambda raw=False: 'another')
     runner.run_stage('frames', lambda resume: pytest.fail('rerun'), [])      # still skipped, with a warning
     assert "frames: warning: the simulator's rules" in capsys.readouterr().err
 
 
+def test_the_code_hash_reads_what_python_does_not_how_it_is_written(tmp_path, monkeypatch):
+    from dialfred_bringup.reproduce import stages
+    monkeypatch.setattr(stages, 'REPO', tmp_path)
+    f = tmp_path / 'm.py'
+
+    def hashed(text):
+        f.write_text(text)
+        return stages.code_hash(('m.py',)), stages.code_hash(('m.py',), raw=True)
+
+    base, base_raw = hashed('def f(x):\n    return x + 1\n')
+    assert hashed('"""A module."""\n\n\ndef f(x):   # one more\n    """One more."""\n    return (x +\n            1)\n')[0] == base
+    edited, edited_raw = hashed('def f(x):\n    return x + 2\n')
+    assert edited != base and edited_raw != base_raw
+    assert hashed('def f(x):\n    """Only a docstring."""\n')[0] == hashed('def f(x):\n    pass\n')[0]
+    assert hashed('def f(x):\n    return x + 1\n') == (base, base_raw)
+    f.write_text('def f(:\n')                              # not Python: its bytes
+    assert stages.code_hash(('m.py',)) == stages.code_hash(('m.py',), raw=True)
+
+
+def test_stamps_made_with_the_byte_hash_of_the_same_code_still_match(tmp_path, monkeypatch):
+    from dialfred_bringup.reproduce import stages
+    runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
+    monkeypatch.setattr(stages, 'code_hash', lambda paths, raw=False: 'bytes')    # as stamps were made before
+    runner.run_stage('frames', lambda resume: {}, [])
+    assert runner.run_item('rl', 'a', {'lr': 1}, ('x.py',), [tmp_path / 'a'], lambda resume: {})['reused'] is False
+    made = json.loads((tmp_path / 'run' / 'stamps' / 'frames.json').read_text())['hash']
+    monkeypatch.setattr(stages, 'code_hash', lambda paths, raw=False: 'bytes' if raw else 'meaning')
+    runner.run_stage('frames', lambda resume: pytest.fail('rerun'), [])          # matched by its byte hash
+    assert runner.hashes['frames'] == made
+    assert runner.run_item('rl', 'a', {'lr': 1}, ('x.py',), [tmp_path / 'a'], lambda resume: {})['reused'] is True
+    monkeypatch.setattr(stages, 'code_hash', lambda paths, raw=False: 'new bytes' if raw else 'new meaning')
+    ran = []
+    runner.run_stage('frames', lambda resume: ran.append(resume), [])             # the code changed: rerun
+    assert ran == [False] and runner.hashes['frames'] != made
+
+
 def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatch):
     runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
-    monkeypatch.setattr(runner, 'stage_inputs', lambda stage: {'x': 1})
+    monkeypatch.setattr(runner, 'stage_inputs', lambda stage, raw=False: {'x': 1})
     out = tmp_path / 'run' / 'outputs'
 
     def cut_off(resume):
@@ -246,7 +282,7 @@ def test_a_cache_stage_is_timed_by_the_files_it_writes_and_never_cleared(tmp_pat
     assert runner.outputs('demos') == [runner.plan.demos] and runner.outputs('frames') == [runner.plan.frames]
     assert runner.outputs('dialogues') == [runner.plan.dialogue_dir / 'train.jsonl.gz']
     inputs = {'x': 1}
-    monkeypatch.setattr(runner, 'stage_inputs', lambda stage: dict(inputs))
+    monkeypatch.setattr(runner, 'stage_inputs', lambda stage, raw=False: dict(inputs))
     demos = runner.plan.demos
 
     def cut_off(resume):

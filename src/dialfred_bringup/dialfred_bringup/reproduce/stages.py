@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import hashlib
 import json
@@ -61,11 +62,33 @@ def file_sha256(path: Path) -> str:
         return 'absent'
 
 
-def code_hash(paths: tuple[str, ...]) -> str:
+def python_meaning(source: bytes) -> bytes:
+    """What a Python file does, without its comments, docstrings and layout: its syntax tree with the
+    docstrings taken out, dumped (the bytes themselves if it does not parse)."""
+    try:
+        tree = ast.parse(source)
+    except (SyntaxError, ValueError):
+        return source
+    for node in ast.walk(tree):
+        body = getattr(node, 'body', None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body
+                and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree).encode()
+
+
+def code_hash(paths: tuple[str, ...], raw: bool = False) -> str:
+    """The sha256 of these files (relative to the repository): of what their Python does (python_meaning),
+    so that an edit of comments, docstrings or layout reruns nothing; with `raw`, of their bytes (the
+    hash that stamps made before held, still accepted: Runner.known)."""
     h = hashlib.sha256()
     for rel in paths:
         p = REPO / rel
-        h.update(rel.encode() + b'\0' + (p.read_bytes() if p.exists() else b'(absent)') + b'\0')
+        data = p.read_bytes() if p.exists() else b'(absent)'
+        if p.exists() and p.suffix == '.py' and not raw:
+            data = python_meaning(data)
+        h.update(rel.encode() + b'\0' + data + b'\0')
     return h.hexdigest()
 
 
@@ -105,12 +128,12 @@ WORLD_CODE = ('src/dialfred_sim/dialfred_sim/world', 'src/dialfred_sim/dialfred_
               'src/dialfred_sim/dialfred_sim/tasks/goals.py')
 
 
-def world_code_hash() -> str:
+def world_code_hash(raw: bool = False) -> str:
     files = []
     for rel in WORLD_CODE:
         p = REPO / rel
         files += sorted(str(f.relative_to(REPO)) for f in p.rglob('*.py')) if p.is_dir() else [rel]
-    return code_hash(tuple(files))
+    return code_hash(tuple(files), raw)
 
 
 # Stages of many items (RL runs, evaluation settings) stamped one by one (Runner.run_item): a change to the
@@ -136,7 +159,7 @@ class Runner:
     def log(self, text: str) -> None:
         print(f'[reproduce] {text}', file=sys.stderr, flush=True)
 
-    def stage_inputs(self, stage: str) -> dict:
+    def stage_inputs(self, stage: str, raw: bool = False) -> dict:
         p = self.plan
         config = {
             'demos': p.demos_config, 'perception': p.perception_config, 'performer': p.performer_config, 'dialogues': p.dialogues_config,
@@ -151,12 +174,20 @@ class Runner:
                               'tasks': p.check_tasks, 'seed': self.cfg.seed},
             'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit},
         }[stage]()
-        return {'stage': stage, 'config': config, 'code': code_hash(CODE[stage]),
+        return {'stage': stage, 'config': config, 'code': code_hash(CODE[stage], raw),
                 'upstream': {u: self.hashes.get(u, 'shipped') for u in UPSTREAM[stage]}}
 
     def shipped_hashes(self) -> dict:
         files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in (*RL_RUNS, 'pretrained')]
         return {str(f): sha256_of(f.read_bytes()) if f.exists() else None for f in files}
+
+    @staticmethod
+    def known(old: Optional[dict], digest: str, raw_digest: Callable[[], str]) -> str:
+        """The hash to know a stage or item by: `digest`, or the stamp's own when the stamp was made
+        with the byte hash of the same code (raw_digest), so that stamps made before still match."""
+        if old and old.get('hash') not in (None, digest) and old.get('hash') == raw_digest():
+            return old['hash']
+        return digest
 
     def stamp_path(self, stage: str) -> Path:
         return self.stamps_dir / f'{stage}.json'
@@ -182,12 +213,13 @@ class Runner:
             self.forced = True
         inputs = self.stage_inputs(stage)
         digest = sha256_of(inputs)
-        self.hashes[stage] = digest
         old = self.read_stamp(stage)
+        digest = self.known(old, digest, lambda: sha256_of(self.stage_inputs(stage, raw=True)))
+        self.hashes[stage] = digest
         world = world_code_hash()
         if old and old.get('hash') == digest and old.get('status') == 'done' and not self.forced:
             self.log(f'{stage}: skipped (stamp matches, {digest[:12]})')
-            if old.get('world_code', world) != world:
+            if old.get('world_code', world) not in (world, world_code_hash(raw=True)):
                 self.log(f'{stage}: warning: the simulator\'s rules (dialfred_sim world/, actions, env, expert, '
                          f'goals) changed since this stage ran; --force {stage} reruns it with them')
             self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
@@ -289,11 +321,12 @@ class Runner:
         if it was cut off with them, else clear its outputs and run it. {'seconds', 'reused', **action's report}."""
         from dialfred_sim.metrics import write_text_atomically
         stamp = self.stamps_dir / stage / f'{item.replace("/", "_")}.json'
-        digest = sha256_of({'inputs': inputs, 'code': code_hash(code)})
         try:
             old = json.loads(stamp.read_text())
         except (OSError, ValueError):
             old = None
+        digest = self.known(old, sha256_of({'inputs': inputs, 'code': code_hash(code)}),
+                            lambda: sha256_of({'inputs': inputs, 'code': code_hash(code, raw=True)}))
         if old and old.get('hash') == digest and old.get('status') == 'done':
             self.log(f'{stage}: {item} reused (done before with the same inputs, {old.get("seconds", 0):.0f} s)')
             return {**old.get('report', {}), 'seconds': old.get('seconds', 0.0), 'reused': True}
