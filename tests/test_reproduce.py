@@ -391,6 +391,33 @@ def test_the_rl_and_eval_stages_rerun_when_the_perception_code_changes():
                 'src/dialfred_performer/dialfred_performer/preprocess.py'} <= set(CODE[stage])
 
 
+def package_closure(entries: tuple[str, ...], package: str) -> set:
+    """The files of `package` that these files import, directly or through one another (any import
+    statement, in a function too), as repository paths."""
+    import ast
+    from dialfred_bringup.paths import REPO
+    root = f'src/{package}/{package}'
+    todo, seen = list(entries), set()
+    while todo:
+        rel = todo.pop()
+        if rel in seen or not (REPO / rel).exists():
+            continue
+        seen.add(rel)
+        for node in ast.walk(ast.parse((REPO / rel).read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and rel.startswith(root):
+                todo.append(f'{root}/{node.module}.py')
+            elif isinstance(node, ast.ImportFrom) and (node.module or '').startswith(f'{package}.'):
+                todo.append(f'{root}/{node.module.split(".", 1)[1].replace(".", "/")}.py')
+    return {rel for rel in seen if rel.startswith(root)}
+
+
+def test_the_rl_and_eval_stages_hash_every_questioner_module_they_run():
+    from dialfred_bringup.reproduce.stages import CODE
+    ques = 'src/dialfred_questioner/dialfred_questioner'
+    assert package_closure((f'{ques}/finetune.py',), 'dialfred_questioner') <= set(CODE['rl'])
+    assert package_closure((f'{ques}/questioners.py',), 'dialfred_questioner') <= set(CODE['eval'])
+
+
 def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
     runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
     ran = []

@@ -24,7 +24,7 @@ shuffled order, pass after pass.
 Writes to `--out`, as it goes: `metrics.jsonl` (a line per update: return, SR, NQ, invalid share,
 the mix of question types, the losses, seconds), `curves.png`, `last.pt` after every update (with the
 optimiser state: `--resume` continues to the weights of an uninterrupted run) and `final.pt` at the
-end. Checkpoints are `pretrain.save`'s format plus the timing they were trained with, so
+end. Checkpoints are `checkpoint.save`'s format plus the timing they were trained with, so
 `LearnedQuestioner.from_checkpoint` asks as it learned to.
 """
 
@@ -43,13 +43,14 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_sim.dataclass_cli import arg, config_changes, parse
+from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
 from dialfred_performer.models import PERFORMER_MODELS
 
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 
+from .checkpoint import resume_training, save
 from .model import Questioner
 from .rl import Rewards, actor_critic_loss, discounted_returns, group_baseline
 from .rollout import TIMINGS, Timing
@@ -267,7 +268,6 @@ def finetune(cfg: FinetuneConfig) -> dict:
     from dialfred_sim.tasks import load_split
 
     from .policy import LearnedQuestioner
-    from .pretrain import save
     if not cfg.resolution:
         from dialfred_performer.models import camera_resolution
         cfg = dataclasses.replace(cfg, resolution=camera_resolution(cfg.model, Path(cfg.performer)))
@@ -291,17 +291,8 @@ def finetune(cfg: FinetuneConfig) -> dict:
     update, seconds_before = 0, 0.0
     log_path = out / 'metrics.jsonl'
     if cfg.resume:
-        state = read_state(out / 'last.pt')
-        saved = json.loads(state['extra']['config'])
-        differ = sorted(config_changes(saved, cfg, RESUMABLE_CHANGES))
-        if differ:
-            raise ValueError(f'--resume: the config differs from the run in {out} in {differ}')
-        model.load_state_dict(state['state_dict'])
-        opt.load_state_dict(state['extra']['optimizer'])
-        update = state['extra']['update']
-        lines = [l for l in log_path.read_text().splitlines() if json.loads(l)['update'] <= update] \
-            if log_path.exists() else []
-        log_path.write_text(''.join(l + '\n' for l in lines))
+        extra, lines = resume_training(out, cfg, RESUMABLE_CHANGES, model, opt, 'update')
+        update = extra['update']
         seconds_before = json.loads(lines[-1]).get('seconds', 0.0) if lines else 0.0   # the cut-off run's time
     else:
         out.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """The learned questioner as something that asks (no ROS): a rollout policy for RL fine-tuning, and a
 `baselines.Questioner` (reset / ask / hear) for the evaluation and the questioner node.
 
-`LearnedQuestioner.from_checkpoint(path)` loads a checkpoint of `pretrain.save` (the model, its
+`LearnedQuestioner.from_checkpoint(path)` loads a checkpoint of `checkpoint.save` (the model, its
 vocabulary and nouns, and the frozen visual encoder copied from the performer). A decision reads the
 current RGB frame (through that encoder), the instruction, the dialogue so far (each QA with the step
 it was asked) and the step, and gives a `Question` or None. `greedy` (evaluation) takes the most

@@ -29,16 +29,15 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
-from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint, read_state
-from dialfred_performer.preprocess import Vocabulary
+from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
 from dialfred_performer.data import held_out
 
 from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
+from .checkpoint import resume_training, save
 from .model import Questioner, QuestionerConfig
 
 MODULE = 'dialfred_questioner.pretrain'
-FORMAT = 'dialfred-questioner/1'
 RESUMABLE_CHANGES = ('resume', 'progress', 'threads', 'epochs')
 
 
@@ -75,25 +74,6 @@ class PretrainConfig:
             raise ValueError(f'lr must be a positive number, got {self.lr}')
         if not 0 <= self.val_fraction < 1:
             raise ValueError(f'val_fraction must be in [0, 1), got {self.val_fraction}')
-
-
-def save(path: Path, model: Questioner, vocab: Vocabulary, visual_state: dict, performer_info: dict, cfg,
-         commit: str, extra: Optional[dict] = None, timing: Optional[dict] = None, module: str = MODULE,
-         reads_dialogue: bool = True) -> None:
-    """Everything the questioner needs to run: its config, nouns, the vocabulary, its weights and the
-    frozen visual encoder's, which performer they came from, when it asks (`timing`, a rollout.Timing
-    as a dict; none: at the start only), whether it reads the dialogue so far (False: the original's
-    instruction-only input, an ablation), the command (of `module`) and commit."""
-    state = {'format': FORMAT, 'config': dataclasses.asdict(model.config), 'nouns': list(model.nouns),
-             'vocab': vocab.to_json(), 'state_dict': model.state_dict(), 'visual': visual_state,
-             'visual_resolution': performer_info['config'].resolution,
-             'visual_config': dataclasses.asdict(performer_info['config']), 'performer': performer_info['path'],
-             'performer_model': performer_info.get('model', 'et'),
-             'timing': timing, 'reads_dialogue': reads_dialogue, 'git_commit': commit, 'command': command_line(module, cfg), 'extra': extra or {}}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + '.tmp')
-    torch.save(state, tmp)
-    tmp.replace(path)
 
 
 def batches(n: int, size: int, rng: random.Random) -> list[list[int]]:
@@ -155,17 +135,9 @@ def pretrain(cfg: PretrainConfig) -> dict:
     epoch, best = 0, math.inf
     log_path = out / 'metrics.jsonl'
     if cfg.resume:
-        state = read_state(out / 'last.pt')
-        saved = json.loads(state['extra']['config'])
-        differ = sorted(config_changes(saved, cfg, RESUMABLE_CHANGES))
-        if differ:
-            raise ValueError(f'--resume: the config differs from the run in {out} in {differ}')
-        model.load_state_dict(state['state_dict'])
-        opt.load_state_dict(state['extra']['optimizer'])
-        torch.set_rng_state(state['extra']['torch_rng'])
-        epoch, best = state['extra']['epoch'], state['extra']['best']
-        lines = [l for l in log_path.read_text().splitlines() if json.loads(l)['epoch'] <= epoch] if log_path.exists() else []
-        log_path.write_text(''.join(l + '\n' for l in lines))
+        extra, _ = resume_training(out, cfg, RESUMABLE_CHANGES, model, opt, 'epoch')
+        torch.set_rng_state(extra['torch_rng'])
+        epoch, best = extra['epoch'], extra['best']
     else:
         out.mkdir(parents=True, exist_ok=True)
         log_path.write_text('')

@@ -102,9 +102,11 @@ ET_CODE = (f'{PERF}/agent.py', f'{PERF}/models.py', f'{PERF}/model.py', f'{PERF}
            *(f'{PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
                                                   'heads')))
 MODEL_CODE = {'et': ET_CODE, 'map': (*ET_CODE, *MAPPER)}
-RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/rollout.py', f'{SIM}/episode.py', f'{QUES}/policy.py', f'{QUES}/model.py')
+# The learned questioner as it plays (its network, its inputs, its timing and rewards), and as it is trained.
+QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/model.py', f'{QUES}/data.py', f'{QUES}/rollout.py', f'{QUES}/rl.py')
+RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/checkpoint.py', f'{SIM}/episode.py', *QUESTIONER_CODE)
 EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py',
-             f'{QUES}/policy.py', f'{SIM}/metrics.py')
+             f'{QUES}/questioners.py', *QUESTIONER_CODE, f'{SIM}/metrics.py')
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -113,7 +115,7 @@ CODE = {
                   f'{PERF}/nn/enc_perceived.py'),
     'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
     'frames': (f'{QUES}/frames.py',),
-    'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/model.py', f'{QUES}/data.py'),
+    'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/checkpoint.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (*RL_CODE, *MODEL_CODE['map']),
     'eval': (*EVAL_CODE, *MODEL_CODE['map']),
     'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
