@@ -148,6 +148,8 @@ def test_a_runs_models_are_shipped_with_the_frame_encoder_kept_once(first, tmp_p
         ship(ShipConfig(run=str(run)))                        # never over the package's checkpoints
     report = ship(ShipConfig(run=str(run), into=str(tmp_path / 'ship')))
     assert len(report['files']) == 1 + 1 + len(reproduce.RL_RUNS)
+    times = json.loads((tmp_path / 'ship' / 'shipped_run.json').read_text())['stages']
+    assert {'perception', 'performer', 'pretrain', 'rl'} <= set(times) <= set(reproduce.plan.TRAINING)
     full = run / 'questioner' / 'rl_anytime' / 'final.pt'
     shipped = tmp_path / 'ship' / 'rl_anytime.pt'
     assert shipped.stat().st_size < full.stat().st_size
@@ -478,3 +480,25 @@ def test_the_run_times_count_the_reused_items_time(tmp_path):
         'a': {'seconds': 40.0, 'reused': False}, 'b': {'seconds': 300.0, 'reused': True}}}}))
     assert 'rl: 340 s (over 2 runs: it was resumed; 1 of its 2 items' in '\n'.join(run_times(plan))
     assert 'demos: not run here' in times and times[-1] == 'total of the stages: 7.3 min'
+
+
+def test_the_shipped_runs_document_gives_the_training_times_of_the_run_that_made_the_models(tmp_path, monkeypatch):
+    from dialfred_bringup.reproduce import document
+    from dialfred_bringup.reproduce.document import run_times, stage_times
+    made = tmp_path / 'made' / 'stamps'
+    made.mkdir(parents=True)
+    (made / 'performer.json').write_text(json.dumps({'seconds': 2900.0, 'runs': 2, 'machine': {'cpu': 'AMD EPYC'}}))
+    (made / 'rl.json').write_text(json.dumps({'seconds': 1.0, 'report': {'items': {'a': {'seconds': 600.0}}}}))
+    (made / 'eval.json').write_text(json.dumps({'seconds': 3000.0}))
+    times = stage_times(tmp_path / 'made')
+    assert times['performer']['seconds'] == 2900.0 and times['rl']['seconds'] == 600.0 and 'demos' not in times
+    record = tmp_path / 'shipped_run.json'
+    record.write_text(json.dumps({'stages': {k: v for k, v in times.items() if k != 'eval'}}))
+    monkeypatch.setattr(document, 'SHIPPED_RUN', record)
+    plan = reproduce.Plan(reproduce.ReproduceConfig(shipped=True, out=str(tmp_path / 'run')))
+    (tmp_path / 'run' / 'stamps').mkdir(parents=True)
+    (tmp_path / 'run' / 'stamps' / 'eval.json').write_text(json.dumps({'seconds': 1200.0}))
+    lines = run_times(plan)
+    assert 'performer: not run here (shipped; 2900 s in the run that made them, on AMD EPYC)' in lines
+    assert 'demos: not run here (shipped)' in lines and 'eval: 1200 s' in lines
+    assert lines[-2:] == ['total of the stages: 20.0 min', "with the shipped models' training stages: 78.3 min"]

@@ -14,7 +14,7 @@ from ..paths import REPO
 
 
 from ..report_page import environment
-from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SPLITS, STAGES, Setting, settings)
+from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SHIPPED_RUN, SPLITS, STAGES, Setting, settings)
 
 
 # --------------------------------------------------------------------------------------------- the report
@@ -408,28 +408,55 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
         times=times)
 
 
-def run_times(plan: Plan) -> list[str]:
-    """One line per stage with its seconds from its stamp, and the total."""
-    cfg = plan.cfg
-    times, total = [], 0.0
+def stage_times(run: Path) -> dict:
+    """{stage: {'seconds', 'runs', 'reused', 'items', 'machine'}} from a run's stamps (the stages with one)."""
+    out = {}
     for stage in STAGES[:-1]:
         try:
-            s = json.loads((plan.run / 'stamps' / f'{stage}.json').read_text())
-            items = (s.get('report') or {}).get('items') or {}
-            reused = [i for i in items.values() if i.get('reused')]
-            # An itemized stage costs the sum of its items' times, each counting its own cut-off runs: an item
-            # reused from an earlier run cost its time then (in an earlier stage run whose time the stage's
-            # own seconds may or may not hold, so they are not added).
-            seconds = sum(i.get('seconds', 0) for i in items.values()) if items else s.get('seconds', 0)
-            total += seconds
-            runs = s.get('runs', 1)
-            notes = ([f'over {runs} runs: it was resumed'] if runs > 1 else []) + \
-                ([f'{len(reused)} of its {len(items)} items done by an earlier run of the same inputs, their '
-                  'time included'] if reused else [])
-            times.append(f'{stage}: {seconds:.0f} s' + (f' ({"; ".join(notes)})' if notes else ''))
+            s = json.loads((run / 'stamps' / f'{stage}.json').read_text())
         except (OSError, ValueError):
-            times.append(f'{stage}: not run here' + (' (shipped)' if cfg.shipped and stage in TRAINING else ''))
+            continue
+        items = (s.get('report') or {}).get('items') or {}
+        # An itemized stage costs the sum of its items' times, each counting its own cut-off runs: an item
+        # reused from an earlier run cost its time then (in an earlier stage run whose time the stage's
+        # own seconds may or may not hold, so they are not added).
+        seconds = sum(i.get('seconds', 0) for i in items.values()) if items else s.get('seconds', 0)
+        out[stage] = {'seconds': round(seconds, 1), 'runs': s.get('runs', 1),
+                      'reused': sum(1 for i in items.values() if i.get('reused')), 'items': len(items),
+                      'machine': s.get('machine')}
+    return out
+
+
+def run_times(plan: Plan) -> list[str]:
+    """One line per stage with its seconds from its stamp, and the total; with --shipped, the training
+    stages' times in the run that made the shipped models (SHIPPED_RUN, written by `ship`)."""
+    cfg = plan.cfg
+    here = stage_times(plan.run)
+    try:
+        shipped = json.loads(SHIPPED_RUN.read_text()).get('stages', {}) if cfg.shipped else {}
+    except (OSError, ValueError):
+        shipped = {}
+    times, total, total_shipped = [], 0.0, 0.0
+    for stage in STAGES[:-1]:
+        t = here.get(stage)
+        if t is None:
+            made = shipped.get(stage) if stage in TRAINING else None
+            if made:
+                total_shipped += made['seconds']
+                cpu = (made.get('machine') or {}).get('cpu')
+                times.append(f'{stage}: not run here (shipped; {made["seconds"]:.0f} s in the run that made them'
+                             + (f', on {cpu}' if cpu else '') + ')')
+            else:
+                times.append(f'{stage}: not run here' + (' (shipped)' if cfg.shipped and stage in TRAINING else ''))
+            continue
+        total += t['seconds']
+        notes = ([f'over {t["runs"]} runs: it was resumed'] if t['runs'] > 1 else []) + \
+            ([f'{t["reused"]} of its {t["items"]} items done by an earlier run of the same inputs, their '
+              'time included'] if t['reused'] else [])
+        times.append(f'{stage}: {t["seconds"]:.0f} s' + (f' ({"; ".join(notes)})' if notes else ''))
     times.append(f'total of the stages: {total / 60:.1f} min')
+    if total_shipped:
+        times.append(f'with the shipped models\' training stages: {(total + total_shipped) / 60:.1f} min')
     return times
 
 

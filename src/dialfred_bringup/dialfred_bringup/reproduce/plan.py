@@ -21,6 +21,9 @@ EVAL_PATHS = ('local', 'graph', 'in-process')
 SPLITS = ('valid_seen', 'valid_unseen')
 PERTURB_PROBABILITY = 0.5
 SHIPPED_QUESTIONERS = REPO / 'src' / 'dialfred_questioner' / 'dialfred_questioner' / 'checkpoints'
+# The training stages' times (and machine) of the run whose models are shipped: written by `ship`, read by
+# the document of `reproduce --shipped`.
+SHIPPED_RUN = REPO / 'src' / 'dialfred_bringup' / 'dialfred_bringup' / 'reproduce' / 'shipped_run.json'
 RESOLUTION = 64
 # The perception network (PerceptionConfig fields): wider than PerceptionNetConfig's defaults, trained on more
 # frames, with small objects' cells weighted up. Against the defaults at 250,000 frames it labels 38.9% of

@@ -6,8 +6,10 @@ The run's performer (`performer/best.pt`) becomes `dialfred_performer/checkpoint
 pre-trained and RL questioners become `dialfred_questioner/checkpoints/<name>.pt`. The questioners
 were trained with a frozen copy of the performer's frame encoder; the shipped files name et.pt instead of
 carrying that copy in every file (`dialfred_questioner.policy.share_visual`, checked by weights digest on
-every load), which keeps the shipped checkpoints small. Nothing is written unless every model of the
-run is there, and each of its stamps says done. Prints one JSON line: each file and its size.
+every load), which keeps the shipped checkpoints small. The run's training stages' times and machine go
+to `reproduce/shipped_run.json`, so that the document of `reproduce --shipped` can say what the models
+cost. Nothing is written unless every model of the run is there, and each of its stamps says done.
+Prints one JSON line: each file and its size.
 """
 
 from __future__ import annotations
@@ -20,9 +22,10 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_sim.metrics import write_text_atomically
 
 from ..paths import REPO
-from .plan import RL_RUNS, SHIPPED_QUESTIONERS
+from .plan import RL_RUNS, SHIPPED_QUESTIONERS, SHIPPED_RUN, TRAINING
 
 SHIPPED_STAGES = ('perception', 'performer', 'pretrain', 'rl')
 
@@ -70,8 +73,12 @@ def ship(cfg: ShipConfig) -> dict:
     for name, source in questioners.items():
         share_visual(source, targets[name], et)
         LearnedQuestioner.from_checkpoint(targets[name])  # loads, with the encoder from et.pt
+    from .document import stage_times
+    record = into / SHIPPED_RUN.name if into else SHIPPED_RUN
+    times = {stage: t for stage, t in stage_times(run).items() if stage in TRAINING}
+    write_text_atomically(record, json.dumps({'stages': times}, indent=1, sort_keys=True) + '\n')
     sizes = {str(p): p.stat().st_size for p in (et, *targets.values())}
-    return {'files': sizes, 'bytes': sum(sizes.values()), 'written': True}
+    return {'files': sizes, 'bytes': sum(sizes.values()), 'times': str(record), 'written': True}
 
 
 def main(argv: Optional[list[str]] = None) -> int:

@@ -21,7 +21,7 @@ from ..paths import REPO
 
 
 from .document import (build_report, copy_doc, write_outputs)
-from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, STAGES, settings)
+from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, settings)
 
 
 # --------------------------------------------------------------------------------------------- stages
@@ -174,7 +174,8 @@ class Runner:
                              'shipped': self.shipped_hashes() if self.cfg.shipped else None},
             'check': lambda: {'settings': [dataclasses.asdict(s) for s in p.check_settings()],
                               'tasks': p.check_tasks, 'seed': self.cfg.seed},
-            'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit},
+            'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit,
+                            'shipped_run': file_sha256(SHIPPED_RUN) if self.cfg.shipped else None},
         }[stage]()
         return {'stage': stage, 'config': config, 'code': code_hash(CODE[stage], raw),
                 'upstream': {u: self.hashes.get(u, 'shipped') for u in UPSTREAM[stage]}}
