@@ -58,7 +58,22 @@ def questions_of_type(question_type: Optional[str], nouns: list[str]) -> list[Qu
     return [Question(question_type, n) for n in nouns]
 
 
-class RandomQuestioner:
+class AtTheStart:
+    """A questioner that asks its queue of questions (made by `reset`) before the first action, one a
+    call, and nothing later."""
+
+    _queue: list[Question]
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        if step > 0 or not self._queue:
+            return None
+        return self._queue.pop(0)
+
+    def hear(self, qa: QA) -> None:
+        pass
+
+
+class RandomQuestioner(AtTheStart):
     """The paper's "Random QA": at the beginning, a type drawn from location / appearance / direction /
     no question (1/4 each), then every question of that type (`questions_of_type`); nothing later.
     The draw comes from the episode's seed, in a stream apart from the performer's."""
@@ -75,16 +90,8 @@ class RandomQuestioner:
         self.drawn = RANDOM_QA_CHOICES[int(rng.integers(len(RANDOM_QA_CHOICES)))]
         self._queue = questions_of_type(self.drawn, task_nouns(task))
 
-    def ask(self, observation: Any, step: int) -> Optional[Question]:
-        if step > 0 or not self._queue:
-            return None
-        return self._queue.pop(0)
 
-    def hear(self, qa: QA) -> None:
-        pass
-
-
-class AllQuestioner:
+class AllQuestioner(AtTheStart):
     """At the beginning: location and appearance of every object of the instruction, then direction."""
 
     name = 'all'
@@ -95,14 +102,6 @@ class AllQuestioner:
     def reset(self, task: Any, seed: int) -> None:
         self._queue = [Question(t, n) for n in task_nouns(task) for t in ('location', 'appearance')]
         self._queue.append(Question('direction'))
-
-    def ask(self, observation: Any, step: int) -> Optional[Question]:
-        if step > 0 or not self._queue:
-            return None
-        return self._queue.pop(0)
-
-    def hear(self, qa: QA) -> None:
-        pass
 
 
 class ModelConfusionQuestioner:
