@@ -502,3 +502,31 @@ def test_the_shipped_runs_document_gives_the_training_times_of_the_run_that_made
     assert 'performer: not run here (shipped; 2900 s in the run that made them, on AMD EPYC)' in lines
     assert 'demos: not run here (shipped)' in lines and 'eval: 1200 s' in lines
     assert lines[-2:] == ['total of the stages: 20.0 min', "with the shipped models' training stages: 78.3 min"]
+
+
+def test_the_status_of_a_run_reads_its_stamps_and_runs_nothing(tmp_path):
+    from dialfred_bringup.reproduce.status import run_status, status_lines
+    stamps = tmp_path / 'run' / 'stamps'
+    (stamps / 'rl').mkdir(parents=True)
+    (stamps / 'perception.json').write_text(json.dumps({'status': 'done', 'seconds': 600.0}))
+    (stamps / 'performer.json').write_text(json.dumps({'status': 'done', 'seconds': 1200.0, 'runs': 2}))
+    (stamps / 'rl.json').write_text(json.dumps({'status': 'running', 'started_at': 1000.0, 'seconds_before': 60.0,
+                                                'runs': 2}))
+    (stamps / 'rl' / 'rl_begin.json').write_text(json.dumps({'status': 'done', 'seconds': 300.0}))
+    (stamps / 'rl' / 'rl_anytime.json').write_text(json.dumps({'status': 'running', 'seconds_before': 10.0}))
+    times = tmp_path / 'shipped_run.json'
+    times.write_text(json.dumps({'stages': {'demos': {'seconds': 100.0}, 'rl': {'seconds': 3600.0},
+                                            'perception': {'seconds': 500.0}}}))
+    status = run_status(tmp_path / 'run', now=1240.0, shipped_run=times)
+    rows = status['stages']
+    assert rows['perception'] == {'status': 'done', 'seconds': 600.0, 'runs': 1}
+    assert rows['rl']['status'] == 'running' and rows['rl']['seconds'] == 300.0 and rows['rl']['runs'] == 2
+    assert rows['rl']['items'] == {'rl_anytime': {'status': 'running', 'seconds': 10.0},
+                                   'rl_begin': {'status': 'done', 'seconds': 300.0}}
+    assert rows['eval'] == {'status': 'not started'}
+    assert status['left_s'] == 100.0 + 3300.0               # demos not started, rl 300 s of 3600 in
+    text = '\n'.join(status_lines(status))
+    assert '1 items done, rl_anytime running or cut off' in text and 'about 57 min' in text
+    shipped = run_status(tmp_path / 'run', shipped=True, now=1240.0, shipped_run=times)
+    assert shipped['stages']['performer'] == {'status': 'shipped'} and shipped['left_s'] is None
+    assert not (tmp_path / 'run' / 'results.md').exists()

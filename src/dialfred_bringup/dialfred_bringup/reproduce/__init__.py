@@ -5,6 +5,7 @@
     ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> out/reproduce_shipped
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
     ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
+    ./dialfred reproduce --status             # where the run stands (from its stamps; runs nothing)
     ./dialfred env python -m dialfred_bringup.reproduce.ship   # a finished run's models become the shipped ones
 
 Stages, in order (each calls the project's own API or command; none repeats their logic):
@@ -12,7 +13,7 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | stage | what | output (under the run folder, `--out`) |
 |---|---|---|
 | demos | the performer's demonstrations of train (`dialfred_performer.prepare --annotate --labels`): the expert's frames with each pixel's class and depth (labels for perception only), and while each task is played the oracle's QAs at its start and middle and the synthetic annotators' row at its start (no second or third replay of train) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
-| perception | the perception network trained on those frames and labels (`dialfred_performer.perception`: 250,000 frames) | `perception/perception.pt` |
+| perception | the perception network trained on those frames and labels (`dialfred_performer.perception`: 400,000 frames) | `perception/perception.pt` |
 | performer | performer training on the frozen perception network (`dialfred_performer.train --perception`: 12,000 updates of 16 episodes) | `performer/best.pt` |
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
@@ -72,6 +73,10 @@ __all__ = ['EXTRA', 'MAP_ROWS', 'PAPER_T2', 'PAPER_T3', 'PAPER_T4', 'PERTURB_PRO
 def main(argv: Optional[list[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     cfg = parse(ReproduceConfig, argv, prog='./dialfred reproduce')
+    if cfg.status:
+        from .status import run_status, status_lines
+        print('\n'.join(status_lines(run_status(cfg.run_dir, cfg.shipped))))
+        return 0
     try:
         summary = Runner(cfg).run()
     except (FileNotFoundError, ValueError, RuntimeError) as exc:

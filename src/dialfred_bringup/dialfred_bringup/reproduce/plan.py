@@ -142,6 +142,8 @@ class ReproduceConfig:
     seed: int = arg(0, 'the seed of every stage')
     resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
     progress: bool = arg(False, "the stages' own progress bars on stderr")
+    status: bool = arg(False, 'say where the run folder stands (each stage and item: done, running or cut off, not '
+                              'started; their times) and run nothing')
 
     def __post_init__(self):
         for name in ('force', 'until'):
