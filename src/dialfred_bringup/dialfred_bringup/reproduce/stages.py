@@ -222,7 +222,8 @@ class Runner:
         world = world_code_hash()
         if old and old.get('hash') == digest and old.get('status') == 'done' and not self.forced:
             self.log(f'{stage}: skipped (stamp matches, {digest[:12]})')
-            if old.get('world_code', world) not in (world, world_code_hash(raw=True)):
+            ran_with = old.get('world_code', world)
+            if ran_with != world and ran_with != world_code_hash(raw=True):   # the byte hash: only when needed
                 self.log(f'{stage}: warning: the simulator\'s rules (dialfred_sim world/, actions, env, expert, '
                          f'goals) changed since this stage ran; --force {stage} reruns it with them')
             self.summary[stage] = {'status': 'skipped', 'hash': digest, 'seconds': 0.0}
