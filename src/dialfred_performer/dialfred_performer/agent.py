@@ -26,6 +26,7 @@ from dialfred_sim.protocol import ACTIONS, QA, Decision, image_array
 from .data import START
 from .model import INTERACTION_IDS, Performer, load_checkpoint
 from .nn import PerceivedFrames
+from .nn.enc_action import failed_id
 from .nn.heads import cell_centre_pixel
 from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 
@@ -42,6 +43,13 @@ def observation_rgb(observation: Any) -> np.ndarray:
     if getattr(rgb, 'encoding', None) != 'rgb8':
         raise ValueError(f'expected an rgb8 image, got encoding {getattr(rgb, "encoding", None)!r}')
     return image_array(rgb)
+
+
+def last_action_success(observation: Any) -> Optional[bool]:
+    """The observation's `last_action_success` (a dict's key or an attribute), or None if it has none."""
+    value = observation.get('last_action_success') if isinstance(observation, dict) else \
+        getattr(observation, 'last_action_success', None)
+    return None if value is None else bool(value)
 
 
 class StepOutputs(NamedTuple):
@@ -134,6 +142,8 @@ class PerformerAgent:
         key = (self.step, len(self.dialogue))
         if self._pending is not None and self._pending[0] is observation and self._pending[1] == key:
             return self._pending[2]
+        if self.config.failure_input:
+            self._note_failure(observation)
         rgb = observation_rgb(observation)
         frame = frame_tensor(rgb, self.config.resolution)[None]
         encoded = None
@@ -169,6 +179,13 @@ class PerformerAgent:
                                  len(lang), None, frame, encoded)
         self._pending = (observation, key, result)
         return result
+
+    def _note_failure(self, observation: Any) -> None:
+        """With the failure input: the previous action becomes its failed id if it was an interaction and
+        the observation says it failed (`last_action_success`; an observation without it: succeeded)."""
+        previous = self._previous_actions[-1]
+        if previous in INTERACTION_IDS and last_action_success(observation) is False:
+            self._previous_actions[-1] = failed_id(previous, len(ACTIONS))
 
     def action_probabilities(self, observation: Any) -> np.ndarray:
         """Probabilities over ACTIONS of the next action given `observation`."""

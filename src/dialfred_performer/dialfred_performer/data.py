@@ -12,6 +12,14 @@ pair; all three). A combination includes, for each of its types, every QA of tha
 the instruction's objects) that the oracle gave at one of the steps recorded for the task (0 or a
 mid-episode step), drawn per sample from the dataset's seed.
 
+Recovery examples (`recovery` > 0; the performer's `failure_input`): the expert never fails, so its
+demonstrations never show what to do after a click that did nothing, and a performer that clicked a
+little too far away goes on as if it had worked (it stops). A share of the items get one failed
+interaction inserted a few steps before one of the expert's interactions: the performer clicks from
+where the expert was still approaching (that step's action is not a target), and the same frame
+follows (nothing moved) with the failed action as the previous one and the expert's approach as the
+target. The frames are the demonstration's own: no render.
+
 `dialogues.jsonl`, one line per task: {"task_id": ..., "qas": [{"question_type", "object_noun",
 "valid", "answer", "reason", "step"}, ...]} (`preprocess.qa_to_dict`). `generate_dialogues` makes it
 by replaying the expert's recorded actions in `DialfredEnv` and asking the real oracle core
@@ -41,6 +49,9 @@ COMBINATIONS: tuple[tuple[str, ...], ...] = tuple(
 DIALOGUES_FILE = 'dialogues.jsonl'
 STOP = ACTIONS.index('Stop')
 START = len(ACTIONS)          # the "previous action" of step 0 (ActionEmbedding's <start>)
+NAVIGATION = frozenset(ACTIONS.index(a) for a in ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown'))
+INTERACTION = frozenset(ACTIONS.index(a) for a in ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice'))
+RECOVERY_BEFORE = 3           # a failed click is inserted at most this many (navigation) steps before an interaction
 
 
 def held_out(task_id: str, fraction: float) -> bool:
@@ -77,13 +88,17 @@ class DemonstrationDataset(Dataset):
 
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
                  combinations: Sequence[tuple[str, ...]] = COMBINATIONS, seed: int = 0,
-                 only_successful: bool = True, grid_size: int = 0):
+                 only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
         self.combinations = tuple(combinations) if self.dialogues else ((),)
         self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
         self.frame_size = self.demo.meta['resolution']
+        if not 0 <= recovery <= 1:
+            raise ValueError(f'recovery is a probability, got {recovery}')
+        self.recovery = recovery
+        self.no_recovery: set[int] = set()    # task positions (index // combinations) never augmented: held out
         self.grid_size = grid_size or resolution // 8      # the pointer's cells per side
         # A pointer over every pixel learns from every pixel of the target (the build's labels).
         self.pixel_targets = self.grid_size == self.resolution and self.demo.labels is not None
@@ -127,17 +142,69 @@ class DemonstrationDataset(Dataset):
             if not masks[row].any():              # no labels, or the target is not in view: the expert's cell
                 masks[row, cells[step]] = True
         lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens)
-        return {'task_id': task['task_id'], 'frames': frame_tensor(frames, self.resolution), 'actions': actions,
+        item = {'task_id': task['task_id'], 'frames': frame_tensor(frames, self.resolution), 'actions': actions,
                 'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),
                 'target_cells': torch.tensor(cells, dtype=torch.long), 'target_masks': masks,
                 'lang_ids': torch.tensor(lang.ids, dtype=torch.long),
                 'lang_types': torch.tensor(lang.types, dtype=torch.long),
-                'lang_steps': torch.tensor(lang.steps, dtype=torch.long)}
+                'lang_steps': torch.tensor(lang.steps, dtype=torch.long),
+                'action_valid': torch.ones(len(names), dtype=torch.bool)}
+        return self._recovery(index, item) if self.recovery > 0 else item
+
+    def _recovery(self, index: int, item: dict) -> dict:
+        """`item` with a failed interaction inserted (`insert_failed_interaction`), for a `recovery` share
+        of the items (drawn from the seed and the index), where the expert approached an interaction."""
+        if index // len(self.combinations) in self.no_recovery:
+            return item
+        rng = np.random.default_rng([self.seed, index, 7])
+        if rng.random() >= self.recovery:
+            return item
+        places = recovery_places(item['actions'].tolist())
+        if not places:
+            return item
+        at, interaction = places[int(rng.integers(len(places)))]
+        return insert_failed_interaction(item, at, interaction)
+
+
+def recovery_places(actions: Sequence[int]) -> list[tuple[int, int]]:
+    """(step j, its interaction's step i) where a failed click may be inserted: j is one of the
+    RECOVERY_BEFORE navigation steps right before the interaction at i (a click from a little too far)."""
+    out = []
+    for i, a in enumerate(actions):
+        if a not in INTERACTION:
+            continue
+        j = i - 1
+        while j >= 0 and i - j <= RECOVERY_BEFORE and actions[j] in NAVIGATION:
+            out.append((j, i))
+            j -= 1
+    return out
+
+
+def insert_failed_interaction(item: dict, at: int, interaction: int) -> dict:
+    """A recovery example made of an item (`DemonstrationDataset.__getitem__`'s dict): at step `at` the
+    performer does the interaction of step `interaction` too early (from frame `at`; neither its action
+    nor its pointer is a target), then sees frame `at` again with that failed interaction as its
+    previous action (`failed_id`) and the expert's action of step `at` as the target; the rest follows
+    as before. QAs asked after step `at` move one step later with their frames."""
+    from .nn.enc_action import failed_id
+    actions, previous = item['actions'], item['previous_actions']
+    clicked = int(actions[interaction])
+    out = dict(item)
+    out['frames'] = torch.cat([item['frames'][:at + 1], item['frames'][at:]])
+    out['actions'] = torch.cat([actions[:at], actions[interaction:interaction + 1], actions[at:]])
+    out['previous_actions'] = torch.cat([previous[:at + 1], torch.tensor([failed_id(clicked, len(ACTIONS))]),
+                                         previous[at + 1:]])
+    out['target_cells'] = torch.cat([item['target_cells'][:at], torch.tensor([-1]), item['target_cells'][at:]])
+    out['action_valid'] = torch.cat([item['action_valid'][:at], torch.tensor([False]), item['action_valid'][at:]])
+    steps = item['lang_steps']
+    out['lang_steps'] = torch.where(steps > at, steps + 1, steps)
+    return out
 
 
 def collate(items: Sequence[dict]) -> dict:
     """Pad items to a batch: frames [B, T, 3, R, R], actions / previous_actions / target_cells [B, T]
-    (padding: Stop / <start> / -1), step_valid [B, T]; lang_ids / types / steps [B, L] (padding 0),
+    (padding: Stop / <start> / -1), step_valid [B, T], action_valid [B, T] (the valid steps whose action is
+    a target: not an inserted failed click); lang_ids / types / steps [B, L] (padding 0),
     lang_valid [B, L]; target_masks [K, C], the target's cells at each of the K steps with a target
     (row-major over [B, T], as `tensor[target_cells >= 0]` orders them)."""
     B = len(items)
@@ -148,14 +215,14 @@ def collate(items: Sequence[dict]) -> dict:
            'frames': torch.zeros(B, T, 3, R, R), 'actions': torch.full((B, T), STOP, dtype=torch.long),
            'previous_actions': torch.full((B, T), START, dtype=torch.long),
            'target_cells': torch.full((B, T), -1, dtype=torch.long),
-           'step_valid': torch.zeros(B, T, dtype=torch.bool),
+           'step_valid': torch.zeros(B, T, dtype=torch.bool), 'action_valid': torch.zeros(B, T, dtype=torch.bool),
            'lang_ids': torch.zeros(B, L, dtype=torch.long), 'lang_types': torch.zeros(B, L, dtype=torch.long),
            'lang_steps': torch.zeros(B, L, dtype=torch.long), 'lang_valid': torch.zeros(B, L, dtype=torch.bool),
            'target_masks': torch.cat([it['target_masks'] for it in items])}
     for b, it in enumerate(items):
         t, n = len(it['actions']), len(it['lang_ids'])
         out['frames'][b, :t] = it['frames']
-        for key in ('actions', 'previous_actions', 'target_cells'):
+        for key in ('actions', 'previous_actions', 'target_cells', 'action_valid'):
             out[key][b, :t] = it[key]
         out['step_valid'][b, :t] = True
         for key in ('lang_ids', 'lang_types', 'lang_steps'):

@@ -110,8 +110,8 @@ def all_reduce_sum(values: Sequence[float], device: torch.device) -> list[float]
 
 
 def global_counts(batch: dict, stand_in: bool, device: torch.device) -> tuple[float, float]:
-    """(valid steps, pointer targets) of the global batch: the sums of the ranks' counts."""
-    local = [0.0, 0.0] if stand_in else [float(batch['step_valid'].sum()), float((batch['target_cells'] >= 0).sum())]
+    """(steps with an action target, pointer targets) of the global batch: the sums of the ranks' counts."""
+    local = [0.0, 0.0] if stand_in else [float(batch['action_valid'].sum()), float((batch['target_cells'] >= 0).sum())]
     steps, targets = all_reduce_sum(local, device)
     return steps, targets
 
@@ -123,7 +123,7 @@ def sharded_loss(outputs: dict, batch: dict, pointer_weight: float, steps: float
     global targets). Summed over the ranks and divided by `world`, it is the single process's loss (and
     its gradient the update's). Every output takes part in the graph (DDP expects a gradient for each
     parameter), whatever this rank's share holds."""
-    valid, masks = batch['step_valid'], batch['target_masks']
+    valid, masks = batch['action_valid'], batch['target_masks']
     action = F.cross_entropy(outputs['action_logits'][valid], batch['actions'][valid], reduction='sum') / max(steps, 1.0)
     pointer = outputs['pointer_logits'].sum() * 0.0
     if targets > 0 and len(masks):

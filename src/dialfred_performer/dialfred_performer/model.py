@@ -57,6 +57,9 @@ class PerformerConfig:
     reach_input: bool = False      # visual='perception': the action head also reads how far away what the
                                    # pointer points at is (the network's predicted distance under the
                                    # pointer's distribution: `reach_features`), gradient-free
+    failure_input: bool = False    # an interaction that failed in the world (the observation's
+                                   # last_action_success) is a previous action of its own (`failed_id`),
+                                   # learnt from recovery examples (data.insert_failed_interaction)
 
     def __post_init__(self):
         if self.visual not in ('cnn', 'perception'):
@@ -108,7 +111,7 @@ class Performer(nn.Module):
             self.pointer_head = PointerHead(d, config.pointer_key, project_keys=False)
         else:
             self.pointer_head = PointerHead(d)
-        self.actions = ActionEmbedding(len(ACTIONS), d)
+        self.actions = ActionEmbedding(len(ACTIONS), d, failures=config.failure_input)
         self.encoder = MultimodalEncoder(d, config.heads, config.layers, config.ff, config.max_steps, config.dropout)
         self.action_head = ActionHead(d, len(ACTIONS))
         if config.reach_input:
@@ -195,10 +198,10 @@ def pointer_ce(logits: torch.Tensor, targets: torch.Tensor, reduction: str = 'me
 
 
 def performer_loss(outputs: dict, batch: dict, pointer_weight: float = 1.0) -> tuple[torch.Tensor, dict]:
-    """Cross-entropy of the expert's actions over valid steps + `pointer_weight` x the pointer's
-    cross-entropy against the target's cells (batch['target_masks'] [K, C]) over the interaction
-    steps. Returns (loss, {'action', 'pointer'})."""
-    valid = batch['step_valid']
+    """Cross-entropy of the expert's actions over the steps whose action is a target (batch['action_valid'])
+    + `pointer_weight` x the pointer's cross-entropy against the target's cells (batch['target_masks']
+    [K, C]) over the interaction steps. Returns (loss, {'action', 'pointer'})."""
+    valid = batch['action_valid']
     action = F.cross_entropy(outputs['action_logits'][valid], batch['actions'][valid])
     if len(batch['target_masks']):
         pointer = pointer_ce(outputs['pointer_logits'], batch['target_masks'])

@@ -47,6 +47,7 @@ from typing import Optional, Sequence
 import numpy as np
 import torch
 
+from dialfred_sim.protocol import ACTIONS
 from dialfred_sim.tasks.demonstrations import default_dir
 
 from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
@@ -93,6 +94,8 @@ class TrainConfig:
     weight_decay: float = arg(0.01, 'AdamW weight decay (matrices only; not biases, norms)')
     grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
     pointer_weight: float = arg(1.0, 'weight of the pointer loss')
+    recovery: float = arg(0.0, 'the share of training items with a failed click inserted before an interaction '
+                               '(data.insert_failed_interaction; needs --failure-input)')
     seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
     deterministic: bool = arg(True, 'torch.use_deterministic_algorithms (warn only on CUDA)')
     device: str = arg('auto', "'auto' (cuda if present, else cpu), 'cpu', 'cuda' or 'cuda:N'")
@@ -102,6 +105,8 @@ class TrainConfig:
     checkpoint_every: int = arg(500, 'updates between writes of last.pt')
     stop_after: int = arg(0, 'end this session after this many updates (0: run to the end); --resume continues')
     resume: bool = arg(False, 'continue from out/last.pt (same config required)')
+    init: str = arg('', "start from this performer checkpoint's weights (its vocabulary and sizes; a failed "
+                        "action's row starts as the action's) and train as configured; '' = from scratch")
     progress: bool = arg(True, 'progress bar on stderr')
 
     def __post_init__(self):
@@ -134,6 +139,10 @@ class TrainConfig:
                 raise ValueError(f'{name} must be at least 1, got {getattr(m, name)}')
         if not 0 <= m.dropout < 1:
             raise ValueError(f'dropout must be in [0, 1), got {m.dropout}')
+        if not 0 <= self.recovery <= 1:
+            raise ValueError(f'recovery must be in [0, 1], got {self.recovery}')
+        if self.recovery > 0 and not m.failure_input:
+            raise ValueError('--recovery teaches what to do after a failed click: it needs --failure-input')
 
 
 # ---------------------------------------------------------------------- set-up
@@ -199,7 +208,7 @@ def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:
 def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
     m, _ = model_config(cfg)
     train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
-                                 grid_size=m.grid_size)
+                                 grid_size=m.grid_size, recovery=cfg.recovery)
     if not cfg.dialogues:
         train.combinations = ((),)
     combos = len(train.combinations)
@@ -215,6 +224,7 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
     if cfg.val_fraction > 0 and not out and len(ids) > 1:      # a tiny folder still gets one
         out = {min(range(len(ids)), key=lambda i: hashlib.sha256(ids[i].encode()).hexdigest())}
     train_items = [i for i in every if i // combos not in out]
+    train.no_recovery = out              # the held-out tasks are validated as the expert played them
     if not train_items:
         raise ValueError(f'no training tasks left in {cfg.demonstrations} after holding out {len(out)}')
     return Data(train, train_items, train if out else None, [i for i in every if i // combos in out])
@@ -324,6 +334,31 @@ def restore_training(path: Path, cfg: TrainConfig, model, optimizer, scheduler,
     return vocab, progress
 
 
+def warm_start(model: Performer, vocab: Vocabulary, path: Path) -> None:
+    """Load the weights of the performer checkpoint `path` into `model` (--init): the same vocabulary,
+    sizes and perception network; a model with the failure input that the checkpoint lacks gets each
+    failed action's embedding row from the action's own (it starts as if the action had worked)."""
+    from .nn.enc_action import failed_id
+    source, source_vocab, _ = load_checkpoint(path)
+    if source_vocab != vocab:
+        raise ValueError(f'--init {path}: its vocabulary is not the training folder\'s')
+    mine, theirs = model.state_dict(), source.state_dict()
+    key = 'actions.embedding.weight'
+    differ = sorted(k for k in set(mine) | set(theirs) if k != key and
+                    (k not in mine or k not in theirs or mine[k].shape != theirs[k].shape))
+    if differ:
+        raise ValueError(f'--init {path}: another model ({", ".join(differ[:4])} differ); only the failure input '
+                         f'may be added')
+    other_net = [k for k in mine if k.startswith('visual.net.') and not torch.equal(mine[k], theirs[k])]
+    if other_net:
+        raise ValueError(f'--init {path}: it sees through another perception network than --perception')
+    rows = theirs[key]
+    if mine[key].shape[0] > rows.shape[0]:
+        n = len(ACTIONS)
+        rows = torch.cat([rows, rows[[a for a in range(n) if failed_id(a, n) >= rows.shape[0]]]])
+    model.load_state_dict({**theirs, key: rows})
+
+
 # ---------------------------------------------------------------------- training
 
 class StopRequest:
@@ -375,6 +410,8 @@ def train(cfg: TrainConfig, ranks: Optional[Ranks] = None) -> dict:
     model = Performer(model_cfg, len(vocab))
     if perception_weights is not None:
         model.visual.net.load_state_dict(perception_weights)
+    if cfg.init and not cfg.resume:
+        warm_start(model, vocab, Path(cfg.init))
     model = model.to(device)
     optimizer = make_optimizer(model, cfg)
     scheduler = torch.optim.lr_scheduler.LambdaLR(

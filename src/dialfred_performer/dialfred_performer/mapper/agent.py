@@ -43,7 +43,7 @@ from dialfred_sim.protocol import ACTIONS, QA, Decision
 from dialfred_sim.tasks.demonstrations import label_classes
 from dialfred_sim.world.catalog import load_catalog
 
-from ..agent import observation_rgb
+from ..agent import last_action_success, observation_rgb
 from ..preprocess import frame_tensor
 from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon, off_bearing,
                        points_in_agent_frame, ray_distance, to_map_frame)
@@ -64,12 +64,6 @@ _SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'lab
                      '_pending', '_heard'})
 INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
                 'toggle_off': 'ToggleOff', 'slice': 'Slice'}
-
-
-def _success(observation: Any) -> Optional[bool]:
-    value = observation.get('last_action_success') if isinstance(observation, dict) else \
-        getattr(observation, 'last_action_success', None)
-    return None if value is None else bool(value)
 
 
 class MapAgent:
@@ -192,7 +186,7 @@ class MapAgent:
         if self.step == 0:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
         else:
-            self._dead_reckon(_success(observation))
+            self._dead_reckon(last_action_success(observation))
         self.labels, self.conf = labels, conf
         self.ray = ray_distance(depth)
         local = points_in_agent_frame(depth, self.pose.horizon)
