@@ -23,8 +23,8 @@ import torch
 
 from dialfred_sim.protocol import ACTIONS, QA, Decision, image_array
 
-from .data import START
-from .model import INTERACTION_IDS, Performer, load_checkpoint
+from .data import INTERACTION_IDS, START
+from .model import Performer, load_checkpoint
 from .nn import PerceivedFrames
 from .nn.enc_action import failed_id
 from .nn.heads import cell_centre_pixel

@@ -50,7 +50,9 @@ DIALOGUES_FILE = 'dialogues.jsonl'
 STOP = ACTIONS.index('Stop')
 START = len(ACTIONS)          # the "previous action" of step 0 (ActionEmbedding's <start>)
 NAVIGATION = frozenset(ACTIONS.index(a) for a in ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown'))
-INTERACTION = frozenset(ACTIONS.index(a) for a in ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice'))
+# Actions that name a target pixel (the pointer is trained and used on these only).
+INTERACTIONS = ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice')
+INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
 RECOVERY_BEFORE = 3           # a failed click is inserted at most this many (navigation) steps before an interaction
 
 
@@ -171,7 +173,7 @@ def recovery_places(actions: Sequence[int]) -> list[tuple[int, int]]:
     RECOVERY_BEFORE navigation steps right before the interaction at i (a click from a little too far)."""
     out = []
     for i, a in enumerate(actions):
-        if a not in INTERACTION:
+        if a not in INTERACTION_IDS:
             continue
         j = i - 1
         while j >= 0 and i - j <= RECOVERY_BEFORE and actions[j] in NAVIGATION:

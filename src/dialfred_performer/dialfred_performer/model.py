@@ -28,9 +28,6 @@ from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder,
 from .perception import Perception, PerceptionNetConfig
 from .preprocess import N_TOKEN_TYPES, Vocabulary
 
-# Actions that name a target pixel (the pointer is trained and used on these only).
-INTERACTIONS = ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice')
-INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
 # The trained checkpoint shipped in the package (the command that made it is stored inside it and in
 # docs/figures.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
