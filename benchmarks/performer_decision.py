@@ -21,7 +21,8 @@ import numpy as np
 import torch
 
 from dialfred_performer.agent import PerformerAgent
-from dialfred_performer.model import INTERACTIONS, SHIPPED_CHECKPOINT, Performer, PerformerConfig, load_checkpoint
+from dialfred_performer.data import INTERACTIONS
+from dialfred_performer.model import SHIPPED_CHECKPOINT, Performer, PerformerConfig, load_checkpoint
 from dialfred_performer.preprocess import Vocabulary
 from dialfred_sim.protocol import QA, Question
 from dialfred_sim.tasks import PublicTask
