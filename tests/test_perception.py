@@ -304,3 +304,25 @@ def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_ev
                             **({'pixel': (x, y)} if x >= 0 else {})})
     assert unmade >= 1 and all(g is not None for g in lazy._grids[:6])     # made on demand for the fallback
     env.close()
+
+
+def test_the_performer_may_train_through_the_frozen_network_in_bf16_and_act_in_fp32(prepared, reach_performer,
+                                                                                 tmp_path):
+    """--perception-precision bf16 runs the frozen network's convolutions in bfloat16 while training (the
+    training loss within rounding of fp32's); the checkpoint's agent perceives in fp32."""
+    checkpoint, _ = tiny_performer(prepared, tmp_path / 'bf16', '--reach-input', '--lr', '0.05', '--warmup-updates',
+                                   '1', '--perception-precision', 'bf16')
+    rows = [json.loads(line) for name in (checkpoint, reach_performer[0])
+            for line in (name.parent / 'metrics.jsonl').read_text().splitlines()[:1]]
+    assert rows[0]['loss'] == pytest.approx(rows[1]['loss'], rel=0.02) and rows[0]['loss'] != rows[1]['loss']
+    model, _, _ = load_checkpoint(checkpoint)
+    assert model.visual.precision == 'fp32'
+    frames = torch.rand(2, 3, 32, 32)
+    emb, keys, out = model.visual.perceive(frames)
+    model.visual.precision = 'bf16'
+    emb16, keys16, out16 = model.visual.perceive(frames)
+    assert out16.fine.dtype == torch.float32 and not torch.equal(out16.fine, out.fine)
+    assert torch.allclose(out16.fine, out.fine, atol=0.1) and torch.allclose(emb16, emb, atol=0.1)
+    from dialfred_performer.train import TrainConfig
+    with pytest.raises(ValueError, match='--perception-precision takes fp32 or bf16'):
+        TrainConfig(perception_precision='fp16')

@@ -58,6 +58,7 @@ from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, glob
                           rank_seed, rank_share, reduce_stats, sharded_loss, zero_stats)
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
 from .model import Performer, PerformerConfig, git_commit, load_checkpoint, performer_loss, save_checkpoint
+from .nn import PerceivedFrames
 from .prepare import VOCABULARY_FILE
 from .preprocess import Vocabulary
 
@@ -94,6 +95,9 @@ class TrainConfig:
     weight_decay: float = arg(0.01, 'AdamW weight decay (matrices only; not biases, norms)')
     grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
     pointer_weight: float = arg(1.0, 'weight of the pointer loss')
+    perception_precision: str = arg('fp32', "the frozen perception network's arithmetic while training (with "
+                                            "--perception): fp32, or bf16 (its convolutions in bfloat16, about "
+                                            "half its time; the agent's steps stay fp32)")
     recovery: float = arg(0.0, 'the share of training items with a failed click inserted before an interaction '
                                '(data.insert_failed_interaction; needs --failure-input)')
     seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
@@ -139,6 +143,8 @@ class TrainConfig:
                 raise ValueError(f'{name} must be at least 1, got {getattr(m, name)}')
         if not 0 <= m.dropout < 1:
             raise ValueError(f'dropout must be in [0, 1), got {m.dropout}')
+        if self.perception_precision not in ('fp32', 'bf16'):
+            raise ValueError(f'--perception-precision takes fp32 or bf16, got {self.perception_precision!r}')
         if not 0 <= self.recovery <= 1:
             raise ValueError(f'recovery must be in [0, 1], got {self.recovery}')
         if self.recovery > 0 and not m.failure_input:
@@ -412,6 +418,8 @@ def train(cfg: TrainConfig, ranks: Optional[Ranks] = None) -> dict:
         model.visual.net.load_state_dict(perception_weights)
     if cfg.init and not cfg.resume:
         warm_start(model, vocab, Path(cfg.init))
+    if isinstance(model.visual, PerceivedFrames):
+        model.visual.precision = cfg.perception_precision
     model = model.to(device)
     optimizer = make_optimizer(model, cfg)
     scheduler = torch.optim.lr_scheduler.LambdaLR(

@@ -42,6 +42,10 @@ class PerceivedFrames(nn.Module):
         self.distance = distance
         self.embed = nn.Sequential(nn.Linear(c.c3 * POOLED * POOLED, d_model), nn.LayerNorm(d_model))
         self.key = nn.Conv2d(c.decoder + c.c1, d_key, 1)
+        # The frozen network's arithmetic in `perceive` (the training path): 'bf16' runs its convolutions in
+        # bfloat16 (autocast; about half the time on a CPU with AVX512-BF16), its outputs back in fp32.
+        # The agent's steps stay in fp32. Not saved: a training setting (TrainConfig.perception_precision).
+        self.precision = 'fp32'
 
     def train(self, mode: bool = True):
         super().train(mode)
@@ -60,8 +64,10 @@ class PerceivedFrames(nn.Module):
     def perceive(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None):
         """As forward without the distance channel, and the network's output (PerceptionOutput, without
         gradient) for `pointer_logits` and `distances`: (embedding, keys [.., R*R, k], output)."""
-        with torch.no_grad():
+        with torch.no_grad(), torch.autocast('cpu', dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
             out = self.net(frames)
+        if self.precision == 'bf16':
+            out = type(out)(*(t.float() for t in out))
         fine, stem = out.fine, out.stem
         if keys_for is not None:
             fine, stem = fine[keys_for], stem[keys_for]
