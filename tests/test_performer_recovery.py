@@ -159,6 +159,8 @@ def test_a_run_can_start_from_a_performer_without_the_failure_input(folder, tmp_
     summary = train(TrainConfig(**base, out=str(tmp_path / 'warm'), model=TINY, recovery=0.5,
                                 init=str(tmp_path / 'plain' / 'last.pt')))
     assert summary['finished']
+    with pytest.raises(ValueError, match='has the failure input'):
+        warm_start(Performer(plain_model, len(vocab)), vocab, tmp_path / 'warm' / 'last.pt')
     with pytest.raises(ValueError, match='another model'):
         warm_start(Performer(dataclasses.replace(TINY, d_model=64, heads=2), len(vocab)), vocab,
                    tmp_path / 'plain' / 'last.pt')

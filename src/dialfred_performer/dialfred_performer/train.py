@@ -344,7 +344,6 @@ def warm_start(model: Performer, vocab: Vocabulary, path: Path) -> None:
     """Load the weights of the performer checkpoint `path` into `model` (--init): the same vocabulary,
     sizes and perception network; a model with the failure input that the checkpoint lacks gets each
     failed action's embedding row from the action's own (it starts as if the action had worked)."""
-    from .nn.enc_action import failed_id
     source, source_vocab, _ = load_checkpoint(path)
     if source_vocab != vocab:
         raise ValueError(f'--init {path}: its vocabulary is not the training folder\'s')
@@ -358,10 +357,11 @@ def warm_start(model: Performer, vocab: Vocabulary, path: Path) -> None:
     other_net = [k for k in mine if k.startswith('visual.net.') and not torch.equal(mine[k], theirs[k])]
     if other_net:
         raise ValueError(f'--init {path}: it sees through another perception network than --perception')
-    rows = theirs[key]
-    if mine[key].shape[0] > rows.shape[0]:
-        n = len(ACTIONS)
-        rows = torch.cat([rows, rows[[a for a in range(n) if failed_id(a, n) >= rows.shape[0]]]])
+    rows, n = theirs[key], len(ACTIONS)
+    if mine[key].shape[0] < rows.shape[0]:
+        raise ValueError(f'--init {path}: it has the failure input (--failure-input) and this run does not')
+    if mine[key].shape[0] > rows.shape[0]:            # failed_id(a) = n + 1 + a: each starts as its action's row
+        rows = torch.cat([rows, rows[:n]])
     model.load_state_dict({**theirs, key: rows})
 
 

@@ -64,7 +64,7 @@ class PerceivedFrames(nn.Module):
     def perceive(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None):
         """As forward without the distance channel, and the network's output (PerceptionOutput, without
         gradient) for `pointer_logits` and `distances`: (embedding, keys [.., R*R, k], output)."""
-        with torch.no_grad(), torch.autocast('cpu', dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
+        with torch.no_grad(), torch.autocast(frames.device.type, dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
             out = self.net(frames)
         if self.precision == 'bf16':
             out = type(out)(*(t.float() for t in out))
