@@ -495,3 +495,46 @@ def test_an_appearance_answer_picks_the_mask_of_its_colour_among_pickupable_thin
     # a put step reads the colour given for the receptacle, not for what is held
     agent.facts[('appearance', 'Apple')] = (Fact('appearance', 'Apple', colour='red'), Pose(0, 0, 0))
     assert agent._colour_wanted(Step('put', 'CounterTop', held='Apple')) is None
+
+
+def test_a_target_unlabelled_inside_the_receptacle_it_was_said_to_be_in_is_taken_where_most_probable():
+    import torch
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.language import Fact
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Take the potato.'})())
+    s = 32
+    k, rk = agent.class_id['Potato'], agent.class_id['Microwave']
+    agent.labels = np.zeros((s, s), np.int64)
+    agent.labels[8:16, 4:14] = rk                                   # the open microwave, in view
+    agent.conf = np.ones((s, s), np.float32)
+    agent.ray = np.full((s, s), 1.0, np.float32)
+    prob = torch.zeros(len(agent.classes), s, s)
+    prob[k, 12, 9] = 0.06                                           # the potato, never the most probable type
+    prob[k, 25, 25] = 0.5                                           # more probable, but not in the microwave
+    agent.class_prob = prob
+    step = Step('pickup', 'Potato')
+    assert not agent._inside_opened(k, step).any()                  # no answer
+    agent.facts[('location', 'Potato')] = (Fact('location', 'Potato', 0.0, 'Microwave', inside=True), Pose(0, 0, 0))
+    assert not agent._inside_opened(k, step).any()                  # not opened yet
+    agent.opened.add('Microwave')
+    assert np.argwhere(agent._inside_opened(k, step)).tolist() == [[12, 9]]
+    agent.facts[('location', 'Potato')] = (Fact('location', 'Potato', 0.0, 'Microwave', inside=False), Pose(0, 0, 0))
+    assert not agent._inside_opened(k, step).any()                  # on it, not in it: seen or not at all
+    prob[k, 12, 9] = 0.01
+    agent.facts[('location', 'Potato')] = (Fact('location', 'Potato', 0.0, 'Microwave', inside=True), Pose(0, 0, 0))
+    assert not agent._inside_opened(k, step).any()                  # too improbable to act on
+
+
+def test_facing_goals_keep_the_points_from_which_the_cell_lies_near_a_heading():
+    smap = SemanticMap(n_classes=4, map_m=8.0)
+    cx, cy = smap.cell_of(1.0, 0.0)
+    height = np.array([0.9])
+    every = reach_goals(smap, np.array([cx]), np.array([cy]), height)
+    facing = reach_goals(smap, np.array([cx]), np.array([cy]), height, facing_deg=25.0)
+    assert facing.sum() < every.sum() and not (facing & ~every).any()
+    off = smap.node_offset()
+    x, y = smap.cell_centre(np.array([cx]), np.array([cy]))
+    for i, j in np.argwhere(facing):
+        dx, dy = float(x[0]) - (i - off) * 0.25, float(y[0]) - (j - off) * 0.25
+        assert abs((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0) <= 25.0

@@ -54,13 +54,14 @@ STRUCTURE = 4                    # label classes below this are nothing, Floor, 
 FLOOR = 1
 REACH_M = 1.3                    # stay inside the simulator's 1.5 m by more than the predicted depth's usual error
 MIN_TARGET_CELLS = 1
+INSIDE_P = 0.03                   # _inside_opened: the least probability of the target's type taken as it
 MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
 SCAN_TURNS = 3                   # turns of the first look around
 SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
 ANSWER_CONE_DEG = 67.5           # half a location answer's 45-degree direction bin, and one bin more either side
 REPLAN = 'replan'                # _navigate changed the plan: decide again
 # Attributes a decision reads but never changes (shared with the copy action_probabilities decides on).
-_SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points',
+_SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points', 'class_prob',
                      '_pending', '_heard'})
 INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
                 'toggle_off': 'ToggleOff', 'slice': 'Slice'}
@@ -178,6 +179,7 @@ class MapAgent:
         out = self.net(frame_tensor(rgb, self.resolution)[None])
         logits, metres, _ = self.net.heads(out.fine)
         prob = torch.softmax(logits[0], 0)
+        self.class_prob = prob
         conf, labels = prob.max(0)
         return labels.numpy(), conf.numpy(), metres[0].numpy()
 
@@ -370,6 +372,8 @@ class MapAgent:
     def _target_pixel(self, k: int, step: Step):
         """((row, col), map point) of the cell to click on class k, or None when none is in reach."""
         mask = (self.labels == k) & (self.conf > 0.3)
+        if not mask.any():
+            mask = self._inside_opened(k, step)
         if self.held is not None:
             mask &= ~self.hand_window()
         given_up = self.map.excluded.get(k)
@@ -420,6 +424,29 @@ class MapAgent:
         r, c = int(ir[j]), int(ic[j])
         p = self.points[r, c]
         return (r, c), (float(p[0]), float(p[1]))
+
+    def _inside_opened(self, k: int, step: Step) -> np.ndarray:
+        """[S, S] bool: where a pickup's target may lie unlabelled in view: inside the receptacle a location
+        answer said it is in, opened by the agent, at the cell the network gives the target's type the most
+        probability (at least INSIDE_P) within the receptacle's box in the frame."""
+        none = np.zeros_like(self.labels, bool)
+        fact = self.facts.get(('location', step.target))
+        prob = getattr(self, 'class_prob', None)
+        if step.kind != 'pickup' or fact is None or prob is None or not fact[0].inside or \
+                fact[0].receptacle not in self.opened:
+            return none
+        rk = self.class_id.get(fact[0].receptacle)
+        if rk is None:
+            return none
+        rows, cols = np.nonzero(self.labels == rk)
+        if len(rows) < 2:
+            return none
+        box = none.copy()
+        box[max(rows.min() - 1, 0):rows.max() + 2, max(cols.min() - 1, 0):cols.max() + 2] = True
+        p = np.where(box & (self.ray < REACH_M), prob[k].numpy(), 0.0)
+        if p.max() < INSIDE_P:
+            return none
+        return p == p.max()
 
     def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
         """How far a mask of `type_name` centred on map point p lies from the instance acted on before
@@ -562,6 +589,11 @@ class MapAgent:
                     keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
                     if keep.any():
                         goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
+                        if f.inside and f.receptacle in self.opened:
+                            # opened to be searched: stand where it lies ahead, so its inside is in view
+                            facing = reach_goals(self.map, cx[keep], cy[keep], height[keep], facing_deg=25.0)
+                            if (facing & free).any():
+                                goals = facing
                         dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
                         if dist[self.pose.i + off, self.pose.j + off] == 0:
                             move = self._face(cx[keep], cy[keep], height[keep])
