@@ -526,6 +526,39 @@ def test_a_target_unlabelled_inside_the_receptacle_it_was_said_to_be_in_is_taken
     assert not agent._inside_opened(k, step).any()                  # too improbable to act on
 
 
+def test_what_the_agent_put_into_a_receptacle_is_taken_back_where_its_frame_changed():
+    import torch
+    from dialfred_performer.mapper.agent import MapAgent
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Heat the potato slice.'})())
+    s = 32
+    k, rk, ck = agent.class_id['PotatoSliced'], agent.class_id['Microwave'], agent.class_id['CounterTop']
+    agent.labels = np.full((s, s), ck, np.int64)
+    agent.labels[4:16, 4:20] = rk                                   # the microwave, open, in view
+    agent.conf = np.ones((s, s), np.float32)
+    agent.ray = np.full((s, s), 1.0, np.float32)
+    rows, cols = np.mgrid[0:s, 0:s]
+    agent.points = np.stack([rows * 0.05, cols * 0.05, np.zeros((s, s))], -1)   # a cell's map point
+    before = np.zeros((2 * s, 2 * s, 3), np.uint8)                  # the camera has twice the cells' pixels
+    agent.rgb = before.copy()
+    agent.rgb[20:24, 16:20] = 200                                   # the slice, now in the microwave: cells 10-11, 8-9
+    agent.rgb[50:60, 30:40] = 200                                   # where the hand carried it (counter now)
+    agent.placed['PotatoSliced'] = ('Microwave', None)
+    agent._where_put('PotatoSliced', before)
+    point = agent.placed['PotatoSliced'][1]
+    assert point == pytest.approx((10.5 * 0.05, 8.5 * 0.05))        # the changed microwave cells' middle
+    agent.class_prob = torch.zeros(len(agent.classes), s, s)         # the network does not see the slice at all
+    step = Step('pickup', 'PotatoSliced')
+    assert not agent._inside_opened(k, step).any()                  # the microwave is shut
+    agent.opened.add('Microwave')
+    taken = np.argwhere(agent._inside_opened(k, step)).tolist()
+    assert taken and all(cell in ([10, 8], [10, 9], [11, 8], [11, 9]) for cell in taken)   # nearest the point
+    agent.placed['PotatoSliced'] = ('Microwave', (5.0, 5.0))        # put far from anything in view
+    assert not agent._inside_opened(k, step).any()
+    agent.placed.clear()
+    assert not agent._inside_opened(k, step).any()                  # neither put there nor said to be there
+
+
 def test_facing_goals_keep_the_points_from_which_the_cell_lies_near_a_heading():
     smap = SemanticMap(n_classes=4, map_m=8.0)
     cx, cy = smap.cell_of(1.0, 0.0)

@@ -54,6 +54,8 @@ STRUCTURE = 4                    # label classes below this are nothing, Floor, 
 FLOOR = 1
 REACH_M = 1.3                    # stay inside the simulator's 1.5 m by more than the predicted depth's usual error
 MIN_TARGET_CELLS = 1
+PUT_CHANGE = 30.0                # _where_put: mean change of a cell's RGB (summed over channels) taken as a change
+PLACED_M = 0.15                  # _inside_opened: how near the point of its own Put a cell must lie
 INSIDE_P = 0.03                   # _inside_opened: the least probability of the target's type taken as it
 MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
 SCAN_TURNS = 3                   # turns of the first look around
@@ -113,6 +115,8 @@ class MapAgent:
         self.held_known = False
         self.held_confirmed = False
         self.opened: set[str] = set()
+        self.placed: dict[str, tuple] = {}     # type -> (receptacle type, map point) of the agent's Put of it
+        self._just_put: Optional[str] = None     # the type put down by the last action, if it was a Put
         self.facts: dict[tuple[str, str], tuple[Fact, Pose]] = {}
         self.turns: deque[str] = deque()
         self.last: Optional[tuple[str, Step, tuple]] = None     # (action, step, (x, y) map point)
@@ -189,7 +193,7 @@ class MapAgent:
         return self.perceive(self.rgb)
 
     def _update(self, observation: Any) -> None:
-        self.rgb = observation_rgb(observation)
+        before, self.rgb = getattr(self, 'rgb', None), observation_rgb(observation)
         labels, conf, depth = self.sense(observation)
         if self.step == 0:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
@@ -200,6 +204,9 @@ class MapAgent:
         local = points_in_agent_frame(depth, self.pose.horizon)
         points = to_map_frame(local, self.pose)
         self.points = points
+        if self._just_put is not None and before is not None and before.shape == self.rgb.shape:
+            self._where_put(self._just_put, before)
+        self._just_put = None
         mapped = self.ray
         if self.held is not None:
             ray = self.ray.copy()
@@ -253,7 +260,11 @@ class MapAgent:
                 self.anchors[step.target] = point
             if action == 'Pickup':
                 self.held, self.held_confirmed = step.target, True
+                self.placed.pop(step.target, None)
             elif action == 'Put':
+                if self.held or step.held:
+                    self.placed[self.held or step.held] = (step.target, None)
+                    self._just_put = self.held or step.held
                 self.held = None
             elif action == 'Open':
                 self.opened.add(step.target)
@@ -425,17 +436,48 @@ class MapAgent:
         p = self.points[r, c]
         return (r, c), (float(p[0]), float(p[1]))
 
+    def _where_put(self, obj: str, before: np.ndarray) -> None:
+        """Where `obj`, just put down, lies: the middle (map point) of the receptacle's cells whose colour
+        changed between the frame before the Put and this one (the agent did not move; the network mostly
+        labels a small thing inside a receptacle as the receptacle, and where the hand carried it, as what
+        lies behind)."""
+        recep = self.placed[obj][0]
+        rk = self.class_id.get(recep)
+        s = self.labels.shape[0]
+        f = self.rgb.shape[0] // s
+        if rk is None or f < 1 or self.rgb.shape[0] != f * s:
+            return
+        change = np.abs(self.rgb.astype(np.int16) - before.astype(np.int16)).sum(-1)
+        change = change.reshape(s, f, s, f).mean((1, 3))
+        moved = (change > PUT_CHANGE) & (self.labels == rk) & (self.ray < REACH_M)
+        if moved.any():
+            p = self.points[moved].mean(0)
+            self.placed[obj] = (recep, (float(p[0]), float(p[1])))
+
+    def _inside(self, target: str) -> Optional[str]:
+        """The receptacle `target` lies in, open, as far as the agent knows: the one it put it into itself,
+        else the one a location answer said it is in; None if unknown or shut (an openable one the agent
+        has not opened)."""
+        where = self.placed[target][0] if target in self.placed else None
+        if where is None:
+            fact = self.facts.get(('location', target))
+            if fact is None or not fact[0].inside:
+                return None
+            where = fact[0].receptacle
+        kind = self.catalog.get(where)
+        return where if where in self.opened or (kind is not None and not kind.openable) else None
+
     def _inside_opened(self, k: int, step: Step) -> np.ndarray:
-        """[S, S] bool: where a pickup's target may lie unlabelled in view: inside the receptacle a location
-        answer said it is in, opened by the agent, at the cell the network gives the target's type the most
-        probability (at least INSIDE_P) within the receptacle's box in the frame."""
+        """[S, S] bool: where a pickup's target may lie unlabelled in view: inside the open receptacle it is
+        known to be in (`_inside`), at the cell the network gives the target's type the most probability (at
+        least INSIDE_P) within the receptacle's box in the frame; failing that, where the agent put it
+        itself, the cell of that box nearest the point it put it down at (within PLACED_M)."""
         none = np.zeros_like(self.labels, bool)
-        fact = self.facts.get(('location', step.target))
         prob = getattr(self, 'class_prob', None)
-        if step.kind != 'pickup' or fact is None or prob is None or not fact[0].inside or \
-                fact[0].receptacle not in self.opened:
+        where = self._inside(step.target) if step.kind == 'pickup' else None
+        if where is None or prob is None:
             return none
-        rk = self.class_id.get(fact[0].receptacle)
+        rk = self.class_id.get(where)
         if rk is None:
             return none
         rows, cols = np.nonzero(self.labels == rk)
@@ -443,10 +485,15 @@ class MapAgent:
             return none
         box = none.copy()
         box[max(rows.min() - 1, 0):rows.max() + 2, max(cols.min() - 1, 0):cols.max() + 2] = True
-        p = np.where(box & (self.ray < REACH_M), prob[k].numpy(), 0.0)
-        if p.max() < INSIDE_P:
+        near = box & (self.ray < REACH_M)
+        p = np.where(near, prob[k].numpy(), 0.0)
+        if p.max() >= INSIDE_P:
+            return p == p.max()
+        put = self.placed.get(step.target, (None, None))[1]
+        if put is None:
             return none
-        return p == p.max()
+        d = np.where(near, np.hypot(self.points[..., 0] - put[0], self.points[..., 1] - put[1]), np.inf)
+        return d == d.min() if d.min() <= PLACED_M else none
 
     def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
         """How far a mask of `type_name` centred on map point p lies from the instance acted on before
