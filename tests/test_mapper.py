@@ -227,6 +227,29 @@ def test_a_failed_pickup_of_what_the_task_puts_down_does_not_trade_the_step_back
     assert 'Pickup' not in names[2:] and state.end_reason != 'max_failures'
 
 
+def test_a_failed_pickup_of_an_object_a_location_answer_placed_in_the_room_is_a_missed_click():
+    """valid_unseen/000004 ("leave the box on the sofa", the box on a side table): the Pickup's click landed
+    on the coffee table beside the box; taken as a full hand, the agent tried to put an empty hand down
+    until the tenth failed action."""
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.language import Fact
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Please leave the box on the sofa.'})())
+    pickup = Step('pickup', 'Box')
+    agent.plan.appendleft(pickup)
+    agent.held, agent.held_known = None, True
+    agent.step_failures = 1
+    agent._after_failure('Pickup', pickup, (1.0, 1.0))
+    assert agent.held == 'Box' and agent.held_confirmed and agent.plan[0].kind == 'put'   # no answer: a full hand
+    agent.reset(type('T', (), {'instruction': 'Please leave the box on the sofa.'})())
+    agent.plan.appendleft(pickup)
+    agent.held, agent.held_known = None, True
+    agent.facts[('location', 'Box')] = (Fact('location', 'Box', 45.0, 'SideTable'), Pose(0, 0, 0))
+    agent.step_failures = 1
+    agent._after_failure('Pickup', pickup, (1.0, 1.0))
+    assert agent.held is None and not agent.held_confirmed and agent.plan[0] == pickup
+
+
 def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_one(tmp_path):
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import CheckpointError, load_checkpoint

@@ -295,11 +295,12 @@ class MapAgent:
             self.held = None                      # nothing to put down: fetch it first (see _current)
             self.step_failures = 0
             return
-        if action == 'Pickup' and self.held is None and any(s.kind == 'put' and s.held == step.target
-                                                            for s in self.plan):
-            # A hand that cannot take the object the task puts down most likely holds it already; that
-            # counts as confirmed, so a Put that fails again is a bad place, not an empty hand (else the
-            # two rules would trade the step back and forth, each resetting the failures).
+        if action == 'Pickup' and self.held is None and ('location', step.target) not in self.facts and \
+                any(s.kind == 'put' and s.held == step.target for s in self.plan):
+            # A hand that cannot take the object the task puts down most likely holds it already (unless a
+            # location answer said where in the room it lies: then the click missed it); that counts as
+            # confirmed, so a Put that fails again is a bad place, not an empty hand (else the two rules
+            # would trade the step back and forth, each resetting the failures).
             self.held, self.held_confirmed = step.target, True
             if self.plan and self.plan[0] == step:
                 self.plan.popleft()
