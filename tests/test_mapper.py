@@ -250,6 +250,28 @@ def test_a_failed_pickup_of_an_object_a_location_answer_placed_in_the_room_is_a_
     assert agent.held is None and not agent.held_confirmed and agent.plan[0] == pickup
 
 
+def test_an_open_to_look_inside_refused_within_reach_is_taken_as_open_already():
+    """valid_unseen/000037 ("pick up the wine bottle", in the fridge, which stands open): the agent opened
+    the fridge to look inside, was refused twice at every cell it tried, and ended at the tenth failure."""
+    from dialfred_performer.mapper.agent import REACH_M, MapAgent
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Pick up the wine bottle.'})())
+    opening = Step('open', 'Fridge', search=True)
+    from collections import deque
+    agent.plan = deque([opening, Step('pickup', 'WineBottle'), Step('close', 'Fridge', search=True), Step('stop')])
+    agent.step_failures, agent.last_ray = 1, REACH_M + 0.2          # refused from beyond reach: try again
+    agent._after_failure('Open', opening, (1.0, 1.0))
+    assert agent.plan[0] == opening and 'Fridge' not in agent.opened
+    agent.step_failures, agent.last_ray = 1, 1.1                    # refused well within reach: open already
+    agent._after_failure('Open', opening, (1.0, 1.0))
+    assert 'Fridge' in agent.opened and [s.kind for s in agent.plan][:2] == ['pickup', 'stop']
+    task_open = Step('open', 'Fridge')                              # an open the task asks for is not a guess
+    agent.plan.appendleft(task_open)
+    agent.opened.clear()
+    agent._after_failure('Open', task_open, (1.0, 1.0))
+    assert agent.plan[0] == task_open and 'Fridge' not in agent.opened
+
+
 def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_one(tmp_path):
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import CheckpointError, load_checkpoint

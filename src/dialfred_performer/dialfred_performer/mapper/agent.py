@@ -310,6 +310,17 @@ class MapAgent:
             # Too near for the door to swing open: one step back, then again.
             self.macro = deque(['RotateLeft', 'RotateLeft', 'MoveAhead', 'RotateLeft', 'RotateLeft'])
             return
+        if action == 'Open' and step.search and self.last_ray is not None and self.last_ray < REACH_M - 0.1:
+            # Opened to look inside, clicked well within reach, and refused: most likely open already (the
+            # location answer does not say). Look inside as it is; nothing to close afterwards.
+            self.opened.add(step.target)
+            if self.plan and self.plan[0] == step:
+                self.plan.popleft()
+            shut = Step('close', step.target, search=True)
+            if shut in self.plan:
+                self.plan.remove(shut)
+            self.step_failures = 0
+            return
         if self.step_failures >= 2 and point is not None:
             self.map.exclude(self.class_id[step.target], point[0], point[1])
             self.step_failures = 0
@@ -650,8 +661,8 @@ class MapAgent:
                             t = self.catalog.get(f.receptacle)
                             if t is not None and t.openable and f.inside and f.receptacle not in self.opened \
                                     and step.kind == 'pickup':
-                                self.plan.appendleft(Step('open', f.receptacle))
-                                self.plan.insert(2, Step('close', f.receptacle))
+                                self.plan.appendleft(Step('open', f.receptacle, search=True))
+                                self.plan.insert(2, Step('close', f.receptacle, search=True))
                                 return REPLAN
                             # Looked at this part of the receptacle and the object is not there: the next part.
                             d = (x[keep] - self.pose.xy[0]) ** 2 + (y[keep] - self.pose.xy[1]) ** 2
