@@ -227,6 +227,51 @@ def test_a_failed_pickup_of_what_the_task_puts_down_does_not_trade_the_step_back
     assert 'Pickup' not in names[2:] and state.end_reason != 'max_failures'
 
 
+def test_a_failed_pickup_of_an_object_a_location_answer_placed_in_the_room_is_a_missed_click():
+    """valid_unseen/000004 ("leave the box on the sofa", the box on a side table): the Pickup's click landed
+    on the coffee table beside the box; taken as a full hand, the agent tried to put an empty hand down
+    until the tenth failed action."""
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.language import Fact
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Please leave the box on the sofa.'})())
+    pickup = Step('pickup', 'Box')
+    agent.plan.appendleft(pickup)
+    agent.held, agent.held_known = None, True
+    agent.step_failures = 1
+    agent._after_failure('Pickup', pickup, (1.0, 1.0))
+    assert agent.held == 'Box' and agent.held_confirmed and agent.plan[0].kind == 'put'   # no answer: a full hand
+    agent.reset(type('T', (), {'instruction': 'Please leave the box on the sofa.'})())
+    agent.plan.appendleft(pickup)
+    agent.held, agent.held_known = None, True
+    agent.facts[('location', 'Box')] = (Fact('location', 'Box', 45.0, 'SideTable'), Pose(0, 0, 0))
+    agent.step_failures = 1
+    agent._after_failure('Pickup', pickup, (1.0, 1.0))
+    assert agent.held is None and not agent.held_confirmed and agent.plan[0] == pickup
+
+
+def test_an_open_to_look_inside_refused_within_reach_is_taken_as_open_already():
+    """valid_unseen/000037 ("pick up the wine bottle", in the fridge, which stands open): the agent opened
+    the fridge to look inside, was refused twice at every cell it tried, and ended at the tenth failure."""
+    from dialfred_performer.mapper.agent import REACH_M, MapAgent
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Pick up the wine bottle.'})())
+    opening = Step('open', 'Fridge', search=True)
+    from collections import deque
+    agent.plan = deque([opening, Step('pickup', 'WineBottle'), Step('close', 'Fridge', search=True), Step('stop')])
+    agent.step_failures, agent.last_ray = 1, REACH_M + 0.2          # refused from beyond reach: try again
+    agent._after_failure('Open', opening, (1.0, 1.0))
+    assert agent.plan[0] == opening and 'Fridge' not in agent.opened
+    agent.step_failures, agent.last_ray = 1, 1.1                    # refused well within reach: open already
+    agent._after_failure('Open', opening, (1.0, 1.0))
+    assert 'Fridge' in agent.opened and [s.kind for s in agent.plan][:2] == ['pickup', 'stop']
+    task_open = Step('open', 'Fridge')                              # an open the task asks for is not a guess
+    agent.plan.appendleft(task_open)
+    agent.opened.clear()
+    agent._after_failure('Open', task_open, (1.0, 1.0))
+    assert agent.plan[0] == task_open and 'Fridge' not in agent.opened
+
+
 def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_one(tmp_path):
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import CheckpointError, load_checkpoint
@@ -495,3 +540,79 @@ def test_an_appearance_answer_picks_the_mask_of_its_colour_among_pickupable_thin
     # a put step reads the colour given for the receptacle, not for what is held
     agent.facts[('appearance', 'Apple')] = (Fact('appearance', 'Apple', colour='red'), Pose(0, 0, 0))
     assert agent._colour_wanted(Step('put', 'CounterTop', held='Apple')) is None
+
+
+def test_a_target_unlabelled_inside_the_receptacle_it_was_said_to_be_in_is_taken_where_most_probable():
+    import torch
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.language import Fact
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Take the potato.'})())
+    s = 32
+    k, rk = agent.class_id['Potato'], agent.class_id['Microwave']
+    agent.labels = np.zeros((s, s), np.int64)
+    agent.labels[8:16, 4:14] = rk                                   # the open microwave, in view
+    agent.conf = np.ones((s, s), np.float32)
+    agent.ray = np.full((s, s), 1.0, np.float32)
+    prob = torch.zeros(len(agent.classes), s, s)
+    prob[k, 12, 9] = 0.06                                           # the potato, never the most probable type
+    prob[k, 25, 25] = 0.5                                           # more probable, but not in the microwave
+    agent.class_prob = prob
+    step = Step('pickup', 'Potato')
+    assert not agent._inside_opened(k, step).any()                  # no answer
+    agent.facts[('location', 'Potato')] = (Fact('location', 'Potato', 0.0, 'Microwave', inside=True), Pose(0, 0, 0))
+    assert not agent._inside_opened(k, step).any()                  # not opened yet
+    agent.opened.add('Microwave')
+    assert np.argwhere(agent._inside_opened(k, step)).tolist() == [[12, 9]]
+    agent.facts[('location', 'Potato')] = (Fact('location', 'Potato', 0.0, 'Microwave', inside=False), Pose(0, 0, 0))
+    assert not agent._inside_opened(k, step).any()                  # on it, not in it: seen or not at all
+    prob[k, 12, 9] = 0.01
+    agent.facts[('location', 'Potato')] = (Fact('location', 'Potato', 0.0, 'Microwave', inside=True), Pose(0, 0, 0))
+    assert not agent._inside_opened(k, step).any()                  # too improbable to act on
+
+
+def test_what_the_agent_put_into_a_receptacle_is_taken_back_where_its_frame_changed():
+    import torch
+    from dialfred_performer.mapper.agent import MapAgent
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Heat the potato slice.'})())
+    s = 32
+    k, rk, ck = agent.class_id['PotatoSliced'], agent.class_id['Microwave'], agent.class_id['CounterTop']
+    agent.labels = np.full((s, s), ck, np.int64)
+    agent.labels[4:16, 4:20] = rk                                   # the microwave, open, in view
+    agent.conf = np.ones((s, s), np.float32)
+    agent.ray = np.full((s, s), 1.0, np.float32)
+    rows, cols = np.mgrid[0:s, 0:s]
+    agent.points = np.stack([rows * 0.05, cols * 0.05, np.zeros((s, s))], -1)   # a cell's map point
+    before = np.zeros((2 * s, 2 * s, 3), np.uint8)                  # the camera has twice the cells' pixels
+    agent.rgb = before.copy()
+    agent.rgb[20:24, 16:20] = 200                                   # the slice, now in the microwave: cells 10-11, 8-9
+    agent.rgb[50:60, 30:40] = 200                                   # where the hand carried it (counter now)
+    agent.placed['PotatoSliced'] = ('Microwave', None)
+    agent._where_put('PotatoSliced', before)
+    point = agent.placed['PotatoSliced'][1]
+    assert point == pytest.approx((10.5 * 0.05, 8.5 * 0.05))        # the changed microwave cells' middle
+    agent.class_prob = torch.zeros(len(agent.classes), s, s)         # the network does not see the slice at all
+    step = Step('pickup', 'PotatoSliced')
+    assert not agent._inside_opened(k, step).any()                  # the microwave is shut
+    agent.opened.add('Microwave')
+    taken = np.argwhere(agent._inside_opened(k, step)).tolist()
+    assert taken and all(cell in ([10, 8], [10, 9], [11, 8], [11, 9]) for cell in taken)   # nearest the point
+    agent.placed['PotatoSliced'] = ('Microwave', (5.0, 5.0))        # put far from anything in view
+    assert not agent._inside_opened(k, step).any()
+    agent.placed.clear()
+    assert not agent._inside_opened(k, step).any()                  # neither put there nor said to be there
+
+
+def test_facing_goals_keep_the_points_from_which_the_cell_lies_near_a_heading():
+    smap = SemanticMap(n_classes=4, map_m=8.0)
+    cx, cy = smap.cell_of(1.0, 0.0)
+    height = np.array([0.9])
+    every = reach_goals(smap, np.array([cx]), np.array([cy]), height)
+    facing = reach_goals(smap, np.array([cx]), np.array([cy]), height, facing_deg=25.0)
+    assert facing.sum() < every.sum() and not (facing & ~every).any()
+    off = smap.node_offset()
+    x, y = smap.cell_centre(np.array([cx]), np.array([cy]))
+    for i, j in np.argwhere(facing):
+        dx, dy = float(x[0]) - (i - off) * 0.25, float(y[0]) - (j - off) * 0.25
+        assert abs((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0) <= 25.0

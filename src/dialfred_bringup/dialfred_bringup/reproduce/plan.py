@@ -220,11 +220,11 @@ class Plan:
     def performer_config(self) -> dict:
         base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
                     progress=self.cfg.progress, epochs=1, max_updates=PERFORMER_UPDATES, validation='',
-                    val_fraction=0.05, perception=str(self.perception_checkpoint))
+                    val_fraction=0.05, perception=str(self.perception_checkpoint), model=dict(reach_input=True))
         if self.cfg.quick:
             base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
                         checkpoint_every=30, val_fraction=0.2,
-                        model=dict(resolution=RESOLUTION, d_model=32, heads=2, layers=1, ff=64))
+                        model=dict(resolution=RESOLUTION, d_model=32, heads=2, layers=1, ff=64, reach_input=True))
         return base
 
     def dialogues_config(self) -> dict:

@@ -54,13 +54,16 @@ STRUCTURE = 4                    # label classes below this are nothing, Floor, 
 FLOOR = 1
 REACH_M = 1.3                    # stay inside the simulator's 1.5 m by more than the predicted depth's usual error
 MIN_TARGET_CELLS = 1
+PUT_CHANGE = 30.0                # _where_put: mean change of a cell's RGB (summed over channels) taken as a change
+PLACED_M = 0.15                  # _inside_opened: how near the point of its own Put a cell must lie
+INSIDE_P = 0.03                   # _inside_opened: the least probability of the target's type taken as it
 MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
 SCAN_TURNS = 3                   # turns of the first look around
 SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
 ANSWER_CONE_DEG = 67.5           # half a location answer's 45-degree direction bin, and one bin more either side
 REPLAN = 'replan'                # _navigate changed the plan: decide again
 # Attributes a decision reads but never changes (shared with the copy action_probabilities decides on).
-_SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points',
+_SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points', 'class_prob',
                      '_pending', '_heard'})
 INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
                 'toggle_off': 'ToggleOff', 'slice': 'Slice'}
@@ -106,6 +109,8 @@ class MapAgent:
         self.held_known = False
         self.held_confirmed = False
         self.opened: set[str] = set()
+        self.placed: dict[str, tuple] = {}     # type -> (receptacle type, map point) of the agent's Put of it
+        self._just_put: Optional[str] = None     # the type put down by the last action, if it was a Put
         self.facts: dict[tuple[str, str], tuple[Fact, Pose]] = {}
         self.turns: deque[str] = deque()
         self.last: Optional[tuple[str, Step, tuple]] = None     # (action, step, (x, y) map point)
@@ -172,6 +177,7 @@ class MapAgent:
         out = self.net(frame_tensor(rgb, self.resolution)[None])
         logits, metres, _ = self.net.heads(out.fine)
         prob = torch.softmax(logits[0], 0)
+        self.class_prob = prob
         conf, labels = prob.max(0)
         return labels.numpy(), conf.numpy(), metres[0].numpy()
 
@@ -181,7 +187,7 @@ class MapAgent:
         return self.perceive(self.rgb)
 
     def _update(self, observation: Any) -> None:
-        self.rgb = observation_rgb(observation)
+        before, self.rgb = getattr(self, 'rgb', None), observation_rgb(observation)
         labels, conf, depth = self.sense(observation)
         if self.step == 0:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
@@ -192,6 +198,9 @@ class MapAgent:
         local = points_in_agent_frame(depth, self.pose.horizon)
         points = to_map_frame(local, self.pose)
         self.points = points
+        if self._just_put is not None and before is not None and before.shape == self.rgb.shape:
+            self._where_put(self._just_put, before)
+        self._just_put = None
         mapped = self.ray
         if self.held is not None:
             ray = self.ray.copy()
@@ -245,7 +254,11 @@ class MapAgent:
                 self.anchors[step.target] = point
             if action == 'Pickup':
                 self.held, self.held_confirmed = step.target, True
+                self.placed.pop(step.target, None)
             elif action == 'Put':
+                if self.held or step.held:
+                    self.placed[self.held or step.held] = (step.target, None)
+                    self._just_put = self.held or step.held
                 self.held = None
             elif action == 'Open':
                 self.opened.add(step.target)
@@ -276,11 +289,12 @@ class MapAgent:
             self.held = None                      # nothing to put down: fetch it first (see _current)
             self.step_failures = 0
             return
-        if action == 'Pickup' and self.held is None and any(s.kind == 'put' and s.held == step.target
-                                                            for s in self.plan):
-            # A hand that cannot take the object the task puts down most likely holds it already; that
-            # counts as confirmed, so a Put that fails again is a bad place, not an empty hand (else the
-            # two rules would trade the step back and forth, each resetting the failures).
+        if action == 'Pickup' and self.held is None and ('location', step.target) not in self.facts and \
+                any(s.kind == 'put' and s.held == step.target for s in self.plan):
+            # A hand that cannot take the object the task puts down most likely holds it already (unless a
+            # location answer said where in the room it lies: then the click missed it); that counts as
+            # confirmed, so a Put that fails again is a bad place, not an empty hand (else the two rules
+            # would trade the step back and forth, each resetting the failures).
             self.held, self.held_confirmed = step.target, True
             if self.plan and self.plan[0] == step:
                 self.plan.popleft()
@@ -289,6 +303,17 @@ class MapAgent:
         if action == 'Open' and self.step_failures == 1 and self.last_ray is not None and self.last_ray < 1.0:
             # Too near for the door to swing open: one step back, then again.
             self.macro = deque(['RotateLeft', 'RotateLeft', 'MoveAhead', 'RotateLeft', 'RotateLeft'])
+            return
+        if action == 'Open' and step.search and self.last_ray is not None and self.last_ray < REACH_M - 0.1:
+            # Opened to look inside, clicked well within reach, and refused: most likely open already (the
+            # location answer does not say). Look inside as it is; nothing to close afterwards.
+            self.opened.add(step.target)
+            if self.plan and self.plan[0] == step:
+                self.plan.popleft()
+            shut = Step('close', step.target, search=True)
+            if shut in self.plan:
+                self.plan.remove(shut)
+            self.step_failures = 0
             return
         if self.step_failures >= 2 and point is not None:
             self.map.exclude(self.class_id[step.target], point[0], point[1])
@@ -364,6 +389,8 @@ class MapAgent:
     def _target_pixel(self, k: int, step: Step):
         """((row, col), map point) of the cell to click on class k, or None when none is in reach."""
         mask = (self.labels == k) & (self.conf > 0.3)
+        if not mask.any():
+            mask = self._inside_opened(k, step)
         if self.held is not None:
             mask &= ~self.hand_window()
         given_up = self.map.excluded.get(k)
@@ -414,6 +441,65 @@ class MapAgent:
         r, c = int(ir[j]), int(ic[j])
         p = self.points[r, c]
         return (r, c), (float(p[0]), float(p[1]))
+
+    def _where_put(self, obj: str, before: np.ndarray) -> None:
+        """Where `obj`, just put down, lies: the middle (map point) of the receptacle's cells whose colour
+        changed between the frame before the Put and this one (the agent did not move; the network mostly
+        labels a small thing inside a receptacle as the receptacle, and where the hand carried it, as what
+        lies behind)."""
+        recep = self.placed[obj][0]
+        rk = self.class_id.get(recep)
+        s = self.labels.shape[0]
+        f = self.rgb.shape[0] // s
+        if rk is None or f < 1 or self.rgb.shape[0] != f * s:
+            return
+        change = np.abs(self.rgb.astype(np.int16) - before.astype(np.int16)).sum(-1)
+        change = change.reshape(s, f, s, f).mean((1, 3))
+        moved = (change > PUT_CHANGE) & (self.labels == rk) & (self.ray < REACH_M)
+        if moved.any():
+            p = self.points[moved].mean(0)
+            self.placed[obj] = (recep, (float(p[0]), float(p[1])))
+
+    def _inside(self, target: str) -> Optional[str]:
+        """The receptacle `target` lies in, open, as far as the agent knows: the one it put it into itself,
+        else the one a location answer said it is in; None if unknown or shut (an openable one the agent
+        has not opened)."""
+        where = self.placed[target][0] if target in self.placed else None
+        if where is None:
+            fact = self.facts.get(('location', target))
+            if fact is None or not fact[0].inside:
+                return None
+            where = fact[0].receptacle
+        kind = self.catalog.get(where)
+        return where if where in self.opened or (kind is not None and not kind.openable) else None
+
+    def _inside_opened(self, k: int, step: Step) -> np.ndarray:
+        """[S, S] bool: where a pickup's target may lie unlabelled in view: inside the open receptacle it is
+        known to be in (`_inside`), at the cell the network gives the target's type the most probability (at
+        least INSIDE_P) within the receptacle's box in the frame; failing that, where the agent put it
+        itself, the cell of that box nearest the point it put it down at (within PLACED_M)."""
+        none = np.zeros_like(self.labels, bool)
+        prob = getattr(self, 'class_prob', None)
+        where = self._inside(step.target) if step.kind == 'pickup' else None
+        if where is None or prob is None:
+            return none
+        rk = self.class_id.get(where)
+        if rk is None:
+            return none
+        rows, cols = np.nonzero(self.labels == rk)
+        if len(rows) < 2:
+            return none
+        box = none.copy()
+        box[max(rows.min() - 1, 0):rows.max() + 2, max(cols.min() - 1, 0):cols.max() + 2] = True
+        near = box & (self.ray < REACH_M)
+        p = np.where(near, prob[k].numpy(), 0.0)
+        if p.max() >= INSIDE_P:
+            return p == p.max()
+        put = self.placed.get(step.target, (None, None))[1]
+        if put is None:
+            return none
+        d = np.where(near, np.hypot(self.points[..., 0] - put[0], self.points[..., 1] - put[1]), np.inf)
+        return d == d.min() if d.min() <= PLACED_M else none
 
     def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
         """How far a mask of `type_name` centred on map point p lies from the instance acted on before
@@ -556,6 +642,11 @@ class MapAgent:
                     keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
                     if keep.any():
                         goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
+                        if f.inside and f.receptacle in self.opened:
+                            # opened to be searched: stand where it lies ahead, so its inside is in view
+                            facing = reach_goals(self.map, cx[keep], cy[keep], height[keep], facing_deg=25.0)
+                            if (facing & free).any():
+                                goals = facing
                         dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
                         if dist[self.pose.i + off, self.pose.j + off] == 0:
                             move = self._face(cx[keep], cy[keep], height[keep])
@@ -564,8 +655,8 @@ class MapAgent:
                             t = self.catalog.get(f.receptacle)
                             if t is not None and t.openable and f.inside and f.receptacle not in self.opened \
                                     and step.kind == 'pickup':
-                                self.plan.appendleft(Step('open', f.receptacle))
-                                self.plan.insert(2, Step('close', f.receptacle))
+                                self.plan.appendleft(Step('open', f.receptacle, search=True))
+                                self.plan.insert(2, Step('close', f.receptacle, search=True))
                                 return REPLAN
                             # Looked at this part of the receptacle and the object is not there: the next part.
                             d = (x[keep] - self.pose.xy[0]) ** 2 + (y[keep] - self.pose.xy[1]) ** 2

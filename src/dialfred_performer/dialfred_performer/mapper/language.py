@@ -44,6 +44,7 @@ class Step:
     target: str = ''          # object type acted on or gone to ('Microwave')
     held: str = ''            # for put: the type put down
     close: bool = False       # for put into a container: close it afterwards even if it was open
+    search: bool = False      # an open (and its close) to look inside for what a location answer put there
 
     def __post_init__(self):
         if self.kind not in STEP_KINDS:

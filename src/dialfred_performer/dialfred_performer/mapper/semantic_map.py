@@ -212,7 +212,7 @@ def next_move(dist: np.ndarray, pose: Pose, offset: int) -> Optional[str]:
 
 
 def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray, height: np.ndarray,
-                margin_m: float = 0.3) -> np.ndarray:
+                margin_m: float = 0.3, facing_deg: Optional[float] = None) -> np.ndarray:
     """[nodes, nodes] bool: grid points from which one of the cells (cx, cy) at `height` above the
     floor is within reach (REACH_M from the camera less `margin_m`), and not nearer than one step."""
     goals = np.zeros((smap.nodes, smap.nodes), bool)
@@ -232,8 +232,12 @@ def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray, height: np.nd
         hi_i, hi_j = min(hi_i, smap.nodes - 1), min(hi_j, smap.nodes - 1)
         if lo_i > hi_i or lo_j > hi_j:
             continue
-        d2 = (ii[lo_i:hi_i + 1, None] - x) ** 2 + (ii[None, lo_j:hi_j + 1] - y) ** 2
-        goals[lo_i:hi_i + 1, lo_j:hi_j + 1] |= (d2 <= r * r) & (d2 >= 0.2 ** 2)
+        dx, dy = x - ii[lo_i:hi_i + 1, None], y - ii[None, lo_j:hi_j + 1]
+        d2 = dx ** 2 + dy ** 2
+        near = (d2 <= r * r) & (d2 >= 0.2 ** 2)
+        if facing_deg is not None:          # the cell lies near one of the four headings from the point
+            near &= np.abs((np.degrees(np.arctan2(dy, dx)) + 45.0) % 90.0 - 45.0) <= facing_deg
+        goals[lo_i:hi_i + 1, lo_j:hi_j + 1] |= near
     for (i, j) in smap.blocked:                 # a MoveAhead failed into it: no goal, however near
         if 0 <= i + off < smap.nodes and 0 <= j + off < smap.nodes:
             goals[i + off, j + off] = False
