@@ -530,3 +530,28 @@ def test_the_status_of_a_run_reads_its_stamps_and_runs_nothing(tmp_path):
     shipped = run_status(tmp_path / 'run', shipped=True, now=1240.0, shipped_run=times)
     assert shipped['stages']['performer'] == {'status': 'shipped'} and shipped['left_s'] is None
     assert not (tmp_path / 'run' / 'results.md').exists()
+
+
+def test_the_status_marks_a_done_stage_stale_when_a_run_would_redo_it(tmp_path):
+    from dialfred_bringup.reproduce.status import run_status, status_lines
+    from dialfred_sim.dataclass_cli import parse
+    cfg = parse(reproduce.ReproduceConfig, ['--quick', '--out', str(tmp_path / 'run')])
+    planned = reproduce.Runner(cfg).planned_hashes()
+    assert set(planned) == set(STAGES)
+    stamps = tmp_path / 'run' / 'stamps'
+    stamps.mkdir(parents=True)
+    for stage in STAGES:
+        (stamps / f'{stage}.json').write_text(json.dumps({'status': 'done', 'hash': planned[stage], 'seconds': 60.0}))
+    assert reproduce.Runner(cfg).planned_hashes() == planned          # computing them wrote nothing
+    status = run_status(tmp_path / 'run', planned=planned, shipped_run=tmp_path / 'none.json')
+    assert {row['status'] for row in status['stages'].values()} == {'done'}
+    (stamps / 'performer.json').write_text(json.dumps({'status': 'done', 'hash': 'made by other code', 'seconds': 60.0}))
+    # another seed changes the inputs of the stages that read it, and through their hashes every stage after
+    other = reproduce.Runner(parse(reproduce.ReproduceConfig, ['--quick', '--out', str(tmp_path / 'run'),
+                                                               '--seed', '1'])).planned_hashes()
+    status = run_status(tmp_path / 'run', planned=planned, shipped_run=tmp_path / 'none.json')
+    assert [s for s, row in status['stages'].items() if row['status'] == 'stale'] == ['performer']
+    assert 'a run redoes it' in '\n'.join(status_lines(status))
+    moved = [s for s in STAGES if other[s] != planned[s]]
+    assert moved == [s for s in STAGES if s not in ('demos', 'dialogues', 'frames')]   # the caches are not seeded
+    assert sorted(p.name for p in stamps.iterdir()) == sorted(f'{s}.json' for s in STAGES)

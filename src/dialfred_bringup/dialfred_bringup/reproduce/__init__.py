@@ -5,7 +5,7 @@
     ./dialfred reproduce --shipped            # no training: evaluate the shipped checkpoints -> out/reproduce_shipped
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
     ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
-    ./dialfred reproduce --status             # where the run stands (from its stamps; runs nothing)
+    ./dialfred reproduce --status             # where the run stands: its stamps, and which stages a run would redo (runs nothing)
     ./dialfred env python -m dialfred_bringup.reproduce.ship   # a finished run's models become the shipped ones
 
 Stages, in order (each calls the project's own API or command; none repeats their logic):
@@ -75,7 +75,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     cfg = parse(ReproduceConfig, argv, prog='./dialfred reproduce')
     if cfg.status:
         from .status import run_status, status_lines
-        print('\n'.join(status_lines(run_status(cfg.run_dir, cfg.shipped))))
+        planned = Runner(cfg).planned_hashes() if (cfg.run_dir / 'stamps').is_dir() else None
+        print('\n'.join(status_lines(run_status(cfg.run_dir, cfg.shipped, planned=planned))))
         return 0
     try:
         summary = Runner(cfg).run()

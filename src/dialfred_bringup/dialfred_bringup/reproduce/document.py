@@ -47,9 +47,9 @@ def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
     return {'n': len(results), 'tasks': len(tasks), 'repeats': round(repeats / recorded, 3) if recorded else 0.0,
             'steps': round(sum(r.steps for r in results) / len(results), 2),
             **{k: round(v, 4) for k, v in returns.items()},
-            **{k: round(overall[k], 2 if k != 'NQ' else 3) for k in ('SR', 'PWSR', 'GC', 'NQ')},
-            'CI95': {k: [round(lo, 2 if k != 'NQ' else 3), round(hi, 2 if k != 'NQ' else 3)]
-                     for k, (lo, hi) in ci.items()},
+            # unrounded: the document rounds once, where it prints (56.346 rounded to 56.35 first printed as 56.4)
+            **{k: overall[k] for k in ('SR', 'PWSR', 'GC', 'NQ')},
+            'CI95': {k: [lo, hi] for k, (lo, hi) in ci.items()},
             'shares': {t: round(v, 3) for t, v in shares.items()} if shares is not None else None,
             'results': results}
 

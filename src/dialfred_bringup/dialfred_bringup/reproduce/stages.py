@@ -184,6 +184,20 @@ class Runner:
         files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in (*RL_RUNS, 'pretrained')]
         return {str(f): sha256_of(f.read_bytes()) if f.exists() else None for f in files}
 
+    def digest(self, stage: str, inputs: dict, old: Optional[dict]) -> str:
+        """The hash `stage` is known by now (its stamp must hold it to be skipped); upstream stages'
+        hashes must be in self.hashes first."""
+        return self.known(old, sha256_of(inputs), lambda: sha256_of(self.stage_inputs(stage, raw=True)))
+
+    def planned_hashes(self) -> dict[str, str]:
+        """{stage: the hash a run would compare with its stamp now}, computed in stage order as `run`
+        does, without running or writing anything (`--status` marks a done stage whose stamp differs as
+        stale: a run would clear and redo it, and the stages after it)."""
+        for stage in STAGES:
+            if not (self.cfg.shipped and stage in TRAINING):
+                self.hashes[stage] = self.digest(stage, self.stage_inputs(stage), self.read_stamp(stage))
+        return dict(self.hashes)
+
     @staticmethod
     def known(old: Optional[dict], digest: str, raw_digest: Callable[[], str]) -> str:
         """The hash to know a stage or item by: `digest`, or the stamp's own when the stamp was made
@@ -215,9 +229,8 @@ class Runner:
         if self.cfg.force == stage:
             self.forced = True
         inputs = self.stage_inputs(stage)
-        digest = sha256_of(inputs)
         old = self.read_stamp(stage)
-        digest = self.known(old, digest, lambda: sha256_of(self.stage_inputs(stage, raw=True)))
+        digest = self.digest(stage, inputs, old)
         self.hashes[stage] = digest
         world = world_code_hash()
         if old and old.get('hash') == digest and old.get('status') == 'done' and not self.forced:
