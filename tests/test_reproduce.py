@@ -442,12 +442,19 @@ def test_an_itemized_stage_reruns_only_the_items_whose_inputs_changed(tmp_path):
     again = item('a', {'lr': 1})
     assert again['reused'] is True and again['made'] == 'a' and ran == [('a', False), ('b', False)]
     (tmp_path / 'b' / 'stale').write_text('old')
-    assert item('b', {'lr': 2})['reused'] is False              # its inputs changed: cleared and rerun
+    assert item('b', {'lr': 2})['reused'] is False              # its inputs changed: set aside and rerun
     assert not (tmp_path / 'b' / 'stale').exists() and ran[-1] == ('b', False)
+    kept = tmp_path / 'run' / 'replaced' / 'rl' / 'b' / 'b'      # the finished run's outputs, until the next change
+    assert (kept / 'stale').read_text() == 'old' and (kept / 'part').exists()
+    assert item('b', {'lr': 3})['reused'] is False and not (kept / 'stale').exists() and (kept / 'part').exists()
     with pytest.raises(KeyboardInterrupt):
         item('c', {'lr': 1}, fail=True)
     resumed = item('c', {'lr': 1})
     assert resumed['reused'] is False and ran[-1] == ('c', True)   # cut off: resumed, not cleared
+    with pytest.raises(KeyboardInterrupt):
+        item('d', {'lr': 1}, fail=True)
+    item('d', {'lr': 2})                                        # cut off, then other inputs: cleared, not kept
+    assert not (tmp_path / 'run' / 'replaced' / 'rl' / 'd').exists()
     stamp = json.loads((tmp_path / 'run' / 'stamps' / 'rl' / 'c.json').read_text())
     assert stamp['runs'] == 2 and stamp['seconds'] >= 0.3 > stamp['seconds_this_run']   # the cut-off run counts
     assert resumed['seconds'] == stamp['seconds']

@@ -27,7 +27,9 @@ Each stage writes `stamps/<stage>.json` with the hash of its inputs (its config,
 it depends on, and the source files that make it). A stage whose stamp matches is skipped
 (`[reproduce] <stage>: skipped (stamp matches)`); a changed input reruns it and therefore every stage
 after it. A stage cut off midway resumes (training from its last.pt, evaluations from their results
-files) when rerun with the same inputs; with other inputs its outputs are cleared first. A progress
+files) when rerun with the same inputs; with other inputs its outputs are cleared first, except a
+finished stage's (or RL run's, or setting's), which are moved to `<run>/replaced/<stage>/` and kept
+there until it is redone again; `--status` marks such a stage stale before anything runs. A progress
 line per stage (name, skipped/ran, seconds) goes to stderr and one JSON summary to stdout.
 
 `--shipped` runs no training: the performer is the shipped `dialfred_performer/checkpoints/et.pt`

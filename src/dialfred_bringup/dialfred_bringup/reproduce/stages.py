@@ -54,6 +54,23 @@ def clear(paths) -> None:
             path.unlink()
 
 
+def set_aside(paths, folder: Path) -> list[Path]:
+    """Move these files and folders (those that exist) into `folder`, emptied first: the outputs of a
+    finished stage that is about to be redone with other inputs, kept until the next time that stage
+    is redone (hours of training are not deleted by a changed line of code). Returns where they went."""
+    paths = [p for p in paths if p.exists()]
+    if not paths:
+        return []
+    clear([folder])
+    folder.mkdir(parents=True)
+    moved = []
+    for i, path in enumerate(paths):
+        target = folder / (path.name if sum(q.name == path.name for q in paths) == 1 else f'{i}_{path.name}')
+        shutil.move(str(path), str(target))
+        moved.append(target)
+    return moved
+
+
 def file_sha256(path: Path) -> str:
     """The sha256 of a file's bytes ('absent' if there is none)."""
     try:
@@ -184,6 +201,17 @@ class Runner:
         files = [self.plan.performer_checkpoint] + [self.plan.questioner_checkpoint(r) for r in (*RL_RUNS, 'pretrained')]
         return {str(f): sha256_of(f.read_bytes()) if f.exists() else None for f in files}
 
+    def discard(self, name: str, outputs: list[Path], old: Optional[dict]) -> None:
+        """Clear a stage's (or item's) outputs before it runs afresh; those of a finished one are set aside
+        in <run>/replaced/<name>/ instead (the previous set-aside of that name is deleted then)."""
+        if old and old.get('status') == 'done':
+            moved = set_aside(outputs, self.cfg.run_dir / 'replaced' / name)
+            if moved:
+                self.log(f'{name}: its inputs changed; the outputs of its finished run are kept in '
+                         f'{moved[0].parent} until it is redone again')
+            return
+        clear(outputs)
+
     def digest(self, stage: str, inputs: dict, old: Optional[dict]) -> str:
         """The hash `stage` is known by now (its stamp must hold it to be skipped); upstream stages'
         hashes must be in self.hashes first."""
@@ -243,7 +271,7 @@ class Runner:
             return
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
         if not resume and stage not in ITEMIZED and stage not in CACHES:
-            clear(outputs)
+            self.discard(stage, outputs, old)
         why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
         before, runs = time_before(old, outputs) if resume else (0.0, 1)
         self.log(f'{stage}: running ({why}, {digest[:12]})')
@@ -349,7 +377,7 @@ class Runner:
             return {**old.get('report', {}), 'seconds': old.get('seconds', 0.0), 'reused': True}
         resume = bool(old and old.get('hash') == digest and old.get('status') == 'running')
         if not resume:
-            clear(outputs)
+            self.discard(f'{stage}/{item.replace("/", "_")}', outputs, old)
         before, runs = time_before(old, outputs) if resume else (0.0, 1)
         stamp.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomically(stamp, json.dumps({'hash': digest, 'status': 'running', 'inputs': inputs,
