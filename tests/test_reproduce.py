@@ -117,6 +117,13 @@ def test_a_rerun_skips_every_stage_and_the_doc_stage_writes_the_same_bytes(first
     assert forced['stages']['doc']['status'] == 'ran'
     assert all(forced['stages'][s]['status'] == 'skipped' for s in STAGES[:-1])
     assert (out / 'results.md').read_bytes() == before
+    stamps = {p.name: p.read_bytes() for p in (out / 'stamps').glob('*.json')}
+    (out / 'results.md').unlink()
+    done = subprocess.run([sys.executable, '-m', 'dialfred_bringup.reproduce', '--quick', '--out', str(out), '--redoc'],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (out / 'results.md').read_bytes() == before          # the same document, from the results alone
+    assert {p.name: p.read_bytes() for p in (out / 'stamps').glob('*.json')} == stamps   # no stage ran
 
 
 @pytest.mark.slow   # the whole --quick pipeline (minutes); each stage has fast tests of its own
@@ -562,3 +569,11 @@ def test_the_status_marks_a_done_stage_stale_when_a_run_would_redo_it(tmp_path):
     moved = [s for s in STAGES if other[s] != planned[s]]
     assert moved == [s for s in STAGES if s not in ('demos', 'dialogues', 'frames')]   # the caches are not seeded
     assert sorted(p.name for p in stamps.iterdir()) == sorted(f'{s}.json' for s in STAGES)
+
+
+def test_redoc_refuses_a_run_without_results_and_writes_nothing(tmp_path, capsys):
+    assert reproduce.main(['--out', str(tmp_path / 'run'), '--redoc']) == 2
+    assert 'no results files' in capsys.readouterr().err
+    assert not (tmp_path / 'run' / 'results.md').exists() and not (tmp_path / 'run' / 'stamps').exists()
+    with pytest.raises((SystemExit, ValueError)):
+        reproduce.main(['--out', str(tmp_path / 'run'), '--redoc', '--force', 'doc'])

@@ -6,6 +6,7 @@
     ./dialfred reproduce --force rl           # rerun the rl stage and every stage after it
     ./dialfred reproduce --eval-path graph    # the tables' evaluations through the ROS graph (default: local)
     ./dialfred reproduce --status             # where the run stands: its stamps, and which stages a run would redo (runs nothing)
+    ./dialfred reproduce --redoc              # the document again from the run's results (after a change to its code; runs nothing else)
     ./dialfred env python -m dialfred_bringup.reproduce.ship   # a finished run's models become the shipped ones
 
 Stages, in order (each calls the project's own API or command; none repeats their logic):
@@ -80,6 +81,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         planned = Runner(cfg).planned_hashes() if (cfg.run_dir / 'stamps').is_dir() else None
         print('\n'.join(status_lines(run_status(cfg.run_dir, cfg.shipped, planned=planned))))
         return 0
+    if cfg.redoc:
+        return redoc(cfg)
     try:
         summary = Runner(cfg).run()
     except (FileNotFoundError, ValueError, RuntimeError) as exc:
@@ -88,3 +91,20 @@ def main(argv: Optional[list[str]] = None) -> int:
     print(json.dumps(summary))
     return 0
 
+
+def redoc(cfg: ReproduceConfig) -> int:
+    """`--redoc`: the doc stage's document and plot, written again from the run's results files as they
+    are (no stamp is read or written, no stage runs), then copied where --doc says."""
+    from .document import build_report
+    plan = Plan(cfg)
+    if not any(plan.eval_dir.glob('*.jsonl')):
+        print(f'error: no results files in {plan.eval_dir}: --redoc writes the document of a run that has evaluated',
+              file=sys.stderr)
+        return 2
+    doc, plot = write_outputs(plan, build_report(plan, cfg.resamples))
+    target = cfg.doc_target
+    if target is not None:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        copy_doc(plan.run, target)
+    print(json.dumps({'doc': str(doc), 'plot': str(plot), 'copied_to': str(target) if target else None}))
+    return 0

@@ -142,8 +142,10 @@ class ReproduceConfig:
     seed: int = arg(0, 'the seed of every stage')
     resamples: int = arg(2000, 'bootstrap resamples of the 95% intervals')
     progress: bool = arg(False, "the stages' own progress bars on stderr")
-    status: bool = arg(False, 'say where the run folder stands (each stage and item: done, running or cut off, not '
-                              'started; their times) and run nothing')
+    status: bool = arg(False, 'say where the run folder stands (each stage and item: done, stale, running or cut off, '
+                              'not started; their times) and run nothing')
+    redoc: bool = arg(False, "write the document again from the run's results files as they are, whatever the stamps "
+                             "say (after a change to the document's own code), and copy it as --doc says; runs no stage")
 
     def __post_init__(self):
         for name in ('force', 'until'):
@@ -157,6 +159,8 @@ class ReproduceConfig:
             raise ValueError(f'--eval-path takes one of {", ".join(EVAL_PATHS)}, got {self.eval_path!r}')
         if self.check_tasks < 0:
             raise ValueError('--check-tasks must be 0 or more')
+        if self.redoc and (self.status or self.force or self.until):
+            raise ValueError('--redoc runs no stage: it does not go with --status, --force or --until')
 
     @property
     def doc_target(self) -> Optional[Path]:
