@@ -326,3 +326,41 @@ def test_the_performer_may_train_through_the_frozen_network_in_bf16_and_act_in_f
     from dialfred_performer.train import TrainConfig
     with pytest.raises(ValueError, match='--perception-precision takes fp32 or bf16'):
         TrainConfig(perception_precision='fp16')
+
+
+def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(reach_performer):
+    """With the reach input the agent folds the pointer's query into the key layer (keyless_pointer): the
+    same action and pointer logits up to rounding as an agent that makes every pixel's key, the same
+    decisions, also when the dialogue outgrows the cache (the keys of earlier steps are then made)."""
+    from dialfred_performer.agent import PerformerAgent
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+
+    class WithKeys(PerformerAgent):
+        keyless_pointer = False
+
+    checkpoint, _ = reach_performer
+    keyless, keyed = PerformerAgent.from_checkpoint(checkpoint), WithKeys.from_checkpoint(checkpoint)
+    assert keyless.keyless_pointer and not keyed.keyless_pointer
+    task = load_split('valid_unseen')[0]
+    env = DialfredEnv(resolution=32)
+    obs, _ = env.reset(options={'task': task})
+    keyless.reset(task)
+    keyed.reset(task)
+    for t in range(10):
+        if t == 6:
+            assert keyless._grids and all(g is None for g in keyless._grids)
+            keyless._cache = keyed._cache = None        # as when QAs outgrow max_tokens: the whole episode again
+        a, b = keyless._outputs(obs), keyed._outputs(obs)
+        assert torch.allclose(a.action_logits, b.action_logits, atol=1e-5), t
+        assert torch.allclose(a.pointer_logits, b.pointer_logits, atol=1e-4), t
+        decision = keyless.act(obs)
+        assert decision == keyed.act(obs), t
+        if decision[0] == 'Stop':
+            break
+        obs, _, done, truncated, _ = env.step({'action': decision[0], 'pixel': decision[1:]} if decision[1] >= 0
+                                              else {'action': decision[0]})
+        if done or truncated:
+            break
+    env.close()
+    assert t == 9                                       # the whole-episode steps were played too

@@ -65,6 +65,7 @@ class StepOutputs(NamedTuple):
     h: Optional[torch.Tensor]                # the step's decoder output (incremental steps), or None
     frame: torch.Tensor                      # the frame tensor
     encoded: Optional[tuple]                 # the perception network's encoder maps (lazy_pointer), or None
+    perceived: Optional[Any] = None          # the network's output (keyless_pointer), or None
 
 
 class PerformerAgent:
@@ -128,10 +129,21 @@ class PerformerAgent:
         network's decoder and the key layer are about half of a step's perception."""
         return isinstance(self.model.visual, PerceivedFrames) and not self.config.reach_input
 
+    @property
+    def keyless_pointer(self) -> bool:
+        """Whether a step scores the pixels without making their keys: with the reach input the action reads
+        where the pointer points at every step, and the key layer and the upsampling are linear, so the
+        query is folded into them (PerceivedFrames.pointer_logits, as training does; the same numbers up to
+        rounding, a sixth less time per step). Keys are made only if the whole episode is read again."""
+        return isinstance(self.model.visual, PerceivedFrames) and self.config.reach_input
+
     def _grid(self, t: int) -> torch.Tensor:
         """Step t's pointer keys [C, k], made from its frame on first use (the same numbers as at the step)."""
         if self._grids[t] is None:
-            self._grids[t] = self.model.visual.keys_of(self.model.visual.net.encode(self._frames[t]))[0]
+            if self.keyless_pointer:
+                self._grids[t] = self.model.encode_frames(self._frames[t])[1][0]
+            else:
+                self._grids[t] = self.model.visual.keys_of(self.model.visual.net.encode(self._frames[t]))[0]
         return self._grids[t]
 
     @torch.inference_mode()
@@ -146,9 +158,12 @@ class PerformerAgent:
             self._note_failure(observation)
         rgb = observation_rgb(observation)
         frame = frame_tensor(rgb, self.config.resolution)[None]
-        encoded = None
+        encoded = perceived = None
         if self.lazy_pointer:
             emb, encoded = self.model.visual.embedding_and_encoded(frame)     # keys_of(encoded) if it interacts
+            grid = None
+        elif self.keyless_pointer:
+            emb, perceived = self.model.visual.embedding_and_output(frame)
             grid = None
         else:
             emb, grid = self.model.encode_frames(frame)
@@ -159,16 +174,23 @@ class PerformerAgent:
             h, cache = self.model.step_output(
                 self._cache, torch.tensor(lang.ids), torch.tensor(lang.types), self._lang_cached, emb[0],
                 self._previous_actions[-1], self.step)
-            if grid is None:
+            if perceived is not None:
+                visual = self.model.visual
+                pointer_logits = visual.pointer_logits(perceived, self.model.pointer_head.query(h)[None])[0] * \
+                    self.model.pointer_head.scale
+                action_logits = self.model._actions(h, pointer_logits, visual.distances(perceived)[0])
+            elif grid is None:
                 action_logits, pointer_logits = self.model.action_head(h), None
             else:
                 action_logits, pointer_logits = self.model.heads(h, grid[0])
             result = StepOutputs(action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h,
-                                 frame, encoded)
+                                 frame, encoded, perceived)
         else:
             ids = torch.tensor([lang.ids], dtype=torch.long)
             embeddings = torch.stack([*self._embeddings, emb[0]])[None]
-            if grid is None:
+            if perceived is not None:
+                grid = self.model.visual.grid_of(perceived)
+            elif grid is None:
                 grid = self.model.visual.keys_of(encoded)
             grids = torch.stack([*(self._grid(t) for t in range(self.step)), grid[0]])[None]
             T = embeddings.shape[1]

@@ -84,6 +84,17 @@ class PerceivedFrames(nn.Module):
             encoded = self.net.encode(frames)
         return self._embed(encoded[3]), encoded
 
+    def embedding_and_output(self, frames: torch.Tensor) -> tuple[torch.Tensor, object]:
+        """(the frame embeddings [N, d], the network's output) without the pointer keys: `pointer_logits` and
+        `distances` read the output, `grid_of` makes the keys from it (the same numbers as `forward`)."""
+        emb, _, out = self.perceive(frames, keys_for=torch.zeros(len(frames), dtype=torch.bool))
+        return emb, out
+
+    def grid_of(self, out) -> torch.Tensor:
+        """`forward`'s keys [N, R*R, k] (with `distance`, [N, R*R, k + 1]) from the network's output."""
+        keys = self._keys(out.fine, out.stem)
+        return torch.cat([keys, self.distances(out)[..., None]], -1) if self.distance else keys
+
     def keys_of(self, encoded: tuple) -> torch.Tensor:
         """The keys [N, R*R, k] (no distance channel) of the frames whose encoder maps are `encoded`."""
         with torch.no_grad():
