@@ -58,3 +58,16 @@ def test_without_a_checkpoint_the_demo_says_where_one_should_be_and_how_to_make_
     assert proc.returncode == 2
     assert f'no performer checkpoint at {missing}' in proc.stderr and 'train-performer' in proc.stderr
     assert not (tmp_path / 'demo').exists()
+
+
+def test_the_demo_plays_the_performer_model_it_is_told_and_refuses_others(capsys):
+    import pytest
+
+    from dialfred_bringup.demo import DemoConfig
+    from dialfred_sim.dataclass_cli import parse
+    assert parse(DemoConfig, []).eval_config().performer == 'et'
+    config = parse(DemoConfig, ['--performer', 'map']).eval_config()
+    assert config.performer == 'map' and config.questioner == 'all' and config.workers == 1
+    with pytest.raises(SystemExit):
+        parse(DemoConfig, ['--performer', 'film'])
+    assert 'film' in capsys.readouterr().err

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.dataclass_cli import arg
+from dialfred_performer.models import PERFORMER_MODELS
 
 from .evaluation import EvalConfig, foxglove_field, record_field, record_format_field
 from .workers import LiveHook, PerformerWorker, play_episodes, start_live_view, worker_nodes
@@ -99,6 +100,9 @@ class DemoConfig:
     questioner: str = arg('all', 'all, random, confusion, none, a learned questioner (rl-anytime, rl-mc, ... or '
                           'learned:PATH: see eval --help), or package.module:ClassName', aliases={'none': ''},
                           metavar='NAME')
+    performer: str = arg('et', "the performer node's model: et (the Episodic Transformer) or map (the map-and-plan "
+                         "performer over the checkpoint's perception network; its belief map is published too)",
+                         choices=list(PERFORMER_MODELS), metavar='MODEL')
     checkpoint: Optional[Path] = arg(None, 'the performer checkpoint (none: the one shipped in the package, as the '
                                      'eval\'s)', metavar='PATH')
     resolution: Optional[int] = arg(None, 'camera pixels (none: the resolution the checkpoint was trained at)',
@@ -113,7 +117,7 @@ class DemoConfig:
 
     def eval_config(self) -> EvalConfig:
         """The evaluation the demo's worker plays: one performer node, this questioner."""
-        return EvalConfig(split='valid_unseen', performer='et', questioner=self.questioner, checkpoint=self.checkpoint,
+        return EvalConfig(split='valid_unseen', performer=self.performer, questioner=self.questioner, checkpoint=self.checkpoint,
                           resolution=self.resolution, seed=self.seed, workers=1, episode_timeout=self.episode_timeout,
                           foxglove=self.foxglove, record=self.record, record_format=self.record_format)
 
