@@ -267,14 +267,47 @@ def test_the_reach_performer_acts_as_it_was_trained_step_by_step(reach_performer
     assert torch.allclose(a, actions[0, T - 1], atol=1e-4)
 
 
+def play_side_by_side(agent, other, check, at_cut=lambda: None, steps: int = 10, cut_at: int = 6,
+                      keep_going: bool = False) -> int:
+    """Play valid_unseen's first task with `agent`'s decisions, `other` deciding on the same frames:
+    `check(t, agent's outputs, other's outputs)` at each step, the same decision asserted; at step
+    `cut_at` both caches are dropped (as when the QAs outgrow max_tokens: the whole episode is read
+    again), after `at_cut()`. With `keep_going`, Stop and MoveAhead are played as RotateLeft so the
+    episode lasts. Returns the steps played."""
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+    task = load_split('valid_unseen')[0]
+    env = DialfredEnv(resolution=32)
+    obs, _ = env.reset(options={'task': task})
+    agent.reset(task)
+    other.reset(task)
+    played = 0
+    for t in range(steps):
+        if t == cut_at:
+            at_cut()
+            agent._cache = other._cache = None
+        check(t, agent._outputs(obs), other._outputs(obs))
+        decision = agent.act(obs)
+        assert decision == other.act(obs), t
+        played = t + 1
+        name, x, y = decision
+        if keep_going and name in ('Stop', 'MoveAhead'):
+            name = 'RotateLeft'
+        elif name == 'Stop':
+            break
+        obs, _, done, truncated, _ = env.step({'action': name, **({'pixel': (x, y)} if x >= 0 else {})})
+        if done or truncated:
+            break
+    env.close()
+    return played
+
+
 def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_every_step(performer):
     """A performer without the reach input makes a frame's keys only when it interacts (lazy_pointer):
     the same action logits bit for bit as an agent that makes them at every step, the same pointer when
     it acts, and the same decisions when the dialogue outgrows the cache (the keys of earlier steps
     are then made from their frames)."""
     from dialfred_performer.agent import PerformerAgent
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks import load_split
 
     class Eager(PerformerAgent):
         lazy_pointer = False
@@ -282,28 +315,17 @@ def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_ev
     checkpoint, _ = performer
     lazy, eager = PerformerAgent.from_checkpoint(checkpoint), Eager.from_checkpoint(checkpoint)
     assert lazy.lazy_pointer and not eager.lazy_pointer
-    task = load_split('valid_unseen')[0]
-    env = DialfredEnv(resolution=32)
-    obs, _ = env.reset(options={'task': task})
-    lazy.reset(task)
-    eager.reset(task)
-    for t in range(10):
-        if t == 6:
-            unmade = sum(g is None for g in lazy._grids)
-            lazy._cache = eager._cache = None          # as when QAs outgrow max_tokens: the whole episode again
-        a, b = lazy._outputs(obs), eager._outputs(obs)
+    unmade = []
+
+    def check(t, a, b):
         assert torch.equal(a.action_logits, b.action_logits), t
         if a.pointer_logits is None:
             assert torch.equal(lazy._pointer(a.h, a.encoded)[1], b.pointer_logits), t
         else:
             assert torch.equal(a.pointer_logits, b.pointer_logits), t
-        decision = lazy.act(obs)
-        assert decision == eager.act(obs)
-        name, x, y = decision
-        obs, *_ = env.step({'action': 'RotateLeft' if name in ('Stop', 'MoveAhead') else name,
-                            **({'pixel': (x, y)} if x >= 0 else {})})
-    assert unmade >= 1 and all(g is not None for g in lazy._grids[:6])     # made on demand for the fallback
-    env.close()
+    assert play_side_by_side(lazy, eager, check, lambda: unmade.append(sum(g is None for g in lazy._grids)),
+                             keep_going=True) == 10
+    assert unmade[0] >= 1 and all(g is not None for g in lazy._grids[:6])     # made on demand for the fallback
 
 
 def test_the_performer_may_train_through_the_frozen_network_in_bf16_and_act_in_fp32(prepared, reach_performer,
@@ -333,8 +355,6 @@ def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(rea
     same action and pointer logits up to rounding as an agent that makes every pixel's key, the same
     decisions, also when the dialogue outgrows the cache (the keys of earlier steps are then made)."""
     from dialfred_performer.agent import PerformerAgent
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks import load_split
 
     class WithKeys(PerformerAgent):
         keyless_pointer = False
@@ -342,25 +362,11 @@ def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(rea
     checkpoint, _ = reach_performer
     keyless, keyed = PerformerAgent.from_checkpoint(checkpoint), WithKeys.from_checkpoint(checkpoint)
     assert keyless.keyless_pointer and not keyed.keyless_pointer
-    task = load_split('valid_unseen')[0]
-    env = DialfredEnv(resolution=32)
-    obs, _ = env.reset(options={'task': task})
-    keyless.reset(task)
-    keyed.reset(task)
-    for t in range(10):
-        if t == 6:
-            assert keyless._grids and all(g is None for g in keyless._grids)
-            keyless._cache = keyed._cache = None        # as when QAs outgrow max_tokens: the whole episode again
-        a, b = keyless._outputs(obs), keyed._outputs(obs)
+
+    def check(t, a, b):
         assert torch.allclose(a.action_logits, b.action_logits, atol=1e-5), t
         assert torch.allclose(a.pointer_logits, b.pointer_logits, atol=1e-4), t
-        decision = keyless.act(obs)
-        assert decision == keyed.act(obs), t
-        if decision[0] == 'Stop':
-            break
-        obs, _, done, truncated, _ = env.step({'action': decision[0], 'pixel': decision[1:]} if decision[1] >= 0
-                                              else {'action': decision[0]})
-        if done or truncated:
-            break
-    env.close()
-    assert t == 9                                       # the whole-episode steps were played too
+
+    def at_cut():
+        assert keyless._grids and all(g is None for g in keyless._grids)
+    assert play_side_by_side(keyless, keyed, check, at_cut) == 10          # the whole-episode steps were played too
