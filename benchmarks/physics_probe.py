@@ -23,7 +23,7 @@ import math
 import time
 
 import numpy as np
-import pybullet as p
+from dialfred_sim.world.bullet import pybullet as p
 
 
 def visual_boxes(client, body: int) -> list[tuple[int, np.ndarray]]:

@@ -82,8 +82,8 @@ def split_statistics(tasks: Sequence[Task]) -> dict:
 def navigation_twins(tasks: Sequence[Task], resolution: int = TWIN_RESOLUTION) -> dict:
     """How many navigation goals have a twin: another object of the target's type and colour.
 
-    A navigation goal is a task whose goal has a 'reachable' condition: get the object in view and
-    within reach (the task types Move and Pick & Move). Its target has a twin when, in the room as the
+    A navigation goal is a Move or Pick & Move task: its go-to leads to an object (the 'near'
+    condition's object under DialFRED's goal rule, 'reachable' under the visible one). Its target has a twin when, in the room as the
     task starts (rebuilt in a simulator), another object has the same type and the same colour: an
     appearance answer cannot tell the two apart, the location answer (which says where it is from the
     agent) can. Returns a JSON-ready dict: navigation_goals, same_type (another object of the type),
@@ -92,7 +92,8 @@ def navigation_twins(tasks: Sequence[Task], resolution: int = TWIN_RESOLUTION) -
     rules than the simulator's now; left out of the other counts).
     """
     from dialfred_sim.env import DialfredEnv
-    goals = [(t, c.obj) for t in tasks for c in t.goal if c.kind == 'reachable']
+    goals = [(t, c.obj) for t in tasks if t.task_type in ('Move', 'Pick & Move')
+             for c in t.goal if c.kind in ('near', 'reachable')]
     same_type, twin_types, not_rebuilt = 0, Counter(), 0
     env = DialfredEnv(resolution=resolution)
     try:
@@ -195,8 +196,35 @@ def twin_table(twins: dict[str, dict]) -> list[str]:
     return markdown_table(['navigation goals', *twins], rows, 'l' + 'r' * len(twins))
 
 
+def world_table(world: dict) -> list[str]:
+    """The world's figures (dialfred_sim.tasks.statistics.world_statistics) beside AI2-THOR's."""
+    rows = []
+
+    def row(name, fig, fmt):
+        ref = fig.get('reference')
+        rows.append([name, fmt(fig['value']), fmt(ref) if ref is not None else '', f'{fig["ratio"]:.2f}'
+                     if fig.get('ratio') is not None else ''])
+    for key, name in (('navigable_points', 'navigable grid points'), ('receptacles', 'receptacles'),
+                      ('openable_fixtures', 'openable fixtures'), ('small_objects', 'small objects at the start')):
+        for room, figures in world['rooms'].items():
+            row(f'{name}: {room.replace("_", " ")}', figures[key], lambda v: f'{v:.1f}')
+    split = world['per_split']
+    percent = lambda v: f'{100 * v:.1f}%'          # noqa: E731
+    for key, name, fmt in (('goto_actions', 'actions per go-to', _decimal), ('goto_moves', '... moves', _decimal),
+                           ('goto_turns', '... turns', _decimal), ('goto_looks', '... looks', _decimal),
+                           ('actions_before_first_interaction', 'expert actions before the first interaction',
+                            _decimal),
+                           ('small_objects', 'small objects at an episode\'s start', _decimal),
+                           ('first_target_multi_instance', 'first target has a second instance of its type', percent),
+                           ('first_target_in_closed', 'first target starts in a closed receptacle', percent),
+                           ('first_target_distance_m', 'first target\'s distance from the start (m)', _decimal),
+                           ('target_visible_at_task_start', 'a task\'s first object in the first frame', percent)):
+        row(name, split[key], fmt)
+    return markdown_table(['figure', 'here', 'AI2-THOR / ALFRED', 'ratio'], rows, 'lrrr')
+
+
 def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[Task],
-              twins: dict[str, dict] | None = None) -> str:
+              twins: dict[str, dict] | None = None, world: dict | None = None) -> str:
     """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples (the
     words are templates/dataset.md.j2; the numbers and tables come from here)."""
     import jinja2
@@ -209,7 +237,7 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         present=', '.join(f'`{name}`' for name in stats),
         absent=', '.join(f'`{name}` ({SPLIT_SIZES[name]:,} tasks once generated)' for name in absent),
         summary_table='\n'.join(summary_table(stats)), task_type_table='\n'.join(task_type_table(stats)),
-        job_type_table='\n'.join(job_type_table(stats)), twins=bool(twins), examples=bool(examples),
+        job_type_table='\n'.join(job_type_table(stats)), twins=bool(twins), examples=bool(examples), world=bool(world),
         example_resolution=EXAMPLE_RESOLUTION, example_split=EXAMPLE_SPLIT)
     if twins:
         named = EXAMPLE_SPLIT if EXAMPLE_SPLIT in twins else next(iter(twins))
@@ -217,6 +245,9 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
         context.update(twin_table='\n'.join(twin_table(twins)), twins_named=named,
                        twin_types=', '.join(f'{name} {n}' for name, n in twins[named]['twin_types'].items()),
                        left_out=', '.join(f'{n:,} navigation goals of `{name}`' for name, n in left_out.items()))
+    if world:
+        context.update(world_split=world['split'], world_episodes=world['episodes'],
+                       world_gotos=world['per_split']['gotos'], world_table='\n'.join(world_table(world)))
     if examples:
         context['examples_table'] = '\n'.join(markdown_table(
             ['task', 'type', 'main instruction', 'step-by-step instructions'],
@@ -298,6 +329,9 @@ def main(argv=None) -> int:
     ap.add_argument('--no-image', action='store_true', help='keep the existing image (no simulator)')
     ap.add_argument('--no-twins', action='store_true',
                     help='leave out the navigation-twin count (it rebuilds every navigation task: minutes for train)')
+    ap.add_argument('--no-world', action='store_true',
+                    help='leave out the table of the world against AI2-THOR (it rebuilds every episode of '
+                         f'{EXAMPLE_SPLIT})')
     ap.add_argument('--tasks', nargs='+', metavar='PATH', default=None,
                     help='only print the statistics of these split files of your own (e.g. a test split) '
                          'as JSON; the card and image are not written')
@@ -320,6 +354,10 @@ def main(argv=None) -> int:
         return 1
     stats = {name: split_statistics(tasks) for name, tasks in found.items()}
     twins = {} if args.no_twins else {name: navigation_twins(tasks) for name, tasks in found.items()}
+    world = None
+    if not args.no_world and EXAMPLE_SPLIT in found:
+        from dialfred_sim.tasks.statistics import world_statistics
+        world = {'split': EXAMPLE_SPLIT, **world_statistics(found[EXAMPLE_SPLIT])}
     examples = pick_examples(found[EXAMPLE_SPLIT]) if EXAMPLE_SPLIT in found else []
     if examples and not args.no_image:
         image = Path(args.image)
@@ -327,8 +365,8 @@ def main(argv=None) -> int:
         example_sheet(examples, first_frames(examples)).save(image, optimize=True)
     card = Path(args.card)
     card.parent.mkdir(parents=True, exist_ok=True)
-    card.write_text(card_text(stats, absent, examples, twins))
-    print(json.dumps({'splits': stats, 'navigation_twins': twins, 'absent': absent,
+    card.write_text(card_text(stats, absent, examples, twins, world))
+    print(json.dumps({'splits': stats, 'navigation_twins': twins, 'world': world, 'absent': absent,
                       'examples': [t.task_id for t in examples],
                       'card': str(card), 'image': str(args.image) if examples else None}, indent=2))
     return 0

@@ -20,11 +20,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pybullet
 from PIL import Image, ImageDraw
-from pybullet_utils.bullet_client import BulletClient
 
-
+from dialfred_sim.world.bullet import bullet_client, pybullet
 from dialfred_sim.world import palette
 from dialfred_sim.world.bodies import ShapeCache, build_body, set_articulation, triangle_count
 from dialfred_sim.world.shapes import TYPES_WITH_SHAPES, shape_for
@@ -35,13 +33,13 @@ FOV = 50.0
 LABEL_H = 14
 
 
-def new_client() -> BulletClient:
+def new_client() -> bullet_client.BulletClient:
     """A DIRECT client; pybullet's banner goes to stderr so stdout stays clean JSON."""
     sys.stdout.flush()
     saved = os.dup(1)
     os.dup2(2, 1)
     try:
-        return BulletClient(connection_mode=pybullet.DIRECT)
+        return bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
     finally:
         os.dup2(saved, 1)
         os.close(saved)
@@ -67,7 +65,7 @@ def gallery_colour(catalog: dict[str, dict[str, str]], name: str) -> str:
     return names[0] if names else 'tan'
 
 
-def camera(client: BulletClient, size, zoom: float = 1.0, shift=(0.0, 0.0, 0.0), azimuth: float = 35.0,
+def camera(client: bullet_client.BulletClient, size, zoom: float = 1.0, shift=(0.0, 0.0, 0.0), azimuth: float = 35.0,
            elevation: float = 25.0):
     """View and projection matrices framing a box of extents `size` standing at `shift`."""
     target = [shift[0], shift[1], shift[2] + size[2] / 2]
@@ -81,13 +79,13 @@ def camera(client: BulletClient, size, zoom: float = 1.0, shift=(0.0, 0.0, 0.0),
     return view, proj
 
 
-def render(client: BulletClient, px: int, view, proj) -> np.ndarray:
+def render(client: bullet_client.BulletClient, px: int, view, proj) -> np.ndarray:
     """An RGB frame from the tiny renderer without shadows."""
     rgba = client.getCameraImage(px, px, view, proj, renderer=pybullet.ER_TINY_RENDERER, shadow=0)[2]
     return np.asarray(rgba, dtype=np.uint8).reshape(px, px, 4)[:, :, :3]
 
 
-def add_floor(client: BulletClient) -> int:
+def add_floor(client: bullet_client.BulletClient) -> int:
     vis = client.createVisualShape(pybullet.GEOM_BOX, halfExtents=[6, 6, 0.005],
                                    rgbaColor=[0.55, 0.55, 0.55, 1])
     return client.createMultiBody(0, -1, vis, [0, 0, -0.005])

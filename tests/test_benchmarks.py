@@ -90,6 +90,38 @@ def test_expert_gc_finds_gc_starting_at_0_and_never_falling_on_the_first_tasks()
     assert sum(row['n'] for row in report['per_type'].values()) == 12
 
 
+def test_question_worth_divides_the_sr_gained_by_the_questions_asked(tmp_path):
+    from dialfred_sim.metrics import EpisodeResult, append_result
+    rows = [('valid_unseen/000000', 'Move', False, True, 2), ('valid_unseen/000001', 'Move & Pick', False, False, 4),
+            ('valid_unseen/000002', 'Put', True, True, 2), ('valid_unseen/000003', 'Close', False, True, 0)]
+    for task_id, task_type, before, after, questions in rows:
+        common = dict(task_id=task_id, task_type=task_type, split='valid_unseen', goal_conditions_met=0,
+                      goal_conditions_total=1, steps=5, expert_length=5, goal_rule='dialfred')
+        append_result(tmp_path / 'none.jsonl', EpisodeResult(success=before, agent='et', **common))
+        append_result(tmp_path / 'all.jsonl', EpisodeResult(success=after, questions=questions, agent='et+all', **common))
+    report = run_bench('question_worth', '--base', str(tmp_path / 'none.jsonl'), '--asked', str(tmp_path / 'all.jsonl'))
+    groups = report['groups']
+    assert groups['overall'] == {'n': 4, 'SR_without': 25.0, 'SR_with': 75.0, 'NQ': 2.0, 'worth': 25.0}
+    assert groups['family: with a go-to']['worth'] == pytest.approx(50.0 / 3.0, abs=1e-3)
+    assert groups['family: without a go-to']['worth'] == 50.0 and groups['type: Close']['NQ'] == 0.0
+    assert report['paper_worth'] == pytest.approx(4.228, abs=1e-3)
+
+
+def test_world_statistics_puts_each_figure_beside_ai2thors():
+    report = run_bench('world_statistics', '--episodes', '6')
+    assert report['episodes'] == 6 and report['tasks'] > 0
+    assert set(report['rooms']) == {'kitchen', 'living_room', 'bedroom', 'bathroom'}
+    for room in report['rooms'].values():
+        for key in ('navigable_points', 'receptacles', 'openable_fixtures'):
+            fig = room[key]
+            assert fig['value'] > 0 and fig['ratio'] == pytest.approx(fig['value'] / fig['reference'], abs=1e-3)
+    split = report['per_split']
+    assert split['goto_actions']['value'] == pytest.approx(
+        split['goto_moves']['value'] + split['goto_turns']['value'] + split['goto_looks']['value'], abs=0.01)
+    assert 0 <= split['first_target_in_closed']['value'] <= 1 and split['first_target_distance_m']['reference'] == 2.67
+    assert 'reference' not in split['target_visible_at_task_start']
+
+
 @pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_split_physics_finds_every_shipped_valid_episode_allowed():
     report = run_bench('split_physics', '--split', 'valid_unseen', '--limit', '6')

@@ -24,7 +24,7 @@ from dialfred_bringup.evaluation import EvalConfig, run_eval
 REPO = Path(__file__).resolve().parents[1]
 SPLIT = 'valid_unseen'
 SOLUTION_FIELDS = {'task_type', 'episode', 'goal', 'expert_actions', 'expert_length', 'expert_end_pose',
-                   'step_instructions', 'primitives', 'start', 'end', 'start_pose', 'resolution'}
+                   'step_instructions', 'primitives', 'start', 'end', 'start_pose', 'resolution', 'visible_end'}
 
 CHEATERS = '''
 from dialfred_sim.protocol import ACTIONS

@@ -29,6 +29,7 @@ import functools
 import json
 import os
 import sys
+import tempfile
 import time
 import warnings
 from dataclasses import dataclass
@@ -41,6 +42,7 @@ from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
 from dialfred_sim.metrics import ResultsFileError, played_at
 from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .graph import Graph
@@ -110,6 +112,9 @@ class EvalConfig:
     perturb_type: str = arg('', 'the paper\'s ablation: the oracle withholds answers of this type ("I don\'t know.")',
                             choices=QUESTION_TYPES, aliases={'none': ''})
     perturb_probability: float = arg(0.5, 'how often it withholds them (0.5 in the paper)')
+    goal_rule: str = arg(DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
+                         "expert's end pose (DialFRED's rule); visible = the target in view and within reach "
+                         '(results are named ..._goal-visible)', choices=GOAL_RULES)
     limit: Optional[int] = arg(None, 'only the first N tasks of the split (none: all)', metavar='N')
     shard: Optional[tuple] = arg(None, 'only shard K of N (0 <= K < N) of the selected tasks (after --limit): those '
                                  'whose index in the split is K modulo N, seeded as in a whole run; results go to '
@@ -202,6 +207,7 @@ class EvalConfig:
         if self.out:
             return Path(self.out)
         perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
+        perturbed += f'_goal-{self.goal_rule}' if self.goal_rule != DEFAULT_GOAL_RULE else ''
         source = self.tasks_source
         tasks = f'{source.split}-{source.sha256[:8]}' if source else self.split   # a file: named by its content
         return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}{shard_suffix(self.shard)}.jsonl'
@@ -228,8 +234,17 @@ class EvalConfig:
         return with_questioner(self.make_performer(), make_questioner(self.questioner) if self.questioner else None)
 
     def check(self) -> None:
-        """ValueError for settings that cannot run together, or an agent or questioner that cannot be made."""
+        """ValueError for settings that cannot run together or out of range, a results file that cannot
+        be written, or an agent or questioner that cannot be made: before anything starts."""
         check_shard(self.shard)
+        if self.limit is not None and self.limit < 1:
+            raise ValueError(f'--limit must be at least 1 (leave it out for every task), got {self.limit}')
+        if self.workers < 1:
+            raise ValueError(f'--workers must be at least 1, got {self.workers}')
+        if not 16 <= self.resolution <= 1024:
+            raise ValueError(f'--resolution must be 16 to 1024 pixels, got {self.resolution}')
+        if not self.request_timeout > 0 or not self.episode_timeout > 0:
+            raise ValueError('--request-timeout and --episode-timeout must be more than 0 seconds')
         from dialfred_sim.bag import IMAGE_FORMATS
         if self.max_restarts < 0:
             raise ValueError(f'--max-restarts must be 0 or more, got {self.max_restarts}')
@@ -249,6 +264,7 @@ class EvalConfig:
                 self.split = self.tasks_source.split      # the split played is the file's
             except FileNotFoundError as exc:
                 raise ValueError(str(exc)) from None
+        check_results_path(self.results_path)
         if self.perturb_type:
             if not self.questioner:
                 raise ValueError('a perturbed oracle needs a questioner (--questioner)')
@@ -261,6 +277,25 @@ class EvalConfig:
     @property
     def summary_path(self) -> Path:
         return self.results_path.with_suffix('.summary.json')
+
+
+def check_results_path(path: Path) -> None:
+    """ValueError unless `path` can be a results file: not a folder, in a folder that exists (or can be
+    made: every missing folder's first existing one is a folder) and takes new files."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f'--out {path} is a folder: give a file in it, such as {path / "run.jsonl"}')
+    existing = path.parent
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f'--out {path}: {existing} is a file, not a folder')
+    try:      # a read-only or virtual file system (/proc) says no only when a file is made
+        fd, probe = tempfile.mkstemp(dir=existing, prefix='.dialfred-write-check-')
+    except OSError as exc:
+        raise ValueError(f'--out {path}: no file can be made in {existing} ({exc.strerror})') from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 @dataclass
@@ -283,7 +318,7 @@ class EvalReport:
         return {
             'split': c.split, 'tasks_file': c.tasks_source.describe() if c.tasks_source else None,
             'agent': c.agent_name, 'privileged': any(r.privileged for r in self.results),
-            'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution,
+            'oracle': c.oracle, 'seed': c.seed, 'resolution': c.resolution, 'goal_rule': c.goal_rule,
             'workers': c.workers,
             'through': 'performer node' if c.performer else ('local processes (no ROS)' if c.local else 'in-process agent'),
             'checkpoint': ({'path': str(c.checkpoint_path), 'sha256': c.checkpoint_sha256} if c.agent in PERFORMER_MODELS
@@ -342,6 +377,10 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
                                    f'oracle {r.oracle!r}, seed {r.seed}, not {config.split!r}, {config.agent_name!r}, '
                                    f'{config.oracle!r}, '
                                    f'{config.seed}: choose another --out')
+        if r.goal_rule != config.goal_rule:
+            held = repr(r.goal_rule) if r.goal_rule else "'visible' (written before results recorded the rule)"
+            raise ResultsFileError(f'{path} holds results judged by the goal rule {held}, not {config.goal_rule!r}: '
+                                   'choose another --out')
     check_tasks_record(config, bool(existing))
     return results_by_task(existing, task_ids)
 
@@ -381,8 +420,8 @@ def _read_tasks_record(path: Path) -> Optional[dict]:
 
 
 def progress_bar(total: int, done: int, enabled: bool):
-    from tqdm import tqdm
-    return tqdm(total=total, initial=done, unit='ep', file=sys.stderr, disable=not enabled, dynamic_ncols=True,
+    from dialfred_sim.progress import progress_bar as _bar
+    return _bar(total=total, initial=done, unit='ep', disable=not enabled,
                 smoothing=0.05)
 
 
@@ -408,10 +447,14 @@ def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> Eva
 
     t0 = time.monotonic()
     tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
+    tasks = [t.under_rule(config.goal_rule) for t in tasks]      # goals and expert lengths as the run judges them
     selected = shard_tasks(tasks, config.shard)       # (index in the split, task): the index seeds the episode
     tasks = [t for _, t in selected]
     done = resumable_results(config, [t.task_id for t in tasks])
     jobs = [(k, t) for k, t in selected if t.task_id not in done]
+    if done:
+        print(f'resuming: {len(done)} of {len(tasks)} tasks are already in {config.results_path}; '
+              f'{len(jobs)} to play', file=sys.stderr)
     ran, startup_s, restarts = 0, 0.0, 0
     code = git_commit()
     warn_of_other_code(config.results_path, done.values(), code)
@@ -513,8 +556,11 @@ def run_eval_command(args) -> int:
     try:
         report = run_eval(config, progress=args.progress)
     except KeyboardInterrupt:
-        print(f'interrupted: finished episodes are in {config.results_path}; the same command resumes',
-              file=sys.stderr)
+        if config.results_path.exists() and config.results_path.stat().st_size:
+            print(f'interrupted: finished episodes are in {config.results_path}; the same command resumes',
+                  file=sys.stderr)
+        else:
+            print('interrupted before the first episode ended: nothing was written', file=sys.stderr)
         raise
     print_report(report)
     return 0

@@ -66,7 +66,9 @@ class ExploreConfig:
 class NodesConfig:
     """Start the node graph (simulator + oracle) and keep it running until Ctrl-C."""
 
-    resolution: int = arg(DEFAULT_RESOLUTION, 'camera pixels')
+    resolution: Optional[int] = arg(None, 'camera pixels (none: what the shipped et performer was trained at, '
+                                    '64; a performer node started against the graph plays at that size)',
+                                    metavar='PIXELS')
 
 
 @dataclass
@@ -146,13 +148,27 @@ def save_frames(frames, out: Path) -> dict:
     return {'gif': gif, 'sheet': out / 'contact_sheet.png'}
 
 
+def nodes_resolution(resolution: Optional[int]) -> int:
+    """The camera of `launch nodes`: as given, else the one the shipped et performer was trained at."""
+    if resolution is not None:
+        return resolution
+    from dialfred_performer.model import SHIPPED_CHECKPOINT
+    from dialfred_performer.models import camera_resolution
+    return camera_resolution('et', SHIPPED_CHECKPOINT)
+
+
 def run_nodes(args: NodesConfig) -> int:
     """Start the graph and keep it up until Ctrl-C, reporting any node that dies."""
     from dialfred_msgs.srv import OracleAnswer, SimReset
+    args.resolution = nodes_resolution(args.resolution)
+    if not 16 <= args.resolution <= 1024:
+        print(f'error: --resolution must be 16 to 1024 pixels, got {args.resolution}', file=sys.stderr)
+        return 2
     with Graph([sim_node(args.resolution), oracle_node()]) as graph:
         graph.client(SimReset, '/sim/reset')
         graph.client(OracleAnswer, '/oracle/answer')
-        print('graph up: /sim/reset, /sim/step, /sim/ground_truth, /sim/observation, /oracle/answer. Ctrl-C to stop.')
+        print(f'graph up at {args.resolution}x{args.resolution} px: /sim/reset, /sim/step, /sim/ground_truth, '
+              '/sim/observation, /oracle/answer. Ctrl-C to stop.')
         while True:
             graph.check()
             time.sleep(0.5)

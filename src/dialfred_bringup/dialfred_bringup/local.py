@@ -31,7 +31,8 @@ def _init_worker(config) -> None:
     from dialfred_sim.env import DialfredEnv
     torch.set_num_threads(1)
     _W['config'] = config
-    _W['env'] = DialfredEnv(resolution=config.resolution)     # the sim node's defaults: 1000 steps, 10 failures
+    # the sim node's defaults: 1000 steps, 10 failures
+    _W['env'] = DialfredEnv(resolution=config.resolution, goal_rule=config.goal_rule)
     _W['agent'] = config.make_agent()
     _W['perturbation'] = (Perturbation(config.perturb_type, config.perturb_probability, config.seed)
                           if config.perturb_type else None)
@@ -63,6 +64,7 @@ def episode_result(config, task, agent, state, wall_s: float):
         steps=state.steps, expert_length=int(task.expert_length), questions=state.questions,
         invalid_questions=state.invalid_questions, failed_actions=state.failed_actions, end_reason=state.end_reason,
         error=state.error, agent=config.agent_name, oracle=config.oracle, seed=config.seed, wall_s=round(wall_s, 4),
+        goal_rule=config.goal_rule,
         privileged=bool(getattr(agent, 'privileged', False)),
         dialogue=[dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid), qa.answer)
                   for qa in state.dialogue])

@@ -292,6 +292,7 @@ class PerformerWorker:
             failed_actions=int(r.failed_actions) if r else 0, end_reason=reason,
             error='' if success else (error or (r.error if r else '')), agent=self.config.agent_name,
             oracle=self.config.oracle, seed=self.config.seed, wall_s=round(time.monotonic() - self.started, 4),
+            goal_rule=self.config.goal_rule,
             privileged=False, dialogue=[dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer)
                                         for m in r.dialogue] if r else [])
 
@@ -434,7 +435,8 @@ def worker_nodes(config, namespace: str, **sim_params) -> list:
     performer node, also the questioner node and the performer node (a RunTask server). `sim_params`:
     more parameters of the simulator node (default: it publishes no observations)."""
     from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
-    nodes = [sim_node(config.resolution, namespace, **{'publish_observations': False, **from_file, **sim_params})]
+    nodes = [sim_node(config.resolution, namespace, **{'publish_observations': False, 'goal_rule': config.goal_rule,
+                                                       **from_file, **sim_params})]
     if config.questioner:
         withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
                     'seed': config.seed} if config.perturb_type else {}

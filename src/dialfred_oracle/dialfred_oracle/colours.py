@@ -103,10 +103,8 @@ def measure_shade_range(size: int = 64) -> tuple[float, float]:
     """Render a sphere and a box of every palette colour under the world's light from several
     viewpoints in a private pybullet client; return the (min, max) ratio of rendered to palette
     channel values (channels below 100 are skipped: integer truncation dominates there)."""
-    import pybullet
-    from pybullet_utils import bullet_client
-
     from dialfred_sim.world.bodies import ShapeCache
+    from dialfred_sim.world.bullet import bullet_client, pybullet
     from dialfred_sim.world.palette import rgba
     from dialfred_sim.world.scene import LIGHT_DIRECTION
 

@@ -298,7 +298,7 @@ def validate(net: Perception, demo, rows: np.ndarray, cfg: PerceptionConfig) -> 
 
 
 def train_perception(cfg: PerceptionConfig) -> dict:
-    from tqdm import tqdm
+    from dialfred_sim.progress import progress_bar
     torch.set_num_threads(cfg.threads)
     demo = load_demonstrations(Path(cfg.demonstrations).expanduser())
     if demo.labels is None:
@@ -333,7 +333,7 @@ def train_perception(cfg: PerceptionConfig) -> dict:
     total: dict = {}
     t0 = time.monotonic()
     net.train()
-    with tqdm(total=updates, initial=update, unit='update', file=sys.stderr, disable=not cfg.progress,
+    with progress_bar(total=updates, initial=update, unit='update', disable=not cfg.progress,
               dynamic_ncols=True) as bar:
         while update < updates:
             rng = np.random.default_rng([cfg.seed, update])        # the frames of update u depend on u only

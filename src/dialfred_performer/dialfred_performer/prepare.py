@@ -135,7 +135,7 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     """dialogues.jsonl for every task of the demonstrations `folder` (resumable; see the module doc).
     The QAs the build's OracleProbe asked while rendering are taken as they are; only the other
     tasks are replayed."""
-    from tqdm import tqdm
+    from dialfred_sim.progress import progress_bar
     folder = Path(folder)
     demo = load_demonstrations(folder)
     out = folder / DIALOGUES_FILE
@@ -156,8 +156,8 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     def count() -> int:
         return sum(p.read_bytes().count(b'\n') for p in folder.glob('dialogues-*.part'))
 
-    with tqdm(total=total, initial=min(count(), total), unit='task', desc='dialogues', file=sys.stderr,
-              disable=not progress, dynamic_ncols=True) as bar:
+    with progress_bar(total=total, initial=min(count(), total), unit='task', desc='dialogues',
+              disable=not progress) as bar:
         if not todo:
             pass
         elif workers == 1:

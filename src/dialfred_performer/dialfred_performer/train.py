@@ -438,9 +438,9 @@ def train(cfg: TrainConfig, ranks: Optional[Ranks] = None) -> dict:
         log = MetricsLog(out / 'metrics.jsonl', progress.update if cfg.resume else None)
         (out / 'config.json').write_text(json.dumps(dataclasses.asdict(cfg), indent=1) + '\n')
 
-    from tqdm import tqdm
-    bar = tqdm(total=total, initial=progress.update, unit='update', file=sys.stderr,
-               disable=not (cfg.progress and ranks.main), dynamic_ncols=True,
+    from dialfred_sim.progress import progress_bar
+    bar = progress_bar(total=total, initial=progress.update, unit='update',
+               disable=not (cfg.progress and ranks.main),
                desc=f'epoch {progress.epoch + 1}/{cfg.epochs}')
     session_updates, frames_seen, t_start = 0, 0, time.monotonic()
     t_window, last = time.monotonic(), {}

@@ -101,7 +101,7 @@ def score(model: Questioner, examples: list[Example], vocab, features, batch_siz
 
 
 def pretrain(cfg: PretrainConfig) -> dict:
-    from tqdm import tqdm
+    from dialfred_sim.progress import progress_bar
 
     from dialfred_oracle.annotator import load_dialogues
     from .frames import FirstFrames, default_path
@@ -149,8 +149,8 @@ def pretrain(cfg: PretrainConfig) -> dict:
         model.train()
         total = 0.0
         plan = batches(len(train), cfg.batch_size, rng)
-        for idx in tqdm(plan, desc=f'epoch {epoch + 1}/{cfg.epochs}', unit='batch', file=sys.stderr,
-                        disable=not cfg.progress, dynamic_ncols=True):
+        for idx in progress_bar(plan, desc=f'epoch {epoch + 1}/{cfg.epochs}', unit='batch',
+                        disable=not cfg.progress):
             b = collate([train[i] for i in idx], vocab, features)
             enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
             loss = -model.log_prob(enc, b['types'], b['nouns']).mean()

@@ -8,6 +8,7 @@ and a clear error, and leaves the world exactly as it was.
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -126,7 +127,8 @@ def target_at(world: World, px: int, py: int, depth: np.ndarray, seg: np.ndarray
         return None, None, _fail(f'no object at pixel ({px}, {py}) ({what.lower()} is there)')
     point, dist = world.pixel_point(px, py, depth)
     if dist > REACH:
-        return None, None, _fail(f'{object_id} is out of reach ({dist:.2f} m away; reach is {REACH} m)', object_id)
+        away = math.ceil(dist * 100) / 100      # rounded up: 1.5004 m reads 1.51, never the reach itself
+        return None, None, _fail(f'{object_id} is out of reach ({away:.2f} m away; reach is {REACH:.2f} m)', object_id)
     return world.objects[object_id], point, None
 
 

@@ -9,36 +9,16 @@ with a target pixel for interactions. An episode ends at Stop or after `max_fail
 from __future__ import annotations
 
 import contextlib
-import os
-import sys
 from typing import Any, Optional
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-
-@contextlib.contextmanager
-def _quiet_stdout():
-    """Silence C-level prints to stdout (pybullet's banner and 'argv[0]=') so JSON output stays clean."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        with open(os.devnull, 'wb') as null:
-            os.dup2(null.fileno(), 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-
-
-with _quiet_stdout():
-    import pybullet
-    from pybullet_utils import bullet_client
-
-from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action  # noqa: E402  (after pybullet, whose banner is silenced above)
-from .world.rooms import all_scenes, room_layout, scene_number  # noqa: E402  (after pybullet, whose banner is silenced above)
-from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World  # noqa: E402  (after pybullet, whose banner is silenced above)
+from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
+from .world.bullet import bullet_client, pybullet, quiet_stdout
+from .world.rooms import all_scenes, room_layout, scene_number
+from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World
 
 DEFAULT_RESOLUTION = 128   # see docs/figures.md: 4x the frame rate of 300x300 on this CPU
 # pybullet 3.2.7 keeps about 0.5 KB for every body made and removed (0.14 MB per reset here) and
@@ -55,13 +35,17 @@ class DialfredEnv(gym.Env):
         scene: floor plan to use ('FloorPlan7'); None draws one of the 120 from the reset seed.
         max_steps, max_failures: episode limits.
         dirty_probability: chance that a cleanable object starts dirty.
+        goal_rule: how a task's go-to is judged (tasks.goals.GOAL_RULES): 'dialfred', within 4 actions
+            of the expert's end pose (DialFRED's rule, the default), or 'visible', the target in view
+            and within reach.
     """
 
     metadata = {'render_modes': ['rgb_array'], 'render_fps': 5}
 
     def __init__(self, resolution: int = DEFAULT_RESOLUTION, scene: Optional[str] = None,
                  max_steps: int = 1000, max_failures: int = 10, dirty_probability: float = 0.25,
-                 render_mode: Optional[str] = 'rgb_array'):
+                 render_mode: Optional[str] = 'rgb_array', goal_rule: str = 'dialfred'):
+        from .tasks.goals import check_goal_rule
         if not _is_integer(resolution) or not 16 <= resolution <= 1024:
             raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')
         if scene is not None:
@@ -69,6 +53,7 @@ class DialfredEnv(gym.Env):
         _check_count('max_steps', max_steps)
         _check_count('max_failures', max_failures)
         _check_probability('dirty_probability', dirty_probability)
+        self.goal_rule = check_goal_rule(goal_rule)
         self.resolution = int(resolution)
         self.scene = scene
         self.max_steps, self.max_failures = int(max_steps), int(max_failures)
@@ -149,6 +134,7 @@ class DialfredEnv(gym.Env):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
         from .tasks.expert import replay
         from .tasks.generator import apply_setup
+        task = task.under_rule(self.goal_rule)    # its goal and expert length as this env judges them
         episode = task.episode
         super().reset(seed=episode.seed)
         self._build(room_layout(episode.scene), self.dirty_probability)
@@ -247,7 +233,7 @@ class DialfredEnv(gym.Env):
 
     def _connect(self) -> None:
         """A new pybullet client (DIRECT, this env's own) and an empty world on it."""
-        with _quiet_stdout():
+        with quiet_stdout():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
         self.world = World(self.client, self.resolution, self.resolution)
 

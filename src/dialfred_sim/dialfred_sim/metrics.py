@@ -62,6 +62,8 @@ class EpisodeResult:
                                                    # (absent from results written before it was recorded)
     code: str = ''                   # the commit of the code that played it ('+dirty': an edited checkout;
                                      # '' in results written before it was recorded)
+    goal_rule: str = ''              # how its go-to was judged (tasks.goals.GOAL_RULES); '' in results written
+                                     # before it was recorded, which the 'visible' rule judged
 
     def __post_init__(self):
         if self.end_reason not in END_REASONS:
@@ -132,7 +134,8 @@ _DIALOGUE_TYPES = {'type': str, 'noun': str, 'valid': bool, 'answer': str}
 _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool, 'goal_conditions_met': int,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
-                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list, 'code': str}
+                'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list, 'code': str,
+                'goal_rule': str}
 # Fields that say how and where an episode was played, not what happened in it.
 RUN_FIELDS = ('wall_s', 'code')
 
@@ -283,28 +286,39 @@ def write_text_atomically(path: Union[str, Path], text: str) -> None:
 @contextlib.contextmanager
 def results_lock(path: Union[str, Path]):
     """Own the results file `path` for one run: an exclusive OS lock (flock) on `<path>.lock`, held
-    while the block runs and released when it ends or its process dies. ResultsFileError naming the
-    owner (pid, host, command) when another run holds it: two runs never append to one file."""
+    while the block runs and released when it ends or its process dies; the lock file is removed when
+    the block ends. ResultsFileError naming the owner (pid, host, command) when another run holds it:
+    two runs never append to one file."""
     import fcntl
     import socket
     import sys
     import time
     lock = Path(str(path) + '.lock')
     lock.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        owner = os.pread(fd, 4096, 0).decode('utf-8', errors='replace').strip() or 'another process'
-        os.close(fd)
-        raise ResultsFileError(f'{path} is being written by another run ({owner}): wait for it to end, or choose '
-                               'another --out') from None
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            owner = os.pread(fd, 4096, 0).decode('utf-8', errors='replace').strip() or 'another process'
+            os.close(fd)
+            raise ResultsFileError(f'{path} is being written by another run ({owner}): wait for it to end, or '
+                                   'choose another --out') from None
+        try:
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)     # the run before removed the file as we opened it: lock the one there now
     try:
         os.ftruncate(fd, 0)
         os.pwrite(fd, json.dumps({'pid': os.getpid(), 'host': socket.gethostname(), 'since': time.strftime('%FT%T'),
                                   'command': ' '.join(sys.argv)[:300]}).encode(), 0)
         yield
     finally:
+        with contextlib.suppress(FileNotFoundError):
+            lock.unlink()     # while still locked: a run waiting on this file sees it gone and starts over
         os.close(fd)
 
 

@@ -19,6 +19,7 @@ from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
 
 from .env import DEFAULT_RESOLUTION, DialfredEnv
 from .ground_truth import GroundTruthCache
+from .tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
@@ -71,7 +72,10 @@ PARAMETERS = (
     Param('max_failures', 10, 'an episode ends after this many failed actions', span=(1, 100_000)),
     Param('publish_observations', True, 'publish the observation of every reset and step on `/sim/observation`'),
     Param('tasks_file', '', 'a split file of your own (e.g. a test_unseen split): /sim/reset task ids are '
-          "looked up there first, then in the shipped splits; '' = shipped splits only"))
+          "looked up there first, then in the shipped splits; '' = shipped splits only"),
+    Param('goal_rule', DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
+          "expert's end pose (DialFRED's rule); visible = the target in view and within reach",
+          choices=GOAL_RULES))
 
 class SimNode(Node):
     """Thin ROS adapter over DialfredEnv."""
@@ -87,7 +91,8 @@ class SimNode(Node):
             raise TasksFileError(str(exc)) from None
         scene = p('scene').value or None
         self.env = DialfredEnv(resolution=int(p('resolution').value), scene=scene,
-                               max_steps=int(p('max_steps').value), max_failures=int(p('max_failures').value))
+                               max_steps=int(p('max_steps').value), max_failures=int(p('max_failures').value),
+                               goal_rule=p('goal_rule').value)
         self.publish_observations = bool(p('publish_observations').value)
         self.observation_pub = self.create_publisher(Observation, 'sim/observation', OBSERVATION_QOS)
         self.create_service(SimReset, 'sim/reset', self.on_reset, qos_profile=SERVICE_QOS)

@@ -298,9 +298,9 @@ def _count_done(out: Path) -> int:
 
 
 def _run_with_progress(pool, args, out: Path, total: int, progress: bool) -> None:
-    from tqdm import tqdm
-    with tqdm(total=total, initial=_count_done(out), unit='task', file=sys.stderr,
-              disable=not progress, dynamic_ncols=True) as bar:
+    from ..progress import progress_bar
+    with progress_bar(total=total, initial=_count_done(out), unit='task',
+              disable=not progress) as bar:
         if pool is None:
             _worker(*args[0])
         else:

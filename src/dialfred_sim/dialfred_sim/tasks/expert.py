@@ -17,6 +17,7 @@ from ..actions import LOOK_STEP, Action, execute, interact
 from ..world.rooms import GRID
 from ..world.scene import CAMERA_HEIGHT, HORIZON_MAX, HORIZON_MIN, World
 from .goals import is_reachable, reachable_mask
+from .navigation import successors
 from .schema import ExpertAction, Primitive
 
 KIND_TO_ACTION = {'pickup': Action.Pickup, 'put': Action.Put, 'open': Action.Open, 'close': Action.Close,
@@ -24,7 +25,6 @@ KIND_TO_ACTION = {'pickup': Action.Pickup, 'put': Action.Put, 'open': Action.Ope
 MARGIN = 0.08          # the expert keeps its targets this far inside the reach limit
 MAX_POSE_RENDERS = 40  # candidate poses looked at per navigation goal
 PREVIEW = 64           # pixels of the cheap first look at a candidate pose
-_STEP = {0: (1, 0), 90: (0, 1), 180: (-1, 0), 270: (0, -1)}
 
 
 class ExpertFailed(RuntimeError):
@@ -74,19 +74,12 @@ class Expert:
         parent = {start: None}
         queue = deque([start])
         free = self.world.free_floor()
-        held = self.world.objects[self.world.held] if self.world.held else None
         while queue:
             s = queue.popleft()
-            i, j, r = s
-            di, dj = _STEP[r]
-            for act, nxt in ((Action.MoveAhead, (i + di, j + dj, r)), (Action.RotateLeft, (i, j, (r + 90) % 360)),
-                             (Action.RotateRight, (i, j, (r - 90) % 360))):
-                if nxt in parent or (act == Action.MoveAhead and nxt[:2] not in free):
-                    continue
-                if held is not None and self.world.carry_spot(held, *nxt)[0] is None:
-                    continue
-                parent[nxt] = (s, act)
-                queue.append(nxt)
+            for act, nxt in successors(self.world, s, free):
+                if nxt not in parent:
+                    parent[nxt] = (s, act)
+                    queue.append(nxt)
         return parent
 
     def _clear_to_open(self, focus: Sequence[str], i: int, j: int) -> bool:

@@ -16,7 +16,7 @@ import numpy as np
 from ..world.catalog import load_catalog
 from ..world.scene import World
 from .expert import Expert, ExpertFailed, replay
-from .goals import conditions_met, goal_for, min_pixels
+from .goals import conditions_met, goal_for, min_pixels, needs_frame, rule_goal
 from .instructions import TASK_STEP_KINDS, StepPhrase, make_instructions
 from .schema import Episode, Primitive, Task
 
@@ -407,7 +407,7 @@ def cut_tasks(env, episode: Episode, rng: np.random.Generator, first_index: int,
                 nouns.setdefault(oid, world.objects[oid].otype.noun if oid in world.objects else oid)
                 types.setdefault(oid, world.objects[oid].type_name if oid in world.objects else '')
                 preps.setdefault(oid, world.objects[oid].otype.preposition if oid in world.objects else 'on')
-            goal = goal_for(name, chunk, types)
+            goal = goal_for(name, chunk, types, episode.poses)
             if not all(conditions_met(world, goal, frame)):   # a task must have something left to do
                 chosen = (name, chunk, goal)
                 break
@@ -415,35 +415,51 @@ def cut_tasks(env, episode: Episode, rng: np.random.Generator, first_index: int,
             k += 1
             continue
         name, chunk, goal = chosen
-        end = chunk[-1].end
-        if any(c.kind == 'reachable' for c in goal):
-            # Walking past the target can reach the goal before the expert's path ends; L* (for
-            # PWSR) and the end pose are those of the first moment the goal holds.
-            reached = False
-            for idx in range(start, end):
-                replay(world, episode.actions[idx:idx + 1])
-                done = idx + 1
-                if all(conditions_met(world, goal, world.render())):
-                    end, reached = idx + 1, True
-                    break
-            if not reached:
-                # The expert's path ends without enough of the target in reach (e.g. the object in
-                # hand hides it): the task could not be judged as stated. Skip the whole chunk.
-                k += len(chunk)
-                continue
-        step_by_step, main = make_instructions(name, _phrases(chunk, nouns, preps), rng)
+        # What the task's first object action is about, as the task starts.
         first = next((p for p in chunk if p.kind != 'goto'), chunk[0])
         focus = first.receptacle or first.target
         focus_obj = world.objects.get(focus)
         visible = focus_obj is not None and int((frame[2] == focus_obj.body).sum()) >= min_pixels(frame[2].shape)
         distractor = focus_obj is not None and any(
             o.type_name == focus_obj.type_name and o.object_id != focus for o in world.objects.values())
+        end, visible_end = chunk[-1].end, None
+        if any(c.kind == 'near' for c in goal):
+            # The goal can hold before the expert's path ends (DialFRED's go-to is done 4 actions
+            # before the expert's end pose; the target can come into view early): L* (for PWSR) is
+            # the first moment the goal holds, under each goal rule.
+            end, visible_end = _first_met(world, episode, start, chunk[-1].end,
+                                          [goal, rule_goal(name, goal, 'visible')])
+            done = chunk[-1].end
+            if end is None:
+                raise RuntimeError(f'{episode.episode_id}: the expert never meets the goal of its {name} task')
+            if visible_end is None:
+                # The target never showed enough on the expert's path (the object in hand hid it): the
+                # 'visible' rule judges the task over the whole path, and the expert fails it there.
+                visible_end = chunk[-1].end
+            visible_end = None if visible_end == end else visible_end     # stored only where it differs
+        step_by_step, main = make_instructions(name, _phrases(chunk, nouns, preps), rng)
         object_nouns = list(dict.fromkeys(nouns[q] for p in chunk for q in (p.target, p.receptacle) if q))
         task = Task(f'{episode.split}/{first_index + len(tasks):06d}', name, episode, start, end, goal,
-                    main, step_by_step, object_nouns, list(chunk), visible, distractor)
+                    main, step_by_step, object_nouns, list(chunk), visible, distractor, visible_end)
         tasks.append(task)
         k += len(chunk)
     return tasks
+
+
+def _first_met(world: World, episode: Episode, start: int, stop: int, goals: list) -> list[Optional[int]]:
+    """Replay the expert's actions [start, stop) on `world` one by one; per goal of `goals`, one past
+    the action after which it first holds (None if it never does)."""
+    found: list[Optional[int]] = [None] * len(goals)
+    for idx in range(start, stop):
+        replay(world, episode.actions[idx:idx + 1])
+        frame = None
+        for g, goal in enumerate(goals):
+            if found[g] is None:
+                if frame is None and needs_frame(goal):
+                    frame = world.render()
+                if all(conditions_met(world, goal, frame)):
+                    found[g] = idx + 1
+    return found
 
 
 def _set_pose(world: World, pose) -> None:

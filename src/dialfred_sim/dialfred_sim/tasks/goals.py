@@ -1,6 +1,14 @@
 """Goal conditions of the 25 task types and their check against the world (like ALFRED's
 `goal_conditions_met`): which conditions hold now, success when all do, and the goal-condition
-progress GC counts (`goal_progress`: only the conditions that did not hold at the task's start)."""
+progress GC counts (`goal_progress`: only the conditions that did not hold at the task's start).
+
+A go-to is judged by DialFRED's rule (its `GotoLocationAction` with `min_reach_distance` 5): the agent
+must stand within `NEAR_ACTIONS` actions of the pose where the expert's go-to ended, counted over the
+navigation graph (`navigation.actions_to_pose`). Every task whose steps include a go-to has that
+'near' condition for its last go-to, beside the conditions of its object actions. The rule used
+before, kept as the named variant 'visible' (`GOAL_RULES`), asks instead for enough of the target in
+view and within reach, and only of the Move and Pick & Move tasks (`rule_goal`).
+"""
 
 from __future__ import annotations
 
@@ -11,10 +19,36 @@ from typing import Optional, Sequence
 import numpy as np
 
 from ..actions import REACH
+from .navigation import Pose, actions_to_pose
 from ..world.scene import COLD, FOV_DEG, HOT, World
 from .schema import Condition, Primitive
 
 MIN_REACHABLE_PIXELS = 4     # at 128x128; scaled with the frame area
+NEAR_ACTIONS = 4             # DialFRED: a go-to is done when fewer than min_reach_distance (5) actions remain
+GOAL_RULES = ('dialfred', 'visible')   # how a go-to is judged: DialFRED's pose rule, or the target in view and reach
+DEFAULT_GOAL_RULE = 'dialfred'
+
+
+def pose_arg(pose) -> str:
+    """A pose (i, j, heading, pitch) as a 'near' condition's argument: 'i|j|heading|pitch' (as ALFRED
+    writes a go-to's location, 'loc|x|z|rotation|horizon', in grid units and degrees)."""
+    i, j, rot, horizon = pose
+    return f'{int(i)}|{int(j)}|{int(rot) % 360}|{int(round(horizon))}'
+
+
+def parse_pose_arg(arg: str) -> Pose:
+    """The pose of a 'near' condition's argument; ValueError for anything but four integers."""
+    parts = arg.split('|')
+    if len(parts) != 4:
+        raise ValueError(f"a 'near' condition's pose is 'i|j|heading|pitch', got {arg!r}")
+    i, j, rot, horizon = (int(p) for p in parts)
+    return i, j, rot, float(horizon)
+
+
+def check_goal_rule(rule: str) -> str:
+    if rule not in GOAL_RULES:
+        raise ValueError(f'unknown goal rule {rule!r}: expected one of {", ".join(GOAL_RULES)}')
+    return rule
 
 
 @functools.lru_cache(maxsize=8)
@@ -51,6 +85,9 @@ def is_reachable(world: World, object_id: str, depth: np.ndarray, seg: np.ndarra
 
 def condition_met(world: World, c: Condition, frame: Optional[tuple] = None) -> bool:
     objects = world.objects
+    if c.kind == 'near':
+        # The agent's own pose: it does not matter what became of the landmark.
+        return actions_to_pose(world, parse_pose_arg(c.arg), NEAR_ACTIONS) is not None
     if c.kind == 'sliced':
         # Slicing replaces the object by its pieces.
         return c.obj not in objects and any(o.sliced_from == c.obj for o in objects.values())
@@ -83,8 +120,29 @@ def condition_met(world: World, c: Condition, frame: Optional[tuple] = None) -> 
 
 
 def conditions_met(world: World, goal: Sequence[Condition], frame: Optional[tuple] = None) -> list[bool]:
-    """Per condition, whether it holds now. `frame` = (rgb, depth, segmentation) of the current view."""
+    """Per condition, whether it holds now. `frame` = (rgb, depth, segmentation) of the current view
+    (only 'reachable' looks at it)."""
     return [condition_met(world, c, frame) for c in goal]
+
+
+def needs_frame(goal: Sequence[Condition]) -> bool:
+    """Whether checking `goal` needs the current frame (a 'reachable' condition)."""
+    return any(c.kind == 'reachable' for c in goal)
+
+
+def rule_goal(task_type: str, goal: Sequence[Condition], rule: str) -> list[Condition]:
+    """The goal of a task of `task_type` under goal rule `rule`, from its goal under DialFRED's
+    (`goal_for`): under 'visible', a Move or Pick & Move task wants its target in view and within
+    reach where DialFRED wants the expert's pose, and the other tasks drop their pose condition."""
+    if check_goal_rule(rule) == 'dialfred':
+        return list(goal)
+    out = []
+    for c in goal:
+        if c.kind != 'near':
+            out.append(c)
+        elif task_type in ('Move', 'Pick & Move'):
+            out.append(Condition('reachable', c.obj))
+    return out
 
 
 def goal_progress(met_now: Sequence[bool], met_at_start: Sequence[bool]) -> tuple[int, int]:
@@ -105,11 +163,25 @@ def goal_progress(met_now: Sequence[bool], met_at_start: Sequence[bool]) -> tupl
 
 # ---------------------------------------------------------------------- goals of the task types
 
-def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, str]) -> list[Condition]:
-    """The goal conditions of a task of `task_type` made of `prims`.
+def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, str],
+             poses: Sequence[Pose]) -> list[Condition]:
+    """The goal conditions of a task of `task_type` made of `prims`, under DialFRED's rule: those of
+    its object actions, and, when it has a go-to, being near the pose the expert ended the task at.
 
     `world_types` maps object ids to type names (receptacles are matched by type, as ALFRED does;
-    the object acted on is the very instance, which appearance questions tell apart)."""
+    the object acted on is the very instance, which appearance questions tell apart); `poses` are
+    the episode's expert poses (the pose before each action, and at the end)."""
+    conds = _object_goal(task_type, prims, world_types)
+    gotos = [p for p in prims if p.kind == 'goto']
+    if gotos:
+        # ALFRED's expert never walks inside an interaction, so there the go-to's end pose is where the
+        # task ends. Ours sometimes steps closer to reach into a container: the pose wanted is where
+        # the task's steps end (Task.expert_end_pose, which the direction answers point to).
+        conds.append(Condition('near', gotos[-1].target, pose_arg(poses[prims[-1].end])))
+    return conds
+
+
+def _object_goal(task_type: str, prims: Sequence[Primitive], world_types: dict[str, str]) -> list[Condition]:
     last = prims[-1]
     main = task_type.split(' & ')[-1] if task_type.startswith('Move & ') else task_type
     if main in ('Clean', 'Cool', 'Heat'):
@@ -120,11 +192,10 @@ def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, 
         appliance = last.target   # the fridge or microwave, closed last
         pickup = prims[-2]
         return [Condition(state, pickup.target), Condition('holding', pickup.target), Condition('closed', appliance)]
-    if main in ('Move', 'Pick & Move'):
-        conds = [Condition('reachable', last.target)]
-        if main == 'Pick & Move':
-            conds.insert(0, Condition('holding', prims[0].target))
-        return conds
+    if main == 'Move':
+        return []
+    if main == 'Pick & Move':
+        return [Condition('holding', prims[0].target)]
     if main == 'Open':
         return [Condition('open', last.target)]
     if main == 'Close':

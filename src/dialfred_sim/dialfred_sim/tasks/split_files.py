@@ -57,7 +57,8 @@ def episode_to_json(episode: Episode, tasks: list[Task]) -> dict:
             'step_instructions': t.step_instructions, 'object_nouns': t.object_nouns,
             'primitives': [episode.primitives.index(p) for p in t.primitives],
             'target_visible_at_start': t.target_visible_at_start, 'has_distractor': t.has_distractor,
-        } for t in tasks],
+            **({'visible_end': t.visible_end} if t.visible_end is not None else {}),
+        } for t in _under_dialfred_rule(tasks)],
     }
 
 
@@ -69,7 +70,16 @@ def tasks_from_json(row: dict) -> list[Task]:
     return [Task(t['task_id'], t['task_type'], episode, int(t['start']), int(t['end']),
                  [Condition.from_json(c) for c in t['goal']], t['instruction'], list(t['step_instructions']),
                  list(t['object_nouns']), [episode.primitives[i] for i in t['primitives']],
-                 bool(t['target_visible_at_start']), bool(t['has_distractor'])) for t in row['tasks']]
+                 bool(t['target_visible_at_start']), bool(t['has_distractor']),
+                 int(t['visible_end']) if t.get('visible_end') is not None else None) for t in row['tasks']]
+
+
+def _under_dialfred_rule(tasks: list[Task]) -> list[Task]:
+    """Split files keep tasks as DialFRED's rule judges them (Task.under_rule makes the other rule's)."""
+    bad = [t.task_id for t in tasks if t.goal_rule != 'dialfred']
+    if bad:
+        raise ValueError(f'tasks {bad[:3]} follow the {tasks[0].goal_rule!r} goal rule: a split file keeps DialFRED\'s')
+    return tasks
 
 
 def packaged_path(split: str) -> Path:

@@ -74,7 +74,7 @@ def generate_split(split: str, size: Optional[int] = None, progress: bool = True
 
     With workers > 1, that many processes play the episodes ahead and this one takes their rows in
     episode order: the same rows as one process gives. `progress` shows a bar of tasks on stderr."""
-    from tqdm import tqdm
+    from ..progress import progress_bar
     size = SPLIT_SIZES[split] if size is None else size
     check_split_seed(split, split_seed)
     if isinstance(size, bool) or not isinstance(size, int) or size < 1:
@@ -83,7 +83,7 @@ def generate_split(split: str, size: Optional[int] = None, progress: bool = True
         raise ValueError(f'workers must be an integer >= 1, got {workers!r}')
     rows = _played_in_process(split, split_seed) if workers == 1 else _played_in_workers(split, split_seed, workers)
     n_tasks = 0
-    with tqdm(total=size, unit='task', desc=split, file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
+    with progress_bar(total=size, unit='task', desc=split, disable=not progress) as bar:
         try:
             for index, row in rows:
                 if row is None:

@@ -17,7 +17,7 @@ import functools
 import math
 from typing import Any, Sequence
 
-import pybullet
+from .bullet import pybullet
 
 from . import palette
 from .geometry import Part, ShapeSpec, Vec3

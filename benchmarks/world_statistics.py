@@ -1,0 +1,45 @@
+#!/usr/bin/env python3
+"""How the world and a split compare with AI2-THOR's and ALFRED's (no ROS); prints JSON.
+
+Per room type: `navigable_points`, `receptacles`, `openable_fixtures`, `small_objects`; per split:
+`goto_actions`, `goto_moves`, `goto_turns`, `goto_looks`, `actions_before_first_interaction`,
+`first_target_multi_instance`, `first_target_in_closed`, `first_target_distance_m`,
+`target_visible_at_task_start`. Beside each figure AI2-THOR has, `reference` is its value and
+`ratio` ours over it. Definitions and sources: dialfred_sim/tasks/statistics.py, docs/dataset.md.
+
+    ./dialfred bench world_statistics [--split valid_unseen] [--episodes N | --tasks N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--split', default='valid_unseen', choices=('train', 'valid_seen', 'valid_unseen'),
+                        help='a shipped split (default: valid_unseen)')
+    limits = parser.add_mutually_exclusive_group()
+    limits.add_argument('--episodes', type=int, default=None, help='only the first N episodes of the split')
+    limits.add_argument('--tasks', type=int, default=None, help='only the episodes of the first N tasks')
+    args = parser.parse_args()
+    for name in ('episodes', 'tasks'):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            parser.error(f'--{name} must be at least 1, got {value}')
+
+    from dialfred_sim.tasks import load_split
+    from dialfred_sim.tasks.statistics import world_statistics
+
+    t0 = time.monotonic()
+    tasks = load_split(args.split)
+    if args.tasks is not None:
+        tasks = tasks[:args.tasks]
+    figures = world_statistics(tasks, args.episodes)
+    print(json.dumps({'split': args.split, **figures, 'seconds': round(time.monotonic() - t0, 1)}, indent=1))
+
+
+if __name__ == '__main__':
+    main()

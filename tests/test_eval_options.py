@@ -1,0 +1,90 @@
+"""`launch eval`'s options: a bad one exits 2 with one line before anything starts, a resumed run says
+what it resumes, and a run leaves no lock file behind (no ROS needed for any of these)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+from pathlib import Path
+
+import pytest
+
+import dialfred_bringup.launch
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_sim.metrics import ResultsFileError, results_lock
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def launch_eval(*args: str) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = dialfred_bringup.launch.main(['eval', '--agent', 'random', '--no-progress', *args])
+        except SystemExit as exc:       # argparse's own refusals
+            code = exc.code
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.mark.parametrize('args, says', [
+    (('--limit', '-3'), '--limit must be at least 1'),
+    (('--limit', '0'), '--limit must be at least 1'),
+    (('--workers', '0'), '--workers must be at least 1'),
+    (('--resolution', '0'), '--resolution must be 16 to 1024'),
+    (('--local', '--resolution', '7'), '--resolution must be 16 to 1024'),
+    (('--out', '/proc/x.jsonl'), 'no file can be made in /proc'),
+    (('--out', 'README.md/x.jsonl'), 'README.md is a file, not a folder'),
+    (('--out', 'docs'), 'is a folder'),
+])
+def test_a_bad_option_exits_2_with_one_line_and_writes_nothing(args, says, tmp_path, monkeypatch):
+    monkeypatch.chdir(REPO)
+    before = sorted(os.listdir(REPO))
+    code, out, err = launch_eval(*args)
+    assert code == 2, (out, err)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and says in lines[0], err
+    assert sorted(os.listdir(REPO)) == before
+    assert not Path('/proc/x.jsonl.lock').exists()
+
+
+def test_a_limit_of_0_leaves_an_existing_summary_alone(tmp_path):
+    out = tmp_path / 'run.jsonl'
+    summary = out.with_suffix('.summary.json')
+    summary.write_text('{"kept": true}\n')
+    code, _, err = launch_eval('--limit', '0', '--out', str(out))
+    assert code == 2 and summary.read_text() == '{"kept": true}\n'
+
+
+def test_a_run_leaves_no_lock_file_and_a_resumed_run_says_how_many_tasks_are_done(tmp_path):
+    out = tmp_path / 'run.jsonl'
+    config = EvalConfig(split='valid_unseen', agent='random', limit=2, workers=1, local=True, out=out)
+    run_eval(config, progress=False)
+    assert out.exists() and not Path(str(out) + '.lock').exists()
+    more = EvalConfig(split='valid_unseen', agent='random', limit=3, workers=1, local=True, out=out)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        report = run_eval(more, progress=False)
+    assert report.ran == 1 and 'resuming: 2 of 3 tasks are already in' in err.getvalue()
+    assert not Path(str(out) + '.lock').exists()
+
+
+def test_the_lock_still_keeps_a_second_run_out_and_goes_with_the_first(tmp_path):
+    path = tmp_path / 'r.jsonl'
+    with results_lock(path):
+        assert Path(str(path) + '.lock').exists()
+        with pytest.raises(ResultsFileError, match='being written by another run'):
+            with results_lock(path):
+                pass
+    assert not Path(str(path) + '.lock').exists()
+    with results_lock(path):        # free again
+        pass
+
+
+def test_launch_nodes_starts_the_camera_the_shipped_performer_was_trained_at():
+    from dialfred_bringup.launch import NodesConfig, nodes_resolution
+    from dialfred_performer.model import SHIPPED_CHECKPOINT
+    from dialfred_performer.models import camera_resolution
+    assert NodesConfig().resolution is None
+    assert nodes_resolution(None) == camera_resolution('et', SHIPPED_CHECKPOINT) == 64
+    assert nodes_resolution(128) == 128
