@@ -88,3 +88,12 @@ def test_launch_nodes_starts_the_camera_the_shipped_performer_was_trained_at():
     assert NodesConfig().resolution is None
     assert nodes_resolution(None) == camera_resolution('et', SHIPPED_CHECKPOINT) == 64
     assert nodes_resolution(128) == 128
+
+
+def test_max_questions_ends_an_episode_whose_questioner_asks_more_in_a_row(tmp_path):
+    config = EvalConfig(split='valid_unseen', agent='random', questioner='all', limit=1, workers=1, local=True,
+                        max_questions=2, out=tmp_path / 'capped.jsonl')
+    (result,) = run_eval(config, progress=False).results
+    assert result.end_reason == 'error' and 'asked more than 2 questions without acting' in result.error
+    code, _, err = launch_eval('--max-questions', '0', '--out', str(tmp_path / 'x.jsonl'))
+    assert code == 2 and '--max-questions must be 1 to 1000' in err

@@ -41,7 +41,7 @@ from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
 from dialfred_sim.metrics import ResultsFileError, played_at
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES
 from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
@@ -112,6 +112,8 @@ class EvalConfig:
     perturb_type: str = arg('', 'the paper\'s ablation: the oracle withholds answers of this type ("I don\'t know.")',
                             choices=QUESTION_TYPES, aliases={'none': ''})
     perturb_probability: float = arg(0.5, 'how often it withholds them (0.5 in the paper)')
+    max_questions: int = arg(MAX_QUESTIONS, 'questions in a row without acting before an episode ends with an '
+                             'error (the performer node\'s max_questions)', metavar='N')
     goal_rule: str = arg(DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
                          "expert's end pose (DialFRED's rule); visible = the target in view and within reach "
                          '(results are named ..._goal-visible)', choices=GOAL_RULES)
@@ -241,6 +243,8 @@ class EvalConfig:
             raise ValueError(f'--limit must be at least 1 (leave it out for every task), got {self.limit}')
         if self.workers < 1:
             raise ValueError(f'--workers must be at least 1, got {self.workers}')
+        if not 1 <= self.max_questions <= 1000:
+            raise ValueError(f'--max-questions must be 1 to 1000, got {self.max_questions}')
         if not 16 <= self.resolution <= 1024:
             raise ValueError(f'--resolution must be 16 to 1024 pixels, got {self.resolution}')
         if not self.request_timeout > 0 or not self.episode_timeout > 0:

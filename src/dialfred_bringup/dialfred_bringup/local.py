@@ -50,7 +50,8 @@ def play_episode(config, env, agent, perturbation, index: int, task):
     from dialfred_sim.episode import play, run
     from dialfred_sim.protocol import episode_seed
     started = time.monotonic()
-    episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=bool(config.questioner))
+    episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=bool(config.questioner),
+                   max_questions=config.max_questions)
     state = run(episode, EnvServer(env, task, perturbation))
     return episode_result(config, task, agent, state, time.monotonic() - started)
 

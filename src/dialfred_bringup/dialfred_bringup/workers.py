@@ -60,7 +60,7 @@ class SimWorker(EpisodeObserver):
             self.live.begin(task)
         self.episode = play(self.agent, seed=episode_seed(self.config.seed, index),
                             told=task_view(self.agent, task),      # the public view, unless privileged
-                            asks=self.ask_cli is not None, observers=[self])
+                            asks=self.ask_cli is not None, max_questions=self.config.max_questions, observers=[self])
         self._request(next(self.episode))
 
     def overdue(self) -> bool:
@@ -451,6 +451,7 @@ def worker_nodes(config, namespace: str, **sim_params) -> list:
         nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
                                                         'model': config.performer,
                                                         'questioner': bool(config.questioner),
+                                                        'max_questions': config.max_questions,
                                                         'request_timeout': config.request_timeout, **record},
                                  namespace=namespace))
     return nodes

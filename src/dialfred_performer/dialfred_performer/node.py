@@ -44,7 +44,7 @@ from dialfred_msgs.msg import Action, QAPair
 from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
 from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
 from dialfred_sim.messages import qa_msg, sim_reply, task_description_msg
-from dialfred_sim.protocol import QA, Question, top2_gap
+from dialfred_sim.protocol import MAX_QUESTIONS, QA, Question, top2_gap
 from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, refused_request, run_node
 
@@ -72,7 +72,7 @@ PARAMETERS = (
     Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
     Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
           'fails', span=(0.1, 86_400.0), dynamic=True),
-    Param('max_questions', 20, 'questions in a row without acting before the goal fails', span=(1, 1000),
+    Param('max_questions', MAX_QUESTIONS, 'questions in a row without acting before the goal fails', span=(1, 1000),
           dynamic=True),
     Param('torch_threads', 1, 'torch intra-op threads (1: the simulators and other workers share the cores)',
           span=(1, 256)),
