@@ -209,16 +209,15 @@ def world_table(world: dict) -> list[str]:
         for room, figures in world['rooms'].items():
             row(f'{name}: {room.replace("_", " ")}', figures[key], lambda v: f'{v:.1f}')
     split = world['per_split']
-    percent = lambda v: f'{100 * v:.1f}%'          # noqa: E731
     for key, name, fmt in (('goto_actions', 'actions per go-to', _decimal), ('goto_moves', '... moves', _decimal),
                            ('goto_turns', '... turns', _decimal), ('goto_looks', '... looks', _decimal),
                            ('actions_before_first_interaction', 'expert actions before the first interaction',
                             _decimal),
                            ('small_objects', 'small objects at an episode\'s start', _decimal),
-                           ('first_target_multi_instance', 'first target has a second instance of its type', percent),
-                           ('first_target_in_closed', 'first target starts in a closed receptacle', percent),
+                           ('first_target_multi_instance', 'first target has a second instance of its type', _percent),
+                           ('first_target_in_closed', 'first target starts in a closed receptacle', _percent),
                            ('first_target_distance_m', 'first target\'s distance from the start (m)', _decimal),
-                           ('target_visible_at_task_start', 'a task\'s first object in the first frame', percent)):
+                           ('target_visible_at_task_start', 'a task\'s first object in the first frame', _percent)):
         row(name, split[key], fmt)
     return markdown_table(['figure', 'here', 'AI2-THOR / ALFRED', 'ratio'], rows, 'lrrr')
 

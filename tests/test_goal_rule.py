@@ -10,7 +10,7 @@ import pytest
 from dialfred_sim.env import DialfredEnv
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.goals import (GOAL_RULES, NEAR_ACTIONS, conditions_met, parse_pose_arg, pose_arg,
-                                      rule_goal)
+                                      rule_goal, under_rule)
 from dialfred_sim.tasks.navigation import STEP, actions_to_pose
 from dialfred_sim.world.scene import HORIZON_MAX, HORIZON_MIN
 
@@ -126,14 +126,14 @@ def test_the_visible_rule_is_the_earlier_goal():
 def test_a_task_under_the_visible_rule_has_that_goal_and_its_own_expert_length(tasks):
     moved = [t for t in tasks if t.task_type in ('Move', 'Pick & Move')]
     for t in moved:
-        v = t.under_rule('visible')
+        v = under_rule(t, 'visible')
         assert v.goal_rule == 'visible' and [c.kind for c in v.goal][-1] == 'reachable'
         assert v.end == (t.visible_end if t.visible_end is not None else t.end)
         assert v.expert_end_pose == t.expert_end_pose       # the direction answers point to the same pose
-        assert v.under_rule('visible') is v
-    assert t.under_rule('dialfred') is t
+        assert under_rule(v, 'visible') is v
+    assert under_rule(t, 'dialfred') is t
     with pytest.raises(ValueError, match='only a task under'):
-        t.under_rule('visible').under_rule('dialfred')
+        under_rule(under_rule(t, 'visible'), 'dialfred')
 
 
 @pytest.mark.parametrize('rule', GOAL_RULES)
@@ -142,7 +142,7 @@ def test_the_expert_meets_the_goal_under_either_rule_on_tasks_with_a_go_to(tasks
     env = DialfredEnv(resolution=sample[0].resolution, goal_rule=rule)
     try:
         for task in sample:
-            task = task.under_rule(rule)
+            task = under_rule(task, rule)
             _, info = env.reset(options={'task': task})
             assert not info['success'], task.task_id
             steps = 0

@@ -37,7 +37,7 @@ from dialfred_bringup.workers import worker_nodes
 from dialfred_bringup.graph import Graph, NodeProcess
 
 REPO = Path(__file__).resolve().parents[1]
-SPLIT, TASK_INDEX = 'valid_seen', 4        # 13 steps, direction and appearance questions (12 steps when withheld)
+SPLIT, TASK_INDEX = 'valid_seen', 11       # 11 steps, direction and appearance questions (so when withheld)
 TIMING = {'mode': 'anytime', 'gap': 2, 'epsilon': 0.5}
 CONFUSION = {'mode': 'confusion', 'gap': 5, 'epsilon': 0.8}     # on this task: questions before 7 of 13 actions
 DIRECTION_BIAS = 0.2

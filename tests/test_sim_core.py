@@ -460,7 +460,7 @@ def test_pickup_fails_out_of_reach(env):
     apple = spawn_on(env, 'Apple', counter(env).object_id)
     px = face_from_afar(env, apple.object_id)
     assert distance_at(env, px) > REACH
-    fails(env, 'Pickup', px, match=rf'{apple.object_id} is out of reach \(\d+\.\d\d m away; reach is 1.5 m\)')
+    fails(env, 'Pickup', px, match=rf'{apple.object_id} is out of reach \(\d+\.\d\d m away; reach is 1.50 m\)')
     assert w.held is None
 
 

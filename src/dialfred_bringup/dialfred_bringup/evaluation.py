@@ -42,7 +42,7 @@ from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
 from dialfred_sim.metrics import ResultsFileError, played_at
 from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES
-from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
+from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES, under_rule
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .graph import Graph
@@ -451,7 +451,7 @@ def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> Eva
 
     t0 = time.monotonic()
     tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
-    tasks = [t.under_rule(config.goal_rule) for t in tasks]      # goals and expert lengths as the run judges them
+    tasks = [under_rule(t, config.goal_rule) for t in tasks]      # goals and expert lengths as the run judges them
     selected = shard_tasks(tasks, config.shard)       # (index in the split, task): the index seeds the episode
     tasks = [t for _, t in selected]
     done = resumable_results(config, [t.task_id for t in tasks])

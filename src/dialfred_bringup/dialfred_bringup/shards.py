@@ -90,8 +90,8 @@ def shard_tasks(tasks: Sequence, shard) -> list[tuple[int, object]]:
 
 # What must be the same in every shard's .summary.json (EvalReport.to_json of dialfred_bringup/evaluation.py) for
 # their results to be one run's; `workers`, `this_run` and the file names may differ.
-SAME_RUN = ('split', 'tasks_file', 'agent', 'oracle', 'seed', 'resolution', 'through', 'checkpoint', 'limit',
-            'shard_count')
+SAME_RUN = ('split', 'tasks_file', 'agent', 'oracle', 'seed', 'resolution', 'goal_rule', 'through', 'checkpoint',
+            'limit', 'shard_count')
 
 
 @dataclass
@@ -115,7 +115,7 @@ class ShardFile:
         checkpoint = run.get('checkpoint')
         return {'split': run.get('split'), 'tasks_file': tasks_file['sha256'] if tasks_file else None,
                 'agent': run.get('agent'), 'oracle': run.get('oracle'), 'seed': run.get('seed'),
-                'resolution': run.get('resolution'), 'through': run.get('through'),
+                'resolution': run.get('resolution'), 'goal_rule': run.get('goal_rule'), 'through': run.get('through'),
                 'checkpoint': checkpoint['sha256'] if checkpoint else None, 'limit': run.get('limit'),
                 'shard_count': self.count}
 
@@ -278,7 +278,7 @@ def merged_run(shards: list[ShardFile], results: list[EpisodeResult], out: Path,
     return {
         'split': first.get('split'), 'tasks_file': first.get('tasks_file'), 'agent': first.get('agent'),
         'privileged': any(r.privileged for r in results), 'oracle': first.get('oracle'), 'seed': first.get('seed'),
-        'resolution': first.get('resolution'),
+        'resolution': first.get('resolution'), 'goal_rule': first.get('goal_rule'),
         'workers': sum(s.run.get('workers') or 0 for s in shards),
         'through': first.get('through'), 'checkpoint': first.get('checkpoint'), 'limit': first.get('limit'),
         'shard': None, 'results_file': str(out), 'tasks': len(results), 'played_at': played_at(results),

@@ -134,7 +134,8 @@ class DialfredEnv(gym.Env):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
         from .tasks.expert import replay
         from .tasks.generator import apply_setup
-        task = task.under_rule(self.goal_rule)    # its goal and expert length as this env judges them
+        from .tasks.goals import under_rule
+        task = under_rule(task, self.goal_rule)    # its goal and expert length as this env judges them
         episode = task.episode
         super().reset(seed=episode.seed)
         self._build(room_layout(episode.scene), self.dirty_probability)

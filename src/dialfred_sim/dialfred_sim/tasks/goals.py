@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import replace
 from typing import Optional, Sequence
 
 import numpy as np
@@ -21,7 +22,7 @@ import numpy as np
 from ..actions import REACH
 from .navigation import Pose, actions_to_pose
 from ..world.scene import COLD, FOV_DEG, HOT, World
-from .schema import Condition, Primitive
+from .schema import Condition, Primitive, Task
 
 MIN_REACHABLE_PIXELS = 4     # at 128x128; scaled with the frame area
 NEAR_ACTIONS = 4             # DialFRED: a go-to is done when fewer than min_reach_distance (5) actions remain
@@ -123,6 +124,21 @@ def conditions_met(world: World, goal: Sequence[Condition], frame: Optional[tupl
     """Per condition, whether it holds now. `frame` = (rgb, depth, segmentation) of the current view
     (only 'reachable' looks at it)."""
     return [condition_met(world, c, frame) for c in goal]
+
+
+def under_rule(task: Task, rule: str) -> Task:
+    """`task` as the goal rule `rule` judges it (GOAL_RULES): its goal, and its end, the first moment
+    that goal holds on the expert's path (hence the expert's length for PWSR). The same task when it
+    already follows `rule`. Under 'visible', a task whose target never showed enough on the expert's
+    path ends with the path (and the expert fails it). ValueError for an unknown rule, or a task not
+    under DialFRED's rule asked for another (split files keep DialFRED's)."""
+    if check_goal_rule(rule) == task.goal_rule:
+        return task
+    if task.goal_rule != 'dialfred':
+        raise ValueError(f'task {task.task_id} follows the {task.goal_rule!r} rule; only a task under '
+                         "DialFRED's rule converts")
+    end = task.visible_end if task.visible_end is not None else task.end
+    return replace(task, goal=rule_goal(task.task_type, task.goal, rule), end=end, visible_end=None, goal_rule=rule)
 
 
 def needs_frame(goal: Sequence[Condition]) -> bool:

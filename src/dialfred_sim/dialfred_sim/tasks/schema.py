@@ -9,7 +9,7 @@ expert left it at the task's first action.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Optional
 
 # The 25 DialFRED task types, in the order of the paper's table.
@@ -135,22 +135,7 @@ class Task:
     target_visible_at_start: bool = True
     has_distractor: bool = False
     visible_end: Optional[int] = None   # `end` under the 'visible' goal rule, where it differs (goals.rule_goal)
-    goal_rule: str = 'dialfred'         # the rule `goal` and `end` follow (`under_rule` makes the other)
-
-    def under_rule(self, rule: str) -> 'Task':
-        """This task as the goal rule `rule` judges it (goals.GOAL_RULES): its goal, and its end, the
-        first moment that goal holds on the expert's path (hence the expert's length for PWSR).
-        The same task when it already follows `rule`. Under 'visible', a task whose target never
-        showed enough on the expert's path ends with the path (and the expert fails it)."""
-        from .goals import check_goal_rule, rule_goal
-        if check_goal_rule(rule) == self.goal_rule:
-            return self
-        if self.goal_rule != 'dialfred':
-            raise ValueError(f'task {self.task_id} follows the {self.goal_rule!r} rule; only a task under '
-                             "DialFRED's rule converts")
-        end = self.visible_end if self.visible_end is not None else self.end
-        return replace(self, goal=rule_goal(self.task_type, self.goal, rule), end=end, visible_end=None,
-                       goal_rule=rule)
+    goal_rule: str = 'dialfred'         # the rule `goal` and `end` follow (goals.under_rule makes the other)
 
     @property
     def split(self) -> str:

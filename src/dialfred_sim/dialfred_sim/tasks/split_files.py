@@ -75,7 +75,7 @@ def tasks_from_json(row: dict) -> list[Task]:
 
 
 def _under_dialfred_rule(tasks: list[Task]) -> list[Task]:
-    """Split files keep tasks as DialFRED's rule judges them (Task.under_rule makes the other rule's)."""
+    """Split files keep tasks as DialFRED's rule judges them (goals.under_rule makes the other rule's)."""
     bad = [t.task_id for t in tasks if t.goal_rule != 'dialfred']
     if bad:
         raise ValueError(f'tasks {bad[:3]} follow the {tasks[0].goal_rule!r} goal rule: a split file keeps DialFRED\'s')
