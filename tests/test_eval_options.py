@@ -57,16 +57,17 @@ def test_a_limit_of_0_leaves_an_existing_summary_alone(tmp_path):
 
 
 def test_a_run_leaves_no_lock_file_and_a_resumed_run_says_how_many_tasks_are_done(tmp_path):
+    from dialfred_sim.metrics import EpisodeResult, append_result
     out = tmp_path / 'run.jsonl'
     config = EvalConfig(split='valid_unseen', agent='random', limit=2, workers=1, local=True, out=out)
-    run_eval(config, progress=False)
-    assert out.exists() and not Path(str(out) + '.lock').exists()
-    more = EvalConfig(split='valid_unseen', agent='random', limit=3, workers=1, local=True, out=out)
+    for k in range(2):       # a run cut off after both its episodes were written
+        append_result(out, EpisodeResult(f'valid_unseen/{k:06d}', 'Move', 'valid_unseen', False, 0, 1, 3, 5,
+                                         agent='random', goal_rule='dialfred'))
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        report = run_eval(more, progress=False)
-    assert report.ran == 1 and 'resuming: 2 of 3 tasks are already in' in err.getvalue()
-    assert not Path(str(out) + '.lock').exists()
+        report = run_eval(config, progress=False)
+    assert report.ran == 0 and 'resuming: 2 of 2 tasks are already in' in err.getvalue()
+    assert config.summary_path.exists() and not Path(str(out) + '.lock').exists()
 
 
 def test_the_lock_still_keeps_a_second_run_out_and_goes_with_the_first(tmp_path):
@@ -91,9 +92,23 @@ def test_launch_nodes_starts_the_camera_the_shipped_performer_was_trained_at():
 
 
 def test_max_questions_ends_an_episode_whose_questioner_asks_more_in_a_row(tmp_path):
-    config = EvalConfig(split='valid_unseen', agent='random', questioner='all', limit=1, workers=1, local=True,
-                        max_questions=2, out=tmp_path / 'capped.jsonl')
-    (result,) = run_eval(config, progress=False).results
+    """The option reaches the episode loop of the local path (the graph's reaches the performer node's
+    max_questions parameter, in worker_nodes)."""
+    from dialfred_bringup.local import play_episode
+    from dialfred_bringup.workers import worker_nodes
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks import load_split
+    config = EvalConfig(split='valid_unseen', agent='random', questioner='all', max_questions=2, performer='',
+                        out=tmp_path / 'capped.jsonl')
+    env = DialfredEnv(resolution=config.resolution)
+    try:
+        result = play_episode(config, env, config.make_agent(), None, 0, load_split('valid_unseen')[0])
+    finally:
+        env.close()
     assert result.end_reason == 'error' and 'asked more than 2 questions without acting' in result.error
+    node = EvalConfig(split='valid_unseen', performer='et', questioner='all', max_questions=7)
+    node.check()
+    performer = next(n for n in worker_nodes(node, '/w0') if n.package == 'dialfred_performer')
+    assert performer.parameters['max_questions'] == 7
     code, _, err = launch_eval('--max-questions', '0', '--out', str(tmp_path / 'x.jsonl'))
     assert code == 2 and '--max-questions must be 1 to 1000' in err
