@@ -193,6 +193,7 @@ def test_a_longer_limit_resumes_without_redoing_or_losing_episodes(random_run, t
     assert evaluate(path, limit=6).ran == 0                   # nothing left to do
 
 
+@pytest.mark.slow   # a launcher process interrupted mid-run; resuming has fast tests of its own (test_eval_options.py)
 def test_a_run_interrupted_by_ctrl_c_resumes_where_it_stopped(tmp_path):
     path = tmp_path / 'interrupted.jsonl'
     cmd = [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', SPLIT, '--agent', 'expert',

@@ -112,3 +112,17 @@ def test_max_questions_ends_an_episode_whose_questioner_asks_more_in_a_row(tmp_p
     assert performer.parameters['max_questions'] == 7
     code, _, err = launch_eval('--max-questions', '0', '--out', str(tmp_path / 'x.jsonl'))
     assert code == 2 and '--max-questions must be 1 to 1000' in err
+
+
+def test_ctrl_c_before_the_first_episode_says_nothing_was_written(tmp_path, monkeypatch):
+    import dialfred_bringup.evaluation as evaluation
+
+    def interrupted(config, progress=True):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(evaluation, 'run_eval', interrupted)
+    out = tmp_path / 'never.jsonl'
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), pytest.raises(KeyboardInterrupt):
+        evaluation.run_eval_command(
+            dialfred_bringup.launch.make_parser().parse_args(['eval', '--agent', 'random', '--out', str(out)]))
+    assert 'before the first episode ended: nothing was written' in err.getvalue() and not out.exists()
