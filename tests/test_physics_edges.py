@@ -41,7 +41,7 @@ def test_no_open_door_stands_within_the_agents_radius_of_a_point_it_may_stand_on
         world.set_open(obj, False)
         assert close == [], f'{oid} open leaves free points inside the agent radius of its moving part: {close}'
         checked += 1
-    assert checked >= 5
+    assert checked >= 3
 
 
 def test_a_door_does_not_open_into_the_agent_and_the_agent_cannot_walk_into_an_open_door(sim):
