@@ -22,26 +22,20 @@ def tasks():
     return load_split(SPLIT)
 
 
-@pytest.fixture(scope='module')
-def sim():
-    env = DialfredEnv(resolution=64)
-    yield env
-    env.close()
-
 
 def near_of(task):
     return next(c for c in task.goal if c.kind == 'near')
 
 
-def move_task_with_room_behind(tasks, sim, steps: int = 5):
+def move_task_with_room_behind(tasks, env, steps: int = 5):
     """A Move task whose end pose has `steps` free points behind it and room to look 45 degrees
     either way, with the env reset to it."""
     for task in tasks:
         if task.task_type != 'Move':
             continue
         i, j, rot, horizon = parse_pose_arg(near_of(task).arg)
-        sim.reset(options={'task': task})
-        free = sim.world.free_floor()
+        env.reset(options={'task': task})
+        free = env.world.free_floor()
         di, dj = STEP[rot]
         if all((i - k * di, j - k * dj) in free for k in range(steps + 1)):
             return task
@@ -53,41 +47,41 @@ def look_sign(horizon: float) -> int:
     return -1 if horizon - 45 >= HORIZON_MIN else 1
 
 
-def near_holds(sim, task, i, j, rot, horizon) -> bool:
-    sim.teleport(i, j, rot, horizon)
-    return conditions_met(sim.world, [near_of(task)])[0]
+def near_holds(env, task, i, j, rot, horizon) -> bool:
+    env.teleport(i, j, rot, horizon)
+    return conditions_met(env.world, [near_of(task)])[0]
 
 
-def test_a_pose_4_moves_from_the_experts_end_pose_meets_the_goal_and_5_does_not(tasks, sim):
-    task = move_task_with_room_behind(tasks, sim)
+def test_a_pose_4_moves_from_the_experts_end_pose_meets_the_goal_and_5_does_not(tasks, env):
+    task = move_task_with_room_behind(tasks, env)
     i, j, rot, horizon = parse_pose_arg(near_of(task).arg)
     di, dj = STEP[rot]
-    assert near_holds(sim, task, i, j, rot, horizon)
-    assert near_holds(sim, task, i - 4 * di, j - 4 * dj, rot, horizon)
-    assert actions_to_pose(sim.world, (i, j, rot, horizon), 10) == 4
-    assert not near_holds(sim, task, i - 5 * di, j - 5 * dj, rot, horizon)
-    assert actions_to_pose(sim.world, (i, j, rot, horizon), 10) == 5
+    assert near_holds(env, task, i, j, rot, horizon)
+    assert near_holds(env, task, i - 4 * di, j - 4 * dj, rot, horizon)
+    assert actions_to_pose(env.world, (i, j, rot, horizon), 10) == 4
+    assert not near_holds(env, task, i - 5 * di, j - 5 * dj, rot, horizon)
+    assert actions_to_pose(env.world, (i, j, rot, horizon), 10) == 5
 
 
-def test_on_the_right_spot_the_turns_and_looks_count(tasks, sim):
-    task = move_task_with_room_behind(tasks, sim)
+def test_on_the_right_spot_the_turns_and_looks_count(tasks, env):
+    task = move_task_with_room_behind(tasks, env)
     i, j, rot, horizon = parse_pose_arg(near_of(task).arg)
     s = look_sign(horizon)
     assert HORIZON_MIN <= horizon + s * 45 <= HORIZON_MAX
-    assert near_holds(sim, task, i, j, (rot + 180) % 360, horizon + s * 30)       # 2 turns + 2 looks
-    assert near_holds(sim, task, i, j, (rot + 90) % 360, horizon + s * 45)        # 1 turn + 3 looks
-    assert not near_holds(sim, task, i, j, (rot + 180) % 360, horizon + s * 45)   # 2 + 3
+    assert near_holds(env, task, i, j, (rot + 180) % 360, horizon + s * 30)       # 2 turns + 2 looks
+    assert near_holds(env, task, i, j, (rot + 90) % 360, horizon + s * 45)        # 1 turn + 3 looks
+    assert not near_holds(env, task, i, j, (rot + 180) % 360, horizon + s * 45)   # 2 + 3
     # one point behind, facing away and looking 30 degrees off: 2 turns, 1 move, 2 looks
-    assert not near_holds(sim, task, i - STEP[rot][0], j - STEP[rot][1], (rot + 180) % 360, horizon + s * 30)
+    assert not near_holds(env, task, i - STEP[rot][0], j - STEP[rot][1], (rot + 180) % 360, horizon + s * 30)
 
 
-def test_stepping_into_the_goal_ends_the_episode_with_success(tasks, sim):
-    task = move_task_with_room_behind(tasks, sim)
+def test_stepping_into_the_goal_ends_the_episode_with_success(tasks, env):
+    task = move_task_with_room_behind(tasks, env)
     i, j, rot, horizon = parse_pose_arg(near_of(task).arg)
     di, dj = STEP[rot]
-    sim.reset(options={'task': task})
-    sim.teleport(i - 5 * di, j - 5 * dj, rot, horizon)
-    _, reward, terminated, _, info = sim.step('MoveAhead')
+    env.reset(options={'task': task})
+    env.teleport(i - 5 * di, j - 5 * dj, rot, horizon)
+    _, reward, terminated, _, info = env.step('MoveAhead')
     assert info['success'] and terminated and reward == 1.0
 
 

@@ -9,18 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dialfred_sim.env import DialfredEnv
 from dialfred_sim.world.open_parts import blocks
 from dialfred_sim.world.rooms import AGENT_RADIUS, GRID
 
 SCENE = 'FloorPlan10'       # a valid_unseen kitchen, where both were seen
 
-
-@pytest.fixture(scope='module')
-def sim():
-    env = DialfredEnv(resolution=64)
-    yield env
-    env.close()
 
 
 def openables(world):
@@ -28,9 +21,9 @@ def openables(world):
                   if o.fixture and o.otype.openable and o.spec.articulation is not None)
 
 
-def test_no_open_door_stands_within_the_agents_radius_of_a_point_it_may_stand_on(sim):
-    sim.reset(seed=0, options={'scene': SCENE})
-    world = sim.world
+def test_no_open_door_stands_within_the_agents_radius_of_a_point_it_may_stand_on(env):
+    env.reset(seed=0, options={'scene': SCENE})
+    world = env.world
     checked = 0
     for oid in openables(world)[::3]:       # every third of a kitchen's cabinets, drawers and appliances (time)
         obj = world.objects[oid]
@@ -44,42 +37,42 @@ def test_no_open_door_stands_within_the_agents_radius_of_a_point_it_may_stand_on
     assert checked >= 3
 
 
-def test_a_door_does_not_open_into_the_agent_and_the_agent_cannot_walk_into_an_open_door(sim):
+def test_a_door_does_not_open_into_the_agent_and_the_agent_cannot_walk_into_an_open_door(env):
     """The fridge of FloorPlan10 open: grid point (6, 2), 0.074 m from its door's axis-aligned box,
     is not free; from there the fridge refuses to open, and walking there with it open is refused."""
-    sim.reset(seed=0, options={'scene': SCENE})
-    world = sim.world
+    env.reset(seed=0, options={'scene': SCENE})
+    world = env.world
     fridge = world.objects['Fridge_0']
     assert (6, 2) in world.layout.navigable
     assert world.would_hit_agent(fridge, 6, 2)
     world.set_open(fridge, True)
     assert (6, 2) not in world.free_floor() and world.open_blocker(6, 2) == 'Fridge_0'
     with pytest.raises(ValueError, match='taken by the open Fridge_0'):
-        sim.teleport(6, 2, 0, 30.0)
+        env.teleport(6, 2, 0, 30.0)
     world.set_open(fridge, False)
     # walk up to (6, 2) with the fridge open: the step onto it is refused
     for (i, j), r in (((5, 2), 0), ((7, 2), 180), ((6, 1), 90), ((6, 3), 270)):
         if (i, j) not in world.free_floor():
             continue
-        sim.teleport(i, j, r, 30.0)
+        env.teleport(i, j, r, 30.0)
         world.set_open(fridge, True)
-        _, _, _, _, info = sim.step('MoveAhead')
+        _, _, _, _, info = env.step('MoveAhead')
         assert not info['last_action_success'] and 'Fridge_0' in info['last_action_error']
         assert (world.agent.i, world.agent.j) == (i, j)
         world.set_open(fridge, False)
     # and standing on (6, 2), the fridge will not open
-    sim.reset(seed=0, options={'scene': SCENE})
-    sim.teleport(6, 2, 180, 30.0)
+    env.reset(seed=0, options={'scene': SCENE})
+    env.teleport(6, 2, 180, 30.0)
     from dialfred_sim.actions import Action, interact
-    result = interact(sim.world, Action.Open, sim.world.objects['Fridge_0'], None)
+    result = interact(env.world, Action.Open, env.world.objects['Fridge_0'], None)
     assert not result.success and 'would hit you' in result.error
 
 
-def test_a_held_bread_stays_inside_the_room_at_every_pose_it_can_be_carried_to(sim):
+def test_a_held_bread_stays_inside_the_room_at_every_pose_it_can_be_carried_to(env):
     """Wherever the hand has room for the bread (every free point, every heading), pybullet's box of
     the bread lies inside the walls; where it has none, the agent cannot stand so holding it."""
-    sim.reset(seed=0, options={'scene': SCENE})
-    world = sim.world
+    env.reset(seed=0, options={'scene': SCENE})
+    world = env.world
     bread = world.objects['Bread_0']
     world.hold(bread)
     c = world.client
@@ -91,7 +84,7 @@ def test_a_held_bread_stays_inside_the_room_at_every_pose_it_can_be_carried_to(s
             if spot is None:
                 refused += 1
                 with pytest.raises(ValueError, match='no room'):
-                    sim.teleport(i, j, r, 30.0)
+                    env.teleport(i, j, r, 30.0)
                 continue
             world.agent.i, world.agent.j, world.agent.rotation = i, j, r
             world.update_held_pose()
@@ -104,14 +97,14 @@ def test_a_held_bread_stays_inside_the_room_at_every_pose_it_can_be_carried_to(s
     assert carried > 100     # the bread is short enough that the hand finds room for it at every pose here
 
 
-def test_the_reach_message_never_says_an_object_is_as_far_as_the_reach(sim):
+def test_the_reach_message_never_says_an_object_is_as_far_as_the_reach(env):
     """A click 1.5004 m away used to read 'out of reach (1.50 m away; reach is 1.5 m)'."""
     from dialfred_sim.actions import REACH, target_at
-    sim.reset(seed=0, options={'scene': SCENE})
-    _, depth, seg = sim.world.render()
-    ys, xs = np.isin(seg, list(sim.world.body_to_object)).nonzero()      # a pixel of some object in view
+    env.reset(seed=0, options={'scene': SCENE})
+    _, depth, seg = env.world.render()
+    ys, xs = np.isin(seg, list(env.world.body_to_object)).nonzero()      # a pixel of some object in view
     px, py = int(xs[0]), int(ys[0])
-    _, dist = sim.world.pixel_point(px, py, depth)
+    _, dist = env.world.pixel_point(px, py, depth)
     scaled = depth * (REACH + 0.0004) / dist      # the same pixel, just beyond reach
-    _, _, failure = target_at(sim.world, px, py, scaled, seg)
+    _, _, failure = target_at(env.world, px, py, scaled, seg)
     assert failure is not None and 'out of reach (1.51 m away; reach is 1.50 m)' in failure.error
