@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
+from .tasks.goals import DEFAULT_GOAL_RULE, check_goal_rule, conditions_met, goal_progress, under_rule
 from .world.bullet import bullet_client, pybullet, quiet_stdout
 from .world.rooms import all_scenes, room_layout, scene_number
 from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World
@@ -44,8 +45,7 @@ class DialfredEnv(gym.Env):
 
     def __init__(self, resolution: int = DEFAULT_RESOLUTION, scene: Optional[str] = None,
                  max_steps: int = 1000, max_failures: int = 10, dirty_probability: float = 0.25,
-                 render_mode: Optional[str] = 'rgb_array', goal_rule: str = 'dialfred'):
-        from .tasks.goals import check_goal_rule
+                 render_mode: Optional[str] = 'rgb_array', goal_rule: str = DEFAULT_GOAL_RULE):
         if not _is_integer(resolution) or not 16 <= resolution <= 1024:
             raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')
         if scene is not None:
@@ -134,7 +134,6 @@ class DialfredEnv(gym.Env):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
         from .tasks.expert import replay
         from .tasks.generator import apply_setup
-        from .tasks.goals import under_rule
         task = under_rule(task, self.goal_rule)    # its goal and expert length as this env judges them
         episode = task.episode
         super().reset(seed=episode.seed)
@@ -164,7 +163,6 @@ class DialfredEnv(gym.Env):
         """Update which goal conditions of the task hold; True when all do."""
         if self.task is None:
             return False
-        from .tasks.goals import conditions_met
         self.goal_met = conditions_met(self.world, self.task.goal, self._frame)
         return all(self.goal_met)
 
@@ -282,7 +280,6 @@ class DialfredEnv(gym.Env):
         return {'rgb': rgb, 'depth': depth, 'segmentation': seg, 'pose': pose}
 
     def _info(self) -> dict[str, Any]:
-        from .tasks.goals import goal_progress
         ids, names = self.world.instance_table()
         achieved, to_achieve = goal_progress(self.goal_met, self.goal_met_at_start)
         return {

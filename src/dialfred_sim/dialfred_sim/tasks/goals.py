@@ -3,9 +3,10 @@
 progress GC counts (`goal_progress`: only the conditions that did not hold at the task's start).
 
 A go-to is judged by DialFRED's rule (its `GotoLocationAction` with `min_reach_distance` 5): the agent
-must stand within `NEAR_ACTIONS` actions of the pose where the expert's go-to ended, counted over the
-navigation graph (`navigation.actions_to_pose`). Every task whose steps include a go-to has that
-'near' condition for its last go-to, beside the conditions of its object actions. The rule used
+must stand within `NEAR_ACTIONS` actions of the pose where the expert ended the task's steps (where its
+last go-to led, unless the expert stepped on inside an interaction), counted over the navigation graph
+(`navigation.actions_to_pose`). Every task whose steps include a go-to has that 'near' condition,
+beside the conditions of its object actions. The rule used
 before, kept as the named variant 'visible' (`GOAL_RULES`), asks instead for enough of the target in
 view and within reach, and only of the Move and Pick & Move tasks (`rule_goal`).
 """
