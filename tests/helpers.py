@@ -107,6 +107,13 @@ def _candidates(env, target, radius: float, min_radius: float = 0.0):
     return [pose for _, pose in out]
 
 
+def poses_towards(env, object_id: str, radius: float = 1.3) -> list:
+    """The poses face() tries for `object_id`, in its order (best guesses first): free grid points
+    within `radius` metres, headings towards the object, camera pitches; for tests that need more of
+    a pose than that the object is in view."""
+    return _candidates(env, env.world.objects[object_id], radius)
+
+
 def face(env, object_id: str, reach: float = REACH - 0.1, radius: float = 1.3):
     """Teleport the agent so that `object_id` is visible within `reach` metres; return its pixel.
 

@@ -339,12 +339,18 @@ def test_the_performer_may_train_through_the_frozen_network_in_bf16_and_act_in_f
     assert rows[0]['loss'] == pytest.approx(rows[1]['loss'], rel=0.02) and rows[0]['loss'] != rows[1]['loss']
     model, _, _ = load_checkpoint(checkpoint)
     assert model.visual.precision == 'fp32'
-    frames = torch.rand(2, 3, 32, 32)
+    frames = torch.rand(2, 3, 32, 32, generator=torch.Generator().manual_seed(0))
     emb, keys, out = model.visual.perceive(frames)
     model.visual.precision = 'bf16'
     emb16, keys16, out16 = model.visual.perceive(frames)
     assert out16.fine.dtype == torch.float32 and not torch.equal(out16.fine, out.fine)
-    assert torch.allclose(out16.fine, out.fine, atol=0.1) and torch.allclose(emb16, emb, atol=0.1)
+
+    def relative_error(a, b):
+        return ((a - b).norm() / b.norm()).item()
+    # bfloat16 keeps 8 bits of mantissa (rounding ~0.4% per operation), so the error scales with the
+    # maps' size: a few conv layers give ~1.5-2.5% (L2, relative) whatever the weights and frames; an
+    # absolute bound would depend on how large the trained network's maps happen to be (up to ~5 here).
+    assert relative_error(out16.fine, out.fine) < 0.05 and relative_error(emb16, emb) < 0.05
     from dialfred_performer.train import TrainConfig
     with pytest.raises(ValueError, match='--perception-precision takes fp32 or bf16'):
         TrainConfig(perception_precision='fp16')

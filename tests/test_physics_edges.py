@@ -38,31 +38,43 @@ def test_no_open_door_stands_within_the_agents_radius_of_a_point_it_may_stand_on
 
 
 def test_a_door_does_not_open_into_the_agent_and_the_agent_cannot_walk_into_an_open_door(env):
-    """The fridge of FloorPlan10 open: grid point (6, 2), 0.074 m from its door's axis-aligned box,
-    is not free; from there the fridge refuses to open, and walking there with it open is refused."""
+    """The fridge of FloorPlan10 open: a grid point within the agent's radius of its door is not
+    free; from there the fridge refuses to open, and walking there with it open is refused."""
     env.reset(seed=0, options={'scene': SCENE})
     world = env.world
     fridge = world.objects['Fridge_0']
-    assert (6, 2) in world.layout.navigable
-    assert world.would_hit_agent(fridge, 6, 2)
+    steps = {(-1, 0): 0, (1, 0): 180, (0, -1): 90, (0, 1): 270}   # from a neighbour, the heading onto the point
     world.set_open(fridge, True)
-    assert (6, 2) not in world.free_floor() and world.open_blocker(6, 2) == 'Fridge_0'
-    with pytest.raises(ValueError, match='taken by the open Fridge_0'):
-        env.teleport(6, 2, 0, 30.0)
+    door = world.open_part_outlines(fridge)
+    free_open = world.free_floor()
     world.set_open(fridge, False)
-    # walk up to (6, 2) with the fridge open: the step onto it is refused
-    for (i, j), r in (((5, 2), 0), ((7, 2), 180), ((6, 1), 90), ((6, 3), 270)):
-        if (i, j) not in world.free_floor():
-            continue
+
+    def approaches(i, j):
+        """(neighbour, heading) pairs to walk onto (i, j) from free floor with the fridge open."""
+        return [((i + di, j + dj), rot) for (di, dj), rot in steps.items() if (i + di, j + dj) in free_open]
+
+    # the first free point (in order) within the agent's radius of the open door, that one can walk up to
+    spot = next(((i, j) for i, j in sorted(world.layout.navigable)
+                 if blocks(i * GRID, j * GRID, door, AGENT_RADIUS) and approaches(i, j)), None)
+    assert spot is not None, 'no free point near the open fridge door to walk onto'
+    i0, j0 = spot
+    assert world.would_hit_agent(fridge, i0, j0)
+    world.set_open(fridge, True)
+    assert spot not in world.free_floor() and world.open_blocker(i0, j0) == 'Fridge_0'
+    with pytest.raises(ValueError, match='taken by the open Fridge_0'):
+        env.teleport(i0, j0, 0, 30.0)
+    world.set_open(fridge, False)
+    # walk up to the point with the fridge open: the step onto it is refused
+    for (i, j), r in approaches(i0, j0):
         env.teleport(i, j, r, 30.0)
         world.set_open(fridge, True)
         _, _, _, _, info = env.step('MoveAhead')
         assert not info['last_action_success'] and 'Fridge_0' in info['last_action_error']
         assert (world.agent.i, world.agent.j) == (i, j)
         world.set_open(fridge, False)
-    # and standing on (6, 2), the fridge will not open
+    # and standing on the point, the fridge will not open
     env.reset(seed=0, options={'scene': SCENE})
-    env.teleport(6, 2, 180, 30.0)
+    env.teleport(i0, j0, 180, 30.0)
     from dialfred_sim.actions import Action, interact
     result = interact(env.world, Action.Open, env.world.objects['Fridge_0'], None)
     assert not result.success and 'would hit you' in result.error

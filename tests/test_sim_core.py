@@ -21,7 +21,8 @@ from dialfred_sim.world.rooms import AGENT_RADIUS, GRID, all_scenes, footprint, 
 from dialfred_sim.world.scene import COLD, HOT, ROOM
 
 from helpers import (act, agent_pose, distance_at, face, face_from_afar, first_of, free_ahead_pose,
-                     pixel, pixel_of_structure, rerender, reset, snapshot, spawn_held, spawn_on, unproject)
+                     pixel, pixel_of_structure, poses_towards, rerender, reset, snapshot, spawn_held, spawn_on,
+                     unproject)
 
 KITCHEN = 'FloorPlan1'
 
@@ -341,13 +342,20 @@ def test_what_rides_on_a_held_object_stays_out_of_the_wall_too(env):
 
 
 def test_turning_to_face_the_wall_with_a_bat_in_hand_fails(env):
-    kitchen(env)
-    i, j, rot = _wall_approach(env)
-    di, dj = HEADING[rot]
-    env.teleport(i + di, j + dj, (rot + 90) % 360, 30)     # on the point nearest the wall, beside it
-    bat = spawn_held(env, 'BaseballBat')
-    if env.world.carry_spot(bat, i + di, j + dj, (rot + 90) % 360)[0] is None:
-        pytest.skip('no room for the bat beside the wall either')
+    """Beside a wall with a bat held along it, turning right to face the wall would push the bat
+    through it: the turn fails and changes nothing."""
+    w = kitchen(env)
+    bat = w.spawn('BaseballBat', load_catalog()['BaseballBat'].colours[0])
+    w.hold(bat)
+
+    def room(i, j, rot):
+        return w.carry_spot(bat, i, j, rot)
+
+    # the first free point and heading (in order) where the bat fits but would not facing the wall on the right
+    pose = next(((i, j, rot) for i, j in sorted(w.layout.navigable) for rot in HEADING
+                 if room(i, j, rot)[0] is not None and room(i, j, (rot - 90) % 360) == (None, 'the wall')), None)
+    assert pose is not None, 'no point beside a wall where the bat fits until the agent turns to the wall'
+    env.teleport(*pose, 30)
     fails(env, 'RotateRight', match=rf'^RotateRight blocked: the {bat.object_id} in hand would pass into the wall$')
 
 
@@ -535,18 +543,29 @@ def test_put_places_the_object_on_the_shelf_the_agent_points_at(env):
     fridge = first_of(env, 'Fridge')
     ok(env, 'Open', face(env, fridge.object_id))      # from where its door cannot hit the agent
     apple = spawn_held(env, 'Apple')
-    face(env, fridge.object_id)                        # then step up to the open fridge
-    _, depth, seg = env._frame
-    ys, xs = np.nonzero(seg == fridge.body)
-    shelves: dict[int, list] = {}
-    for x, y in zip(xs, ys):
-        point = unproject(env, int(x), int(y))
-        loc = _to_local(fridge.position, fridge.yaw, point)
-        for k, s in enumerate(fridge.spec.surfaces):
-            if (abs(loc[0] - s.center[0]) < s.half_size[0] - 0.05 and abs(loc[1] - s.center[1]) < s.half_size[1] - 0.05
-                    and 0 <= loc[2] - s.center[2] < 0.03 and distance_at(env, (x, y)) < REACH):
-                shelves.setdefault(k, []).append((int(x), int(y)))
-    assert len(shelves) >= 2, 'fewer than two shelves in view'
+
+    def shelves_in_view() -> dict[int, list]:
+        """Pixels (within reach) showing the top of each of the fridge's shelves, by shelf."""
+        _, depth, seg = env._frame
+        ys, xs = np.nonzero(seg == fridge.body)
+        shelves: dict[int, list] = {}
+        for x, y in zip(xs, ys):
+            point = unproject(env, int(x), int(y))
+            loc = _to_local(fridge.position, fridge.yaw, point)
+            for k, s in enumerate(fridge.spec.surfaces):
+                # a shelf's top is its surface's height; 5 mm below it for the float32 depth's rounding
+                if (abs(loc[0] - s.center[0]) < s.half_size[0] - 0.05 and abs(loc[1] - s.center[1]) < s.half_size[1] - 0.05
+                        and -0.005 <= loc[2] - s.center[2] < 0.03 and distance_at(env, (x, y)) < REACH):
+                    shelves.setdefault(k, []).append((int(x), int(y)))
+        return shelves
+
+    # then step up to the open fridge: the first pose face() would try that shows two shelves or more
+    for pose in poses_towards(env, fridge.object_id):
+        env.teleport(*pose)
+        shelves = shelves_in_view()
+        if len(shelves) >= 2:
+            break
+    assert len(shelves) >= 2, 'fewer than two shelves in view from anywhere near the fridge'
     for k, pixels in sorted(shelves.items()):
         ok(env, 'Put', pixels[len(pixels) // 2])
         assert apple.parent == fridge.object_id

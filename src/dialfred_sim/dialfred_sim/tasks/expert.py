@@ -25,6 +25,7 @@ KIND_TO_ACTION = {'pickup': Action.Pickup, 'put': Action.Put, 'open': Action.Ope
 MARGIN = 0.08          # the expert keeps its targets this far inside the reach limit
 MAX_POSE_RENDERS = 40  # candidate poses looked at per navigation goal
 PREVIEW = 64           # pixels of the cheap first look at a candidate pose
+PULL_BACK = 0.5        # metres: a designated pose keeps the eye at least this far from its target's centre
 
 
 class ExpertFailed(RuntimeError):
@@ -116,36 +117,45 @@ class Expert:
         return lo, hi
 
     def find_pose(self, focus: Sequence[str]) -> tuple[Pose, list[Action]]:
-        """The cheapest pose (fewest actions) from which every object in `focus` can be acted on."""
+        """The designated pose for `focus` (ALFRED's rule for where its planner's go-to ends) and the
+        shortest actions to it.
+
+        The pose depends on the world, never on where the agent stands: the free grid point nearest the
+        first target's centre (L1 distance, as ALFRED's `get_obj_coords`), but not so near that the eye
+        is within `PULL_BACK` of it; facing the target along the axis it lies most along; the camera
+        pitched at the target's base, rounded to the look step. Every target must be in view and within
+        reach there (checked by rendering), and a closed door or drawer in `focus` must have room to
+        open; where the designated pitch does not see them, a pitch a step or two off is tried, each
+        step costing as much as a grid step further away."""
         here = self.pose()
-        if self._sees(focus) and self._clear_to_open(focus, here[0], here[1]):
-            return here, []
         parent = self._bfs()
-        centre = self._centre(focus[0])
+        lo0, hi0 = self._aabb(focus[0])
+        centre = (lo0 + hi0) / 2
         boxes = [self._aabb(f) for f in focus]
         candidates = []
         for (i, j, r) in parent:
             dx, dy = centre[0] - i * GRID, centre[1] - j * GRID
-            d = math.hypot(dx, dy)
-            if d > 1.6 or d < 0.2:
+            facing = (0 if dx >= 0 else 180) if abs(dx) > abs(dy) else (90 if dy >= 0 else 270)
+            if r != facing:
                 continue
             eye = np.array([i * GRID, j * GRID, CAMERA_HEIGHT])
+            if np.linalg.norm(eye - centre) < PULL_BACK:
+                continue
             # Every target's nearest point must be within reach, or no view of it can be.
             if any(np.linalg.norm(eye - np.clip(eye, lo, hi)) > 1.5 - MARGIN for lo, hi in boxes):
                 continue
-            facing = round(math.degrees(math.atan2(dy, dx)) / 90) * 90 % 360
-            if r != facing or not self._clear_to_open(focus, i, j):
+            if not self._clear_to_open(focus, i, j):
                 continue
-            pitch = math.degrees(math.atan2(CAMERA_HEIGHT - centre[2], d))
+            pitch = math.degrees(math.atan2(CAMERA_HEIGHT - lo0[2], max(abs(dx), abs(dy))))
             h0 = min(max(round(pitch / LOOK_STEP) * LOOK_STEP, HORIZON_MIN), HORIZON_MAX)
-            for h in (h0, h0 + LOOK_STEP, h0 - LOOK_STEP):
+            steps = (abs(dx) + abs(dy)) / GRID
+            for dh in (0, LOOK_STEP, -LOOK_STEP, 2 * LOOK_STEP, -2 * LOOK_STEP):
+                h = h0 + dh
                 if HORIZON_MIN <= h <= HORIZON_MAX:
-                    n_moves = len(self._path(parent, (i, j, r)))
-                    cost = n_moves + abs(h - here[3]) / LOOK_STEP + (0.5 if h != h0 else 0.0)
-                    candidates.append((cost, d, (i, j, r, float(h))))
+                    candidates.append((steps + abs(dh) / LOOK_STEP, i, j, (i, j, r, float(h))))
         candidates.sort()
         try:
-            for _, _, pose in candidates[:MAX_POSE_RENDERS]:
+            for *_, pose in candidates[:MAX_POSE_RENDERS]:
                 self._set_pose(pose)
                 # A cheap low-resolution look first; the full frame decides.
                 if self._sees(focus, preview=True) and self._sees(focus):

@@ -74,13 +74,13 @@ RECIPES: dict[str, list[tuple[str, float, tuple[int, int], str]]] = {
         ('FloorLamp', 1.0, (1, 1), 'wall'), ('Ottoman', 0.15, (1, 1), 'interior'),
         ('DiningTable', 0.4, (1, 1), 'interior'), ('Safe', 0.1, (1, 1), 'wall'),
         ('HousePlant', 0.9, (1, 1), 'wall'), ('Cabinet', 0.15, (1, 2), 'wall'),
-        ('Drawer', 0.4, (1, 2), 'wall'), ('Painting', 1.0, (1, 2), 'mount'),
+        ('Drawer', 0.25, (1, 2), 'wall'), ('Painting', 1.0, (1, 2), 'mount'),
         ('Window', 0.9, (1, 2), 'mount'), ('LightSwitch', 1.0, (1, 1), 'mount'),
         ('Television', 1.0, (1, 1), 'on:TVStand'),
     ],
     'bedroom': [
-        ('Bed', 1.0, (1, 1), 'wall'), ('SideTable', 0.7, (1, 2), 'wall'), ('Desk', 0.65, (1, 1), 'wall'),
-        ('Dresser', 0.55, (1, 1), 'wall'), ('Shelf', 0.65, (1, 1), 'wall'), ('GarbageCan', 1.0, (1, 1), 'wall'),
+        ('Bed', 1.0, (1, 1), 'wall'), ('SideTable', 0.85, (1, 2), 'wall'), ('Desk', 0.65, (1, 1), 'wall'),
+        ('Dresser', 0.8, (1, 1), 'wall'), ('Shelf', 0.65, (1, 1), 'wall'), ('GarbageCan', 1.0, (1, 1), 'wall'),
         ('LaundryHamper', 0.3, (1, 1), 'wall'), ('Safe', 0.17, (1, 1), 'wall'), ('Chair', 0.6, (1, 1), 'wall'),
         ('ArmChair', 0.2, (1, 1), 'wall'), ('Drawer', 0.6, (1, 2), 'wall'), ('Cabinet', 0.15, (1, 1), 'wall'),
         ('Mirror', 0.9, (1, 1), 'mount'), ('Window', 0.9, (1, 2), 'mount'), ('Poster', 0.2, (1, 1), 'mount'),
@@ -90,17 +90,24 @@ RECIPES: dict[str, list[tuple[str, float, tuple[int, int], str]]] = {
     'bathroom': [
         ('Toilet', 1.0, (1, 1), 'wall'), ('Bathtub', 0.7, (1, 1), 'wall'), ('GarbageCan', 1.0, (1, 1), 'wall'),
         ('Shelf', 0.3, (1, 1), 'wall'), ('Cart', 0.1, (1, 1), 'wall'), ('Dresser', 0.05, (1, 1), 'wall'),
-        ('Mirror', 1.0, (1, 1), 'mount'), ('TowelHolder', 1.0, (1, 1), 'mount'),
-        ('HandTowelHolder', 1.0, (1, 1), 'mount'), ('ToiletPaperHanger', 1.0, (1, 1), 'mount'),
+        ('Mirror', 1.0, (1, 1), 'mount'), ('TowelHolder', 0.8, (1, 1), 'mount'),
+        ('HandTowelHolder', 0.7, (1, 1), 'mount'), ('ToiletPaperHanger', 1.0, (1, 1), 'mount'),
         ('Window', 0.6, (1, 1), 'mount'), ('LightSwitch', 1.0, (1, 1), 'mount'),
         ('FloorLamp', 0.05, (1, 1), 'wall'),
     ],
 }
 
-ROOM_SIZE = {'kitchen': ((4.0, 6.5), (3.5, 6.0)), 'living_room': ((4.5, 7.0), (4.0, 6.5)),
-             'bedroom': ((3.75, 6.0), (3.5, 5.5)), 'bathroom': ((2.75, 4.0), (2.5, 4.0))}
+# Room extents (short side, long side), metres: AI2-THOR's rooms are small, long and full, so the free
+# floor a room of each type offers comes near theirs, and walks across it as long
+# (./dialfred bench world_statistics).
+ROOM_SIZE = {'kitchen': ((2.75, 3.25), (5.0, 6.25)), 'living_room': ((3.5, 4.5), (5.0, 7.0)),
+             'bedroom': ((3.0, 3.5), (4.75, 6.0)), 'bathroom': ((2.0, 2.75), (3.0, 4.25))}
 
-MAX_SMALL_TYPES = {'kitchen': 24, 'living_room': 16, 'bedroom': 16, 'bathroom': 12}
+WALL_CABINET_P = 0.4   # base units of a kitchen's wall run with a cabinet above
+ISLAND_P = 0.5         # kitchens with a free-standing counter (where one fits)
+DESK_CHAIR_P = 0.8     # desks with a chair in front
+
+MAX_SMALL_TYPES = {'kitchen': 30, 'living_room': 20, 'bedroom': 18, 'bathroom': 15}
 
 
 @dataclass(frozen=True)
@@ -205,6 +212,28 @@ def slab_spec(size) -> ShapeSpec:
     return ShapeSpec(parts=(Part('box', (sx / 2, sy / 2, sz / 2), (0.0, 0.0, sz / 2)),),
                      size=(sx, sy, sz),
                      surfaces=(Surface((0.0, 0.0, sz), (sx / 2 - 0.04, sy / 2 - 0.04), 0.6),))
+
+
+CARCASS_T = 0.025      # board thickness of a chest's carcass
+
+
+def carcass_spec(size, shelf: Optional[tuple[float, float]] = None, plinth: float = 0.06) -> ShapeSpec:
+    """The frame of a chest whose front is drawers or doors (those are fixtures of their own): a top
+    whose upper face is a placement surface, two sides, a back and a plinth; with `shelf` = (height,
+    clearance), an open board at that height with a surface of its own (a side table's lower shelf)."""
+    sx, sy, sz = size
+    t = CARCASS_T
+    parts = [Part('box', (sx / 2, sy / 2, t / 2), (0.0, 0.0, sz - t / 2)),
+             Part('box', (sx / 2, t / 2, (sz - t) / 2), (0.0, sy / 2 - t / 2, (sz - t) / 2)),
+             Part('box', (sx / 2, t / 2, (sz - t) / 2), (0.0, -sy / 2 + t / 2, (sz - t) / 2)),
+             Part('box', (t / 2, sy / 2 - t, (sz - t) / 2), (-sx / 2 + t / 2, 0.0, (sz - t) / 2), colour='dark'),
+             Part('box', (sx / 2 - 0.02, sy / 2 - t, plinth / 2), (-0.02, 0.0, plinth / 2), colour='dark')]
+    surfaces = [Surface((0.0, 0.0, sz), (sx / 2 - 0.03, sy / 2 - 0.03), 0.6)]
+    if shelf is not None:
+        shelf_z, clearance = shelf
+        parts.append(Part('box', (sx / 2 - t / 2, sy / 2 - t, t / 2), (t / 2, 0.0, shelf_z - t / 2), colour='light'))
+        surfaces.append(Surface((0.02, 0.0, shelf_z), (sx / 2 - 0.06, sy / 2 - t - 0.03), clearance))
+    return ShapeSpec(parts=tuple(parts), size=(sx, sy, sz), surfaces=tuple(surfaces))
 
 
 def _room_shell_free(width: float, depth: float):
@@ -344,16 +373,46 @@ class _Builder:
             return pos, yaw
         return None
 
+    # Chests ------------------------------------------------------------------------------------
+
+    def chest(self, type_name: str, size, pos, yaw: float, rows, cols: int = 1, unit: str = 'Drawer',
+              shelf: Optional[tuple[float, float]] = None) -> Fixture:
+        """A chest standing at `pos` facing `yaw`: its carcass (a `type_name` fixture whose top is a
+        surface) and, under the top, `rows` (unit heights, top down) of `cols` units (drawers or
+        cabinets) filling its front, each an openable fixture of its own. The footprint blocks the floor."""
+        depth, width, height = size
+        t = CARCASS_T
+        colour = self.colour(type_name)
+        self.rects.append(footprint(pos, yaw, size))
+        host = self.add(type_name, carcass_spec(size, shelf), pos, yaw, blocks=False, colour=colour)
+        unit_w = (width - 2 * t) / cols
+        z = height - t
+        for h in rows:
+            z -= h
+            for c in range(cols):
+                y_mid = -(width - 2 * t) / 2 + (c + 0.5) * unit_w
+                spot = local_to_world(pos, yaw, (t / 2 + 0.0025, y_mid, z + 0.002))
+                self.add(unit, self.spec(unit, (depth - t - 0.005, unit_w - 0.004, h - 0.004)), spot, yaw,
+                         blocks=False, colour=colour)
+        return host
+
     # Counter runs -----------------------------------------------------------------------------
 
-    def counter_run(self, units: list[str], unit_width: float) -> bool:
-        """A run of base units against a wall with a counter top: 'cabinet', 'drawers', 'sink', 'stove'."""
+    def counter_run(self, units: list[str], unit_width: float, island: bool = False) -> bool:
+        """A run of base units with a counter top: 'cabinet', 'drawers', 'sink', 'stove'; against a
+        wall, or free-standing with room to walk round it (`island`)."""
         run_len = unit_width * len(units)
         size = (COUNTER_DEPTH, run_len, COUNTER_HEIGHT)
-        slot = self.wall_slot(size, tries=80)
-        if slot is None:
-            return False
-        wall, s, pos, yaw = slot
+        if island:
+            slot = self.interior_slot(size, clearance=0.6)
+            if slot is None:
+                return False
+            pos, yaw = slot
+        else:
+            slot = self.wall_slot(size, tries=80)
+            if slot is None:
+                return False
+            wall, s, pos, yaw = slot
         self.rects.append(footprint(pos, yaw, size))
         # Unit i's centre along the run, in the run's own frame (+y to the run's left).
         slab_t = 0.04
@@ -416,13 +475,51 @@ class _Builder:
                                                    COUNTER_HEIGHT - 0.1)),
                          yaw, controls=burner.object_id, blocks=False)
         # Wall cabinets above some base units.
-        if self.room_type == 'kitchen':
+        if self.room_type == 'kitchen' and not island:
             for k, unit in enumerate(units):
-                if unit in ('cabinet', 'drawers') and self.rng.random() < 0.5:
+                if unit in ('cabinet', 'drawers') and self.rng.random() < WALL_CABINET_P:
                     y_mid = -run_len / 2 + k * unit_width + unit_width / 2
                     self.add('Cabinet', self.spec('Cabinet', (0.34, unit_width - 0.02, 0.55)),
                              local_to_world(pos, yaw, (-COUNTER_DEPTH / 2 + 0.17, -y_mid, 1.5)), yaw, blocks=False)
         return True
+
+
+def _chairs_at(b: _Builder, host: Fixture, spots) -> int:
+    """Chairs facing `host` at `spots` (x, y in its frame: their seat centres), where the floor is free."""
+    placed = 0
+    for lx, ly in spots:
+        size = b.jitter(FURNITURE_SIZE['Chair'], 0.05)
+        pos = local_to_world(host.position, host.yaw, (lx, ly, 0.0))
+        yaw = host.yaw + (math.pi if lx > 0 else 0.0)      # its front (the seat) towards the host
+        if b.free_rect(footprint(pos, yaw, size), margin=0.02):
+            b.add('Chair', b.spec('Chair', size), pos, yaw)
+            placed += 1
+    return placed
+
+
+def _dining_chairs(b: _Builder, table: Fixture) -> None:
+    """Two to four chairs along a dining table's long sides."""
+    dx = table.spec.size[0] / 2 + 0.22
+    dy = min(0.4, table.spec.size[1] / 4)
+    spots = [(sx * dx, sy * dy) for sx in (1, -1) for sy in (1, -1)]
+    b.rng.shuffle(spots)
+    _chairs_at(b, table, spots[:int(b.rng.integers(2, 5))])
+
+
+def _chest_plan(type_name: str, size) -> Optional[dict]:
+    """How a chest of `type_name` is built (Builder.chest): a dresser is rows of drawers, a side table
+    one drawer over an open shelf, a TV stand two cupboards; None for other furniture."""
+    depth, width, height = size
+    usable = height - CARCASS_T - 0.06
+    if type_name == 'Dresser':
+        rows = 3 if height > 0.75 else 2
+        return {'rows': [usable / rows] * rows, 'cols': 2 if width >= 1.4 else 1}
+    if type_name == 'SideTable':
+        dh = 0.15
+        return {'rows': [dh], 'shelf': (0.12, height - CARCASS_T - dh - 0.12 - 0.01)}
+    if type_name == 'TVStand':
+        return {'rows': [usable], 'cols': 2, 'unit': 'Cabinet'}
+    return None
 
 
 def _place_on(b: _Builder, type_name: str, host_types: list[str]) -> bool:
@@ -481,11 +578,11 @@ def _kitchen_counters(b: _Builder) -> bool:
 
 
 def _bathroom_counter(b: _Builder) -> bool:
-    n = int(b.rng.integers(2, 4))
+    n = 3 if b.rng.random() < 0.5 else 2
     units = ['cabinet'] * n
-    units[int(b.rng.integers(n))] = 'sink'
+    units[(n - 1) * int(b.rng.integers(2))] = 'sink'        # at one end: the counter top stays whole
     for k in range(n):
-        if units[k] == 'cabinet' and b.rng.random() < 0.5:
+        if units[k] == 'cabinet' and b.rng.random() < 0.35:
             units[k] = 'drawers'
     return b.counter_run(units, 0.6)
 
@@ -496,9 +593,14 @@ def _try_layout(number: int, attempt: int) -> Optional[RoomLayout]:
     (wlo, whi), (dlo, dhi) = ROOM_SIZE[room_type]
     width = round(float(rng.uniform(wlo, whi)) / GRID) * GRID
     depth = round(float(rng.uniform(dlo, dhi)) / GRID) * GRID
+    if rng.random() < 0.5:              # the long side along x or along y
+        width, depth = depth, width
     b = _Builder(rng, room_type, width, depth)
     if room_type == 'kitchen' and not _kitchen_counters(b):
         return None
+    if room_type == 'kitchen' and rng.random() < ISLAND_P:
+        units = ['drawers' if rng.random() < 0.4 else 'cabinet' for _ in range(int(rng.integers(2, 4)))]
+        b.counter_run(units, 0.6, island=True)      # a kitchen without room for one has none
     if room_type == 'bathroom' and not _bathroom_counter(b):
         return None
     for type_name, prob, (lo, hi), where in RECIPES[room_type]:
@@ -511,7 +613,13 @@ def _try_layout(number: int, attempt: int) -> Optional[RoomLayout]:
                 if slot is None:
                     continue
                 _, _, pos, yaw = slot
-                b.add(type_name, b.spec(type_name, size), pos, yaw)
+                plan = _chest_plan(type_name, size)
+                if plan is not None:
+                    b.chest(type_name, size, pos, yaw, **plan)
+                    continue
+                host = b.add(type_name, b.spec(type_name, size), pos, yaw)
+                if type_name == 'Desk' and rng.random() < DESK_CHAIR_P:
+                    _chairs_at(b, host, [(size[0] / 2 + 0.28, 0.0)])
                 if type_name == 'Bathtub':  # the basin is the receptacle inside the tub
                     b.add('BathtubBasin', b.spec('BathtubBasin', (size[0] - 0.16, size[1] - 0.18, 0.06)),
                           (pos[0], pos[1], 0.08), yaw, blocks=False, colour='white')
@@ -520,7 +628,9 @@ def _try_layout(number: int, attempt: int) -> Optional[RoomLayout]:
                 if slot is None:
                     continue
                 pos, yaw = slot
-                b.add(type_name, b.spec(type_name, size), pos, yaw)
+                host = b.add(type_name, b.spec(type_name, size), pos, yaw)
+                if type_name == 'DiningTable':
+                    _dining_chairs(b, host)
             elif where == 'mount':
                 slot = b.mount_slot(size, WALL_MOUNT_Z[type_name])
                 if slot is None:

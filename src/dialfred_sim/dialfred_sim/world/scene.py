@@ -26,6 +26,7 @@ CAMERA_HEIGHT = 1.5          # metres above the floor
 FOV_DEG = 90.0               # AI2-THOR's default field of view
 NEAR, FAR = 0.05, 12.0       # clipping planes, metres
 HORIZON_MIN, HORIZON_MAX = -30.0, 60.0   # look up / down limits (positive = down), as in AI2-THOR
+SMALL_OBJECT_COPIES = (0.6, 0.15, 0.1, 0.15)   # chances of 1, 2, 3, 4 instances of each small type a room has
 START_HORIZON = 30.0         # ALFRED starts every episode looking 30 degrees down
 LIGHT_DIRECTION = (0.3, 0.5, 1.0)
 
@@ -33,6 +34,18 @@ COLD, ROOM, HOT = 'cold', 'room', 'hot'
 OPENING_SWEEP = (0.25, 0.5, 0.75, 1.0)   # fractions of a door's swing checked against the agent
 SLICES_PER_OBJECT = {'Bread': 5}
 DEFAULT_SLICES = 4
+
+
+def _host_order(hosts: list, rng: np.random.Generator) -> list:
+    """The order in which a small object tries its hosts: receptacle types in random order, and within
+    a type its instances in random order, so that a type of many units (a dresser's drawers, a kitchen's
+    cabinets) is as likely a first choice as one table."""
+    by_type: dict = {}
+    for host in hosts:
+        by_type.setdefault(host.type_name, []).append(host)
+    types = sorted(by_type)
+    return [by_type[t][k] for t in (types[i] for i in rng.permutation(len(types)))
+            for k in rng.permutation(len(by_type[t]))]
 
 
 @dataclass
@@ -235,19 +248,18 @@ class World:
             self.held = None
 
     def _scatter(self, layout: RoomLayout, rng: np.random.Generator, dirty_probability: float) -> None:
-        """Place the layout's small objects: 1-3 instances per type, in distinct colours."""
+        """Place the layout's small objects: 1-4 instances per type (SMALL_OBJECT_COPIES), in distinct colours."""
         receptacles = [o for o in self.objects.values() if o.otype.receptacle and o.spec.surfaces]
         for type_name in layout.small_object_types:
             otype = load_catalog()[type_name]
             hosts = [r for r in receptacles if r.type_name in otype.typical_receptacles]
             if not hosts:
                 continue
-            count = int(rng.choice([1, 2, 3], p=[0.55, 0.33, 0.12]))
+            count = 1 + int(rng.choice(len(SMALL_OBJECT_COPIES), p=SMALL_OBJECT_COPIES))
             colours = list(rng.permutation(otype.colours))[:count]
             for colour in colours:
                 obj = self.spawn(type_name, str(colour))
-                order = rng.permutation(len(hosts))
-                if not any(self.place(obj, hosts[k], rng=rng) for k in order):
+                if not any(self.place(obj, host, rng=rng) for host in _host_order(hosts, rng)):
                     self.remove(obj.object_id)
                     continue
                 if otype.cleanable and rng.random() < dirty_probability:
