@@ -154,7 +154,7 @@ def test_the_map_performer_reads_rgb_and_its_own_success_only():
     from dialfred_performer.mapper.agent import MapAgent
 
     task = _a_walk()
-    env = DialfredEnv(resolution=64, max_steps=20)
+    env = DialfredEnv(resolution=64, max_steps=16)
     played = []
     for strip in (False, True):
         agent = MapAgent.from_checkpoint(SHIPPED)          # the shipped performer's perception network
@@ -482,16 +482,39 @@ def test_a_location_answer_sends_the_agent_to_the_instance_in_its_direction():
     assert agent._answered_cone('Sofa', np.array([1.0]), np.array([0.0])) is None
 
 
+def _a_box_carried_in_the_open():
+    """(task, the object in hand): the first task of valid_unseen that starts with a box (the bulkiest
+    thing its tasks carry) in hand and puts it down (so the agent knows what it holds), at a point with
+    free floor round it (at least 15 of the 25 grid points within two steps: else the room's own
+    obstacles, not the hand, block the points beside it)."""
+    from dialfred_sim.tasks.split_files import load_split
+    from dialfred_sim.world.rooms import room_layout
+    for task in load_split('valid_unseen'):
+        held = None
+        for p in task.episode.primitives:
+            if p.end > task.start:
+                break
+            held = p.target if p.kind == 'pickup' else None if p.kind == 'put' else held
+        if held is None or held.rsplit('_', 1)[0] != 'Box' or \
+                not any(p.kind == 'put' and p.target == held for p in task.primitives):
+            continue
+        i, j = task.start_pose[:2]
+        navigable = room_layout(task.scene).navigable
+        if sum((i + di, j + dj) in navigable for di in range(-2, 3) for dj in range(-2, 3)) >= 15:
+            return task, held
+    pytest.skip('no task of valid_unseen starts with a box in hand in the open')
+
+
 def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
-    """valid_unseen/000015 starts with a laptop in hand. Turning around on the spot, the agent saw it
+    """A task that starts with a bulky object in hand (a box: valid_unseen/000263 as found by
+    _a_box_carried_in_the_open; first seen with a laptop). Turning around on the spot, the agent saw it
     a step ahead in every direction and walled itself in."""
     from dialfred_performer.mapper import agent as agent_module
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.models import MAP_CAMERA
     from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks.split_files import get_task
 
-    task = get_task('valid_unseen/000015')
+    task, held = _a_box_carried_in_the_open()
     env = DialfredEnv(resolution=MAP_CAMERA)
 
     def look_around(agent):
@@ -506,7 +529,7 @@ def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
             agent.last = ('RotateLeft', None, None)
             obs, *_ = env.step('RotateLeft')
         agent.act(obs)
-        assert agent.held == 'Laptop' and agent.pose.heading == 0
+        assert agent.held == env.world.objects[held].type_name and agent.pose.heading == 0
         free, off = agent.map.traversable(), agent.map.node_offset()
         return {h: (world_free[h], bool(free[off + di, off + dj])) for h, (di, dj) in HEADING_STEPS.items()}
 
