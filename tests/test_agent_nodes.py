@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import pytest
 import torch
 
 
@@ -24,6 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 RES = 64
 
 
+@pytest.mark.slow   # fast: test_eval_local compares every local episode with the graph's
 def test_the_node_path_and_the_in_process_path_play_identical_episodes(checkpoint, tmp_path):
     torch.set_num_threads(1)            # as the node (torch_threads=1): the same arithmetic
     common = dict(split='valid_unseen', questioner='confusion', limit=3, workers=1, resolution=RES, seed=5,

@@ -180,6 +180,7 @@ def test_the_same_split_and_seed_give_the_same_episodes(random_run, tmp_path):
     assert without_wall_time(other_seed.results) != without_wall_time(random_run.results)
 
 
+@pytest.mark.slow   # fast: test_eval_local's resume test and the resume refusals below
 def test_a_longer_limit_resumes_without_redoing_or_losing_episodes(random_run, tmp_path):
     path = tmp_path / 'resume.jsonl'
     first = evaluate(path, limit=3)

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 
 from dialfred_bringup.live import LiveView, RoomMap
@@ -193,6 +194,7 @@ def test_the_room_map_draws_the_agent_where_it_stands():
     assert xb > xa and yb < ya                  # to the right (+x) and up the picture (+y)
 
 
+@pytest.mark.slow   # an evaluation through the graph end to end; fast: the live view's own tests above
 def test_eval_through_the_graph_streams_the_camera_and_the_dialogue(tmp_path):
     from dialfred_bringup.evaluation import EvalConfig, run_eval
     from helpers import tiny_checkpoint

@@ -90,6 +90,7 @@ def test_the_critic_baseline_trains_too(setup, tmp_path):
     assert not same(weights(tmp_path / 'critic' / 'final.pt'), weights(setup[0]))
 
 
+@pytest.mark.slow   # two fine-tunings and a resumed one; fast: the tests above of one run
 def test_the_weights_do_not_depend_on_the_workers_and_a_resumed_run_matches(setup, tmp_path):
     finetune(config(setup, tmp_path / 'one', updates=3))
     finetune(config(setup, tmp_path / 'two', updates=3, workers=2))

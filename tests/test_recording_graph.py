@@ -39,6 +39,7 @@ def check_bags_match_results(report, folder: Path) -> None:
         assert sum(not a[4] for a in ep.actions) == r.failed_actions
 
 
+@pytest.mark.slow   # two graph runs end to end; fast: the recording tests below
 def test_the_performer_node_records_each_episode_and_a_rerun_gives_the_same_bytes(checkpoint, tmp_path):
     common = dict(split='valid_unseen', performer='et', questioner='all', limit=2, workers=1, resolution=RES,
                   seed=3, checkpoint=checkpoint)
