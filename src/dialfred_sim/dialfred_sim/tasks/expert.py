@@ -98,10 +98,6 @@ class Expert:
             path.append(act)
         return path[::-1]
 
-    def _centre(self, object_id: str) -> np.ndarray:
-        lo, hi = self._aabb(object_id)
-        return (lo + hi) / 2
-
     def _sees(self, focus: Sequence[str], preview: bool = False) -> bool:
         size = PREVIEW if preview else None
         _, depth, seg = self.world.render(size, size)
