@@ -21,7 +21,8 @@ PAPER = {'instruction_only': 18.3, 'all_qas': 32.0, 'nq': 3.24}
 
 
 def family(task_type: str) -> str:
-    return 'with a go-to' if 'Move' in task_type else 'without a go-to'
+    from dialfred_sim.metrics import has_goto
+    return 'with a go-to' if has_goto(task_type) else 'without a go-to'
 
 
 def worth(base: list, asked: list) -> dict:

@@ -1,5 +1,5 @@
 """`launch eval --local` (dialfred_bringup/local.py) plays the episodes the ROS graph plays: for every kind of
-questioner, a perturbed oracle and the random agent, the results of both paths are equal field by field
+questioner, a perturbed oracle, swapped answers and the random agent, the results of both paths are equal field by field
 (but for wall_s); and what cannot go without ROS is refused."""
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ CASES = {
     'performer + all QAs': dict(agent='et', questioner='all'),
     'performer + random QA, location withheld': dict(agent='et', questioner='random', perturb_type='location'),
     'performer + model confusion': dict(agent='et', questioner='confusion'),
+    'performer + all QAs, answers swapped': dict(agent='et', questioner='all', answers='swapped'),
     'performer + RL anytime (learned)': dict(agent='et', questioner='rl-anytime', limit=12),   # it asks seldom
 }
 

@@ -577,3 +577,35 @@ def test_redoc_refuses_a_run_without_results_and_writes_nothing(tmp_path, capsys
     assert not (tmp_path / 'run' / 'results.md').exists() and not (tmp_path / 'run' / 'stamps').exists()
     with pytest.raises((SystemExit, ValueError)):
         reproduce.main(['--out', str(tmp_path / 'run'), '--redoc', '--force', 'doc'])
+
+
+def test_the_worth_of_a_question_is_read_by_family_and_type_and_the_swap_control_paired():
+    """Synthetic results of 8 tasks: All QAs (2 questions each) turns 2 go-to tasks and 1 other into successes;
+    Random QA's location episodes win 1 task with 2 questions; with swapped answers, 1 of All QAs' 3 gains stays."""
+    from dialfred_bringup.reproduce.document import swap_lines, worth_rows
+    from dialfred_sim.metrics import EpisodeResult
+
+    def result(k, success, questions=0, types=()):
+        return EpisodeResult(task_id=f'valid_unseen/{k:06d}', task_type='Move & Pick' if k < 4 else 'Put',
+                             split='valid_unseen', success=success, goal_conditions_met=int(success),
+                             goal_conditions_total=1, steps=10, expert_length=5, questions=questions,
+                             invalid_questions=0, failed_actions=0, end_reason='stop', error='', agent='et',
+                             oracle='', seed=0, wall_s=0.0,
+                             dialogue=[{'type': t, 'noun': 'apple', 'valid': True, 'answer': 'x'} for t in types])
+
+    def row(results):
+        return {'n': len(results), 'SR': 100.0 * sum(r.success for r in results) / len(results), 'results': results}
+    alone = [result(k, k == 7) for k in range(8)]
+    allq = [result(k, k in (0, 1, 4, 7), 2, ('location', 'direction')) for k in range(8)]
+    rnd = [result(k, k in (2, 7), 2, ('location', 'location')) if k < 3 else result(k, k == 7) for k in range(8)]
+    swapped = [result(k, k in (0, 7), 2, ('location', 'direction')) for k in range(8)]
+    rows = {('valid_unseen', k): {'n': 0} for k in ('map_instruction_only', 'map_all_qas', 'map_random_qa',
+                                                     'map_all_qas_swapped')}
+    rows.update({('valid_unseen', 'instruction_only'): row(alone), ('valid_unseen', 'all_qas'): row(allq),
+                 ('valid_unseen', 'random_qa'): row(rnd), ('valid_unseen', 'all_qas_swapped'): row(swapped)})
+    (et,) = worth_rows(rows)                           # the map performer has no results: no row
+    assert et[:4] == ['Episodic Transformer', '+18.75 (8)', '+25.00 (4)', '+12.50 (4)']   # 3 of 16, 2 of 8, 1 of 8
+    assert et[4:7] == ['+16.67 (3)', 'no questions', 'no questions']                  # 1 win, 6 questions
+    assert et[7] == '25.0' and et[8].startswith('+25.0 [')
+    (line,) = swap_lines(rows)
+    assert 'SR 25.0 vs 50.0' in line and '6 of 8 episodes end with the same steps and outcome' in line

@@ -405,6 +405,47 @@ def test_depth_is_metric_floor_pixels_lie_on_the_floor(env):
 
 
 
+def test_a_slab_with_corners_in_the_cameras_plane_renders_whole_with_true_depth(env):
+    """TinyRenderer blackens (NaN depth) or drops the faces of a box with a corner exactly in the
+    camera's plane, as a 0.9 m island top ending 0.6 m behind an eye 1.5 m up pitched 45 degrees down
+    did. Such slabs, below the eye and beside it, facing each way: each is seen lit, at its true depth,
+    by as many pixels as the same slab moved 1 cm (its corners off the plane) shows, give or take its edge."""
+    reset(env, KITCHEN)
+    i, j, _ = free_ahead_pose(env)
+    world = env.world
+    c = world.client
+    seen = 0
+    for rot in (0, 90, 180, 270):
+        env.teleport(i, j, rot, 45)
+        (ex, ey, ez), _ = world.camera()
+        fx, fy = round(math.cos(math.radians(rot))), round(math.sin(math.radians(rot)))
+        top = ez - 0.6                      # pitched 45 degrees: the plane passes 0.6 m behind at this height
+        for lateral in (-0.6, 0.0, 0.6):
+            counts = []
+            for back in (0.6, 0.59):        # the back corners in the camera's plane, then 1 cm ahead of it
+                along, half_along, half_across = (0.6 - back) / 2, (0.6 + back) / 2, 0.31
+                half = (half_along * abs(fx) + half_across * abs(fy), half_along * abs(fy) + half_across * abs(fx), 0.02)
+                centre = (ex + fx * along - fy * lateral, ey + fy * along + fx * lateral, top - 0.02)
+                body = c.createMultiBody(0, -1, c.createVisualShape(c.GEOM_BOX, halfExtents=half,
+                                                                    rgbaColor=(0.8, 0.2, 0.2, 1)), basePosition=centre)
+                try:
+                    rgb, depth, seg = world.render()
+                finally:
+                    c.removeBody(body)
+                mask = seg == body
+                assert np.isfinite(depth).all(), (rot, lateral, back)
+                counts.append(int(mask.sum()))
+                if back == 0.6 and mask.any():
+                    assert rgb[mask][:, 0].mean() > 60, (rot, lateral)    # lit red, not black
+                    ys, xs = np.nonzero(mask)
+                    for x, y in list(zip(xs, ys))[::13]:
+                        point, _ = world.pixel_point(int(x), int(y), depth)
+                        assert -0.05 < point[2] - top < 0.01, (rot, lateral, x, y, point)   # its top or sides
+            assert abs(counts[0] - counts[1]) <= 0.1 * counts[1] + 8, (rot, lateral, counts)
+            seen += counts[1] > 100
+    assert seen >= 6                                # most of the twelve slabs are in view (the room hides some)
+
+
 @pytest.mark.parametrize('horizon', [0, 30, 60])
 def test_pixel_point_is_the_point_seen_at_the_pixel(env, horizon):
     reset(env, KITCHEN)

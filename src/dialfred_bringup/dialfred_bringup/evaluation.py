@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from dialfred_oracle.swap import SWAP_MODES
 from dialfred_performer.models import PERFORMER_MODELS, camera_resolution, load_policy
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
@@ -112,6 +113,10 @@ class EvalConfig:
     perturb_type: str = arg('', 'the paper\'s ablation: the oracle withholds answers of this type ("I don\'t know.")',
                             choices=QUESTION_TYPES, aliases={'none': ''})
     perturb_probability: float = arg(0.5, 'how often it withholds them (0.5 in the paper)')
+    answers: str = arg('oracle', "oracle: the oracle's own answers; swapped: a control, each answer replaced by the "
+                       "oracle's answer to the same question in another task of the split (a performer that "
+                       "reads its answers does worse; dialfred_oracle/swap.py; results are named ..._swapped)",
+                       choices=SWAP_MODES)
     max_questions: int = arg(MAX_QUESTIONS, 'questions in a row without acting before an episode ends with an '
                              'error (the performer node\'s max_questions)', metavar='N')
     goal_rule: str = arg(DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
@@ -202,13 +207,21 @@ class EvalConfig:
     @property
     def oracle(self) -> str:
         """How the oracle answers, as results record it: '' exactly, 'location:0.5' perturbed."""
+        if self.answers == 'swapped':
+            return 'swapped'
         return f'{self.perturb_type}:{self.perturb_probability:g}' if self.perturb_type else ''
+
+    def split_tasks(self) -> list:
+        """Every task of the split played (or of the tasks file), in order, before --limit and --shard."""
+        from dialfred_sim.tasks import load_split
+        return self.tasks_source.tasks if self.tasks_file else load_split(self.split)
 
     @property
     def results_path(self) -> Path:
         if self.out:
             return Path(self.out)
         perturbed = f'_withhold-{self.perturb_type}-{self.perturb_probability:g}' if self.perturb_type else ''
+        perturbed += '_swapped' if self.answers == 'swapped' else ''
         perturbed += f'_goal-{self.goal_rule}' if self.goal_rule != DEFAULT_GOAL_RULE else ''
         source = self.tasks_source
         tasks = f'{source.split}-{source.sha256[:8]}' if source else self.split   # a file: named by its content
@@ -269,6 +282,10 @@ class EvalConfig:
             except FileNotFoundError as exc:
                 raise ValueError(str(exc)) from None
         check_results_path(self.results_path)
+        if self.answers not in SWAP_MODES:
+            raise ValueError(f'--answers must be one of {", ".join(SWAP_MODES)}, got {self.answers!r}')
+        if self.answers == 'swapped' and (not self.questioner or self.perturb_type):
+            raise ValueError('--answers swapped needs a questioner (--questioner) and no --perturb-type')
         if self.perturb_type:
             if not self.questioner:
                 raise ValueError('a perturbed oracle needs a questioner (--questioner)')
@@ -447,10 +464,9 @@ def run_eval(config: EvalConfig, progress: bool = True, traces: Optional[dict] =
 def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> EvalReport:
     from dialfred_performer.model import git_commit
     from dialfred_sim.metrics import append_result, summarize, write_text_atomically
-    from dialfred_sim.tasks import load_split
 
     t0 = time.monotonic()
-    tasks = (config.tasks_source.tasks if config.tasks_file else load_split(config.split))[:config.limit]
+    tasks = config.split_tasks()[:config.limit]
     tasks = [under_rule(t, config.goal_rule) for t in tasks]      # goals and expert lengths as the run judges them
     selected = shard_tasks(tasks, config.shard)       # (index in the split, task): the index seeds the episode
     tasks = [t for _, t in selected]

@@ -28,6 +28,7 @@ def _init_worker(config) -> None:
     import torch
 
     from dialfred_oracle.answers import Perturbation
+    from dialfred_oracle.swap import AnswerSwap
     from dialfred_sim.env import DialfredEnv
     torch.set_num_threads(1)
     _W['config'] = config
@@ -36,15 +37,18 @@ def _init_worker(config) -> None:
     _W['agent'] = config.make_agent()
     _W['perturbation'] = (Perturbation(config.perturb_type, config.perturb_probability, config.seed)
                           if config.perturb_type else None)
+    _W['swap'] = (AnswerSwap(config.split_tasks(), config.resolution, config.goal_rule)
+                  if config.answers == 'swapped' else None)
 
 
 def _play_job(job: tuple):
     index, task = job
-    return play_episode(_W['config'], _W['env'], _W['agent'], _W['perturbation'], index, task)
+    return play_episode(_W['config'], _W['env'], _W['agent'], _W['perturbation'], index, task, _W['swap'])
 
 
-def play_episode(config, env, agent, perturbation, index: int, task):
-    """One episode of `task` (at `index` in the split) in `env` with `agent`: its EpisodeResult."""
+def play_episode(config, env, agent, perturbation, index: int, task, swap=None):
+    """One episode of `task` (at `index` in the split) in `env` with `agent`: its EpisodeResult. `swap`: a
+    dialfred_oracle.swap.AnswerSwap for --answers swapped."""
     from dialfred_oracle.local import EnvServer
     from dialfred_sim.agents import task_view
     from dialfred_sim.episode import play, run
@@ -52,7 +56,7 @@ def play_episode(config, env, agent, perturbation, index: int, task):
     started = time.monotonic()
     episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=bool(config.questioner),
                    max_questions=config.max_questions)
-    state = run(episode, EnvServer(env, task, perturbation))
+    state = run(episode, EnvServer(env, task, perturbation, swap))
     return episode_result(config, task, agent, state, time.monotonic() - started)
 
 

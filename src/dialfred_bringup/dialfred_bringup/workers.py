@@ -440,6 +440,8 @@ def worker_nodes(config, namespace: str, **sim_params) -> list:
     if config.questioner:
         withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
                     'seed': config.seed} if config.perturb_type else {}
+        if config.answers == 'swapped':
+            withhold.update(answers='swapped', swap_resolution=config.resolution, **from_file)
         nodes.append(oracle_node(namespace, **withhold))
     if config.performer:
         if config.questioner:

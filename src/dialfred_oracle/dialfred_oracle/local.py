@@ -37,17 +37,20 @@ def answer_now(env, question_type: str, object_noun: str = '', perturbation: Opt
 
 class EnvServer:
     """Serves an episode's requests in this process: the simulator from `env` (a DialfredEnv, reset to
-    `task`), questions from the oracle's rules (`dialfred_oracle.local.answer_now`, with `perturbation`),
-    exactly as the simulator and oracle nodes answer them."""
+    `task`), questions from the oracle's rules (`dialfred_oracle.local.answer_now`, with `perturbation`;
+    with `swap`, a `swap.AnswerSwap`, another task's answers), exactly as the simulator and oracle nodes
+    answer them."""
 
-    def __init__(self, env, task, perturbation=None):
-        self.env, self.task, self.perturbation = env, task, perturbation
+    def __init__(self, env, task, perturbation=None, swap=None):
+        self.env, self.task, self.perturbation, self.swap = env, task, perturbation, swap
         self.info: dict = {}
 
     def __call__(self, request: Request) -> Reply:
         if isinstance(request, Ask):
             q = request.question
             ans = answer_now(self.env, q.question_type, q.object_noun, self.perturbation)
+            if self.swap is not None:
+                ans = self.swap.apply(ans, self.task.task_id, q.object_noun)
             return QA(q, bool(ans.valid), ans.text, ans.reason)
         if isinstance(request, Reset):
             try:

@@ -11,6 +11,9 @@ looks are kept per state too). Parameters:
   probability (the paper's ablation used 50%); a withheld answer is a valid "I don't know." Which
   ones are withheld depends only on the seed, the task, the question and the agent's pose
   (`answers.Perturbation`), so runs repeat exactly, and asking again in the same place does not help.
+- `answers` (`oracle`), `swap_resolution`, `tasks_file`: `swapped` answers every question with the answer
+  to the same question in another task of the split (`swap.AnswerSwap`, a control: does the performer
+  read its answers?), seen at the simulator's resolution.
 - `human`: ask a person in the terminal instead (the simulator's answer is shown as a suggestion;
   an empty line accepts it), as a robot running this stack would ask its human.
 - `log_file`: append every question and answer as a JSON line.
@@ -39,7 +42,10 @@ from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
 from dialfred_sim.protocol import QUESTION_TYPES
 from dialfred_sim.ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, make_executor, run_node
 
+from dialfred_sim.tasks.split_files import load_split, read_tasks_file
+
 from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, question_text, situation_key
+from .swap import SWAP_MODES, AnswerSwap
 
 
 class SimulatorUnavailable(RuntimeError):
@@ -93,6 +99,12 @@ PARAMETERS = (
           choices=('', *QUESTION_TYPES)),
     Param('perturb_probability', 0.0, '... with this probability (the paper: 0.5)', span=(0.0, 1.0)),
     Param('seed', 0, 'seeds which answers are withheld', span=(0, MAX_SEED)),
+    Param('answers', 'oracle', "oracle: its own answers; swapped: a control, each answer replaced by the answer to "
+          'the same question in another task of the split (swap.AnswerSwap; tasks of the shipped split named in the '
+          'task id, or of tasks_file)', choices=SWAP_MODES),
+    Param('swap_resolution', 64, 'swapped: the camera pixels the partner tasks are seen at (the simulator\'s)',
+          span=(16, 1024)),
+    Param('tasks_file', '', "swapped: the split file of the tasks played ('' = the shipped split of the task id)"),
     Param('human', False, 'ask a person in the terminal (see above)'),
     Param('log_file', '', "append every question and answer as a JSON line (time, type, noun, valid, answer, "
           "reason, human); '' = none"),
@@ -110,6 +122,10 @@ class OracleNode(Node):
         p = self.get_parameter
         self.perturbation = Perturbation(p('perturb_type').value, float(p('perturb_probability').value),
                                          int(p('seed').value))
+        self.swapped = p('answers').value == 'swapped'
+        self.swap_resolution = int(p('swap_resolution').value)
+        self.tasks_file = str(p('tasks_file').value)
+        self._swaps: dict[str, AnswerSwap] = {}        # split name -> its swap, made on the first question
         self.human = bool(p('human').value)
         self.log_file = p('log_file').value
         self.sim_timeout = float(p('sim_timeout').value)
@@ -162,6 +178,11 @@ class OracleNode(Node):
             if not self.cache or oid not in state.appearances:
                 state = self.world_state([oid])
             result = answer(state.with_appearance(oid), qtype, noun)
+        if self.swapped:
+            try:
+                return self.swap_for(snap.task_id).apply(result, snap.task_id, noun)
+            except (ValueError, KeyError, OSError) as exc:
+                return Answer(False, reason=f'no swapped answer: {exc}', question_type=qtype, object_noun=noun)
         # The paper's ablation: the human does not know (the question itself was fine).
         withheld = self.perturbation.apply(result, situation_key(snap, qtype, noun))
         if withheld is not result:
@@ -169,6 +190,20 @@ class OracleNode(Node):
         if self.human and result.valid:
             result = self.ask_person(qtype, noun, result)
         return result
+
+    def swap_for(self, task_id: str) -> AnswerSwap:
+        """The swap of the split that task `task_id` belongs to (ValueError without a task)."""
+        if not task_id:
+            raise ValueError('swapped answers need a task: the simulator plays none')
+        if self.tasks_file:
+            key = self.tasks_file
+            if key not in self._swaps:
+                self._swaps[key] = AnswerSwap(read_tasks_file(self.tasks_file).tasks, self.swap_resolution)
+        else:
+            key = task_id.split('/')[0]
+            if key not in self._swaps:
+                self._swaps[key] = AnswerSwap(load_split(key), self.swap_resolution)
+        return self._swaps[key]
 
     def world_state(self, appearance_of: tuple[str, ...] | list[str] = ()) -> WorldState:
         """The simulator's state now, with the looks of `appearance_of`. With the cache, the request

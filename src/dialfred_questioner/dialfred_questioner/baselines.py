@@ -27,13 +27,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from dialfred_sim.agents import public_view, task_view
+from dialfred_sim.agents import public_view, task_nouns, task_view
 from dialfred_sim.protocol import QA, QUESTION_TYPES, Agent, Decision, Question, Questioner, top2_gap
-
-
-def task_nouns(task: Any) -> list[str]:
-    """The objects a question may name: the nouns of the task's instruction, without repeats."""
-    return list(dict.fromkeys(n for n in task.object_nouns if n))
 
 
 def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:

@@ -32,6 +32,11 @@ def public_view(task: Any) -> Any:
     return task.public() if hasattr(task, 'public') else task
 
 
+def task_nouns(task: Any) -> list[str]:
+    """The objects a question may name: the nouns of the task's instruction, without repeats."""
+    return list(dict.fromkeys(n for n in task.object_nouns if n))
+
+
 def task_view(agent: Any, task: Any) -> Any:
     """What `agent` is told of `task`: the whole Task for a privileged reference agent, else its
     public view."""

@@ -125,6 +125,12 @@ class EpisodeResult:
         return cls(**data)
 
 
+def has_goto(task_type: str) -> bool:
+    """Whether a task type's steps include a go-to ('Move & Pick'): its goal then includes standing within 4
+    actions of the expert's end pose (DialFRED's rule)."""
+    return 'Move' in task_type
+
+
 def dialogue_entry(question_type: str, object_noun: str, valid: bool, answer: str) -> dict:
     """One question of EpisodeResult.dialogue (an answer the oracle could not give is recorded as '')."""
     return {'type': question_type, 'noun': object_noun, 'valid': bool(valid), 'answer': answer if valid else ''}

@@ -8,13 +8,14 @@ from pathlib import Path
 from typing import Optional
 
 
+from dialfred_sim.metrics import has_goto
 from dialfred_sim.protocol import QUESTION_TYPES
 
 from ..paths import REPO
 
 
 from ..report_page import environment
-from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SHIPPED_RUN, SPLITS, STAGES, Setting, settings)
+from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, WORTH_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SHIPPED_RUN, SPLITS, STAGES, Setting, settings)
 
 
 # --------------------------------------------------------------------------------------------- the report
@@ -163,6 +164,66 @@ def what_holds(rows: dict) -> list[str]:
                          f'{start["SR"]:.1f}, NQ {rl["NQ"]:.2f} vs {start["NQ"]:.2f}): '
                          + ('**holds**' if lo > 0 else '**not shown** (the interval includes 0)' if hi > 0
                             else '**does not hold**') + '.')
+    return lines + swap_lines(rows)
+
+
+def _worth(alone: dict, asked: list) -> Optional[tuple[float, int]]:
+    """(SR points per question of `asked` over the results in `alone` (task id -> result) of the same tasks,
+    the tasks), None without questions."""
+    nq = sum(r.questions for r in asked)
+    if not asked or not nq:
+        return None
+    return 100.0 * sum(r.success - alone[r.task_id].success for r in asked) / nq, len(asked)
+
+
+def worth_rows(rows: dict) -> list[list[str]]:
+    """The worth of a question for each performer on valid_unseen: All QAs over instruction only, overall and by
+    task family; by type, Random QA's episodes that drew that type over instruction only on the same tasks; and
+    the swap control (All QAs with another task's answers), its SR against All QAs' with a paired interval."""
+    out = []
+    fmt = lambda w: 'no questions' if w is None else f'{w[0]:+.2f} ({w[1]})'
+    for name, alone_key, all_key, random_key, swapped_key in WORTH_ROWS.values():
+        alone, allq = rows[('valid_unseen', alone_key)], rows[('valid_unseen', all_key)]
+        if not (alone.get('n') and allq.get('n')):
+            continue
+        base = {r.task_id: r for r in alone['results']}
+        asked = [r for r in allq['results'] if r.task_id in base]
+        cells = [name, fmt(_worth(base, asked))]
+        for goto in (True, False):
+            cells.append(fmt(_worth(base, [r for r in asked if has_goto(r.task_type) == goto])))
+        drawn = rows[('valid_unseen', random_key)].get('results', [])
+        for t in QUESTION_TYPES:
+            cells.append(fmt(_worth(base, [r for r in drawn if r.task_id in base and r.dialogue
+                                           and all(qa['type'] == t for qa in r.dialogue)])))
+        sw = rows[('valid_unseen', swapped_key)]
+        own = {r.task_id: r for r in asked}
+        swapped = [r for r in sw.get('results', []) if r.task_id in own]
+        if swapped:
+            mine = [own[r.task_id] for r in swapped]
+            lo, hi = paired_interval(mine, swapped, value=lambda r: 100.0 * r.success)
+            sr = lambda rs: 100.0 * sum(r.success for r in rs) / len(rs)
+            cells += [f'{sr(swapped):.1f}', f'{sr(mine) - sr(swapped):+.1f} [{lo:+.1f}, {hi:+.1f}]']
+        else:
+            cells += ['no results', '']
+        out.append(cells)
+    return out
+
+
+def swap_lines(rows: dict) -> list[str]:
+    """What the swap control says of each performer: does it read its answers?"""
+    lines = []
+    for name, _, all_key, _, swapped_key in WORTH_ROWS.values():
+        allq, sw = rows[('valid_unseen', all_key)], rows[('valid_unseen', swapped_key)]
+        if not (allq.get('n') and sw.get('n')) or allq['n'] != sw['n']:
+            continue
+        lo, hi = paired_interval(allq['results'], sw['results'], value=lambda r: 100.0 * r.success)
+        same = sum(a.steps == b.steps and a.success == b.success for a, b in zip(allq['results'], sw['results']))
+        lines.append(f'(Beyond the paper) The {name} performer reads its answers: with each answer replaced by the answer '
+                     f'to the same question in another task it succeeds less (SR {sw["SR"]:.1f} vs {allq["SR"]:.1f} with its '
+                     f'own answers, difference 95% [{lo:+.1f}, {hi:+.1f}] over the same tasks; {same} of {allq["n"]} '
+                     'episodes end with the same steps and outcome): '
+                     + ('**holds**' if lo > 0 else '**not shown** (the interval includes 0)' if hi > 0
+                        else '**does not hold**') + '.')
     return lines
 
 
@@ -244,13 +305,13 @@ def why_lines(plan: Plan, rows: dict) -> list[str]:
     return lines
 
 
-def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
-    """95% bootstrap interval of the mean paired difference of the paper's return, a - b (results of the
-    same tasks, in the same order)."""
+def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0, value=None) -> tuple[float, float]:
+    """95% bootstrap interval of the mean paired difference of `value` (an episode's number; default the
+    paper's return), a - b (results of the same tasks, in the same order)."""
     import numpy as np
 
     from dialfred_questioner.rl import Rewards
-    ret = lambda r: Rewards().of_episode(r.success, r.steps, r.questions, r.invalid_questions)
+    ret = value or (lambda r: Rewards().of_episode(r.success, r.steps, r.questions, r.invalid_questions))
     d = np.array([ret(x) - ret(y) for x, y in zip(a, b)])
     rng = np.random.default_rng(seed)
     means = d[rng.integers(0, len(d), size=(resamples, len(d)))].mean(axis=1)
@@ -382,7 +443,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
                      + ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' |' if r.get('n')
                      else f'| {name} | 0 | no results | | | |  | | |')
     map_rows = []
-    for key, (name, et_key, _) in MAP_ROWS.items():
+    for key, (name, et_key, *_) in MAP_ROWS.items():
         r, e = rows[('valid_unseen', key)], rows[('valid_unseen', et_key)]
         gain = f'{r["SR"] - e["SR"]:+.1f}' if r.get('n') and e.get('n') else ''
         map_rows.append([name, _n(r), _v(r, 'SR'), _v(r, 'PWSR'), _v(r, 'NQ'),
@@ -403,7 +464,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     return environment().get_template('results.md.j2').render(
         command='./dialfred reproduce' + (f' {mode}' if mode else ''), eval_dir=_relative(plan.eval_dir),
         quick=cfg.quick, settings=settings, table2=table2, table3=table3, table4=table4, extra=extra, returns=returns,
-        map_rows=map_rows,
+        map_rows=map_rows, worth=worth_rows(rows),
         plot_name=plot_name, holds=what_holds(rows), why=why_lines(plan, rows), asked=asked, examples=examples,
         times=times)
 
@@ -465,6 +526,7 @@ def setting_name(key: str) -> str:
     names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
              **{k: v[0] for k, v in PAPER_T4.items()}, 'pretrained': 'Pre-trained only',
              'rl_anytime_no_dialogue': 'RL anytime, instruction only',
+             SWAPPED: 'All QAs, answers swapped',
              **{k: f'Map performer: {name}' for k, (name, *_) in MAP_ROWS.items()}}
     return names[key]
 
@@ -475,7 +537,7 @@ def write_outputs(plan: Plan, report: dict) -> tuple[Path, Path]:
     seen = set()
     for s in settings():
         r = rows[(s.split, s.key)]
-        if s.split == 'valid_unseen' and r.get('n') and s.key not in seen:
+        if s.split == 'valid_unseen' and r.get('n') and s.key not in seen and s.answers == 'oracle':
             seen.add(s.key)
             points.append((setting_name(s.key), r['SR'], r['NQ']))
     plot = draw_frontier(points, plan.run / 'sr_nq.png')

@@ -29,6 +29,7 @@ HORIZON_MIN, HORIZON_MAX = -30.0, 60.0   # look up / down limits (positive = dow
 SMALL_OBJECT_COPIES = (0.6, 0.15, 0.1, 0.15)   # chances of 1, 2, 3, 4 instances of each small type a room has
 START_HORIZON = 30.0         # ALFRED starts every episode looking 30 degrees down
 LIGHT_DIRECTION = (0.3, 0.5, 1.0)
+EYE_SHIFT = 0.0007           # metres the drawn eye sits behind the true one (see World.view_matrix)
 
 COLD, ROOM, HOT = 'cold', 'room', 'hot'
 OPENING_SWEEP = (0.25, 0.5, 0.75, 1.0)   # fractions of a door's swing checked against the agent
@@ -518,7 +519,13 @@ class World:
         return eye, direction
 
     def view_matrix(self):
+        """The camera drawn from EYE_SHIFT behind the eye, along its view (render() measures depth
+        from the true eye). TinyRenderer divides by each vertex's view depth without clipping, so a
+        box corner lying exactly in the camera's plane (with grid poses and whole-centimetre furniture:
+        a 0.9 m counter top ending 0.6 m behind an eye 1.5 m up pitched 45 degrees) blackens its faces
+        with NaN depth or drops them; the shift keeps every such corner off that plane."""
         eye, d = self.camera()
+        eye = tuple(eye[k] - EYE_SHIFT * d[k] for k in range(3))
         target = (eye[0] + d[0], eye[1] + d[1], eye[2] + d[2])
         return self.client.computeViewMatrix(eye, target, (0.0, 0.0, 1.0))
 
@@ -527,14 +534,18 @@ class World:
 
         A smaller `width` x `height` (same aspect) gives a cheap preview, as the expert uses."""
         w, h = width or self.width, height or self.height
-        _, _, rgba_px, zbuf, seg = self.client.getCameraImage(
-            w, h, self.view_matrix(), self._projection,
-            renderer=self.client.ER_TINY_RENDERER, shadow=0, lightDirection=LIGHT_DIRECTION)
+        rgba_px, z, seg = self._camera_image(w, h, self.view_matrix())
         rgb = np.ascontiguousarray(np.asarray(rgba_px, dtype=np.uint8).reshape(h, w, 4)[:, :, :3])
-        z = np.asarray(zbuf, dtype=np.float32).reshape(h, w)
-        depth = (FAR * NEAR / (FAR - (FAR - NEAR) * z)).astype(np.float32)
+        z = z.reshape(h, w)
+        depth = (FAR * NEAR / (FAR - (FAR - NEAR) * z) - EYE_SHIFT).astype(np.float32)
         seg = np.asarray(seg, dtype=np.int32).reshape(h, w)
         return rgb, depth, seg
+
+    def _camera_image(self, w: int, h: int, view):
+        _, _, rgba_px, zbuf, seg = self.client.getCameraImage(
+            w, h, view, self._projection,
+            renderer=self.client.ER_TINY_RENDERER, shadow=0, lightDirection=LIGHT_DIRECTION)
+        return rgba_px, np.asarray(zbuf, dtype=np.float32), seg
 
     def pixel_point(self, px: int, py: int, depth: np.ndarray) -> tuple[tuple[float, float, float], float]:
         """The world point seen at pixel (px, py) and its distance from the eye."""
