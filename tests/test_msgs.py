@@ -131,7 +131,7 @@ def test_services_have_the_documented_request_and_response():
     assert OracleAnswer.Request.get_fields_and_field_types() == {
         'question_type': 'string', 'object_noun': 'string'}
     assert OracleAnswer.Response.get_fields_and_field_types() == {
-        'valid': 'boolean', 'answer': 'string', 'reason': 'string'}
+        'valid': 'boolean', 'answer': 'string', 'reason': 'string', 'task_id': 'string'}
 
     request = SimStep.Request(action=Action(action=Action.PICKUP, x=150, y=200))
     restored = deserialize_message(serialize_message(request), SimStep.Request)

@@ -63,6 +63,24 @@ def test_each_question_type_is_answered_from_the_ground_truth(graph):
     assert direction.valid and direction.answer.startswith('You')
 
 
+def test_an_answer_names_its_task_and_after_a_failed_reset_a_client_playing_another_refuses_it(graph):
+    """The oracle answers from whatever the simulator holds. A reset that fails changes nothing there (the
+    task before it stays), so each answer says which task it is about, and a client playing another task
+    takes it as invalid, both tasks named (messages.qa_from_answer, as the evaluation and the performer do)."""
+    from dialfred_sim.messages import qa_from_answer
+    from dialfred_sim.protocol import Question
+    assert graph.first.task_id == ''                               # before any reset: about no task
+    reply = ask(graph, 'direction', '')
+    assert reply.valid and reply.task_id == TASK
+    bad = graph.call(graph.reset_cli, SimReset.Request(task_id='valid_unseen/999999'), retry_after=RESEND_S)
+    assert not bad.ok
+    after = ask(graph, 'direction', '')
+    assert after.valid and after.task_id == TASK and after.answer == reply.answer
+    assert qa_from_answer(Question('direction'), after, TASK).valid
+    qa = qa_from_answer(Question('direction'), after, 'valid_unseen/999999')
+    assert not qa.valid and qa.answer == '' and f"about '{TASK}', not 'valid_unseen/999999'" in qa.reason
+
+
 def test_the_same_question_gets_the_same_answer(graph):
     noun = task_noun()
     assert ask(graph, 'appearance', noun).answer == ask(graph, 'appearance', noun).answer

@@ -78,8 +78,8 @@ class SimWorker(EpisodeObserver):
         if reply is None:
             reply = Failed('the service call returned no reply')
         elif self.pending == 'question':
-            from dialfred_sim.protocol import QA
-            reply = QA(self.asking, bool(reply.valid), reply.answer, reply.reason)
+            from dialfred_sim.messages import qa_from_answer
+            reply = qa_from_answer(self.asking, reply, self.task.task_id)
         else:
             from dialfred_sim.messages import sim_reply
             reply = sim_reply(reply)

@@ -149,6 +149,7 @@ class OracleNode(Node):
 
     def on_answer(self, request: OracleAnswer.Request, response: OracleAnswer.Response) -> OracleAnswer.Response:
         qtype, noun = request.question_type, request.object_noun
+        self._about = ''        # the task the answer is about: set once the simulator's state is read
         try:
             result = self.answer(qtype, noun)
         except SimulatorUnavailable as exc:
@@ -158,6 +159,7 @@ class OracleNode(Node):
             result = Answer(False, reason=f'internal error: {type(exc).__name__}', question_type=qtype,
                             object_noun=noun)
         response.valid, response.answer, response.reason = bool(result.valid), result.text, result.reason
+        response.task_id = self._about
         self._log(qtype, noun, result)
         return response
 
@@ -172,6 +174,7 @@ class OracleNode(Node):
                           question_type=qtype)
         state = self.world_state()
         snap = state.snapshot
+        self._about = snap.task_id
         result = answer(snap, qtype, noun)
         if result.valid and qtype == 'appearance' and result.object_id:
             oid = result.object_id

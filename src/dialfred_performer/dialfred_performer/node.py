@@ -43,7 +43,7 @@ from dialfred_msgs.action import RunTask
 from dialfred_msgs.msg import Action, QAPair
 from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
 from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
-from dialfred_sim.messages import qa_msg, sim_reply, task_description_msg
+from dialfred_sim.messages import qa_from_answer, qa_msg, sim_reply, task_description_msg
 from dialfred_sim.protocol import MAX_QUESTIONS, QA, Question, top2_gap
 from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, refused_request, run_node
@@ -282,7 +282,7 @@ class GoalRun(EpisodeObserver):
             q = request.question
             answer = node.call(node.oracle_cli, OracleAnswer.Request(question_type=q.question_type,
                                                                      object_noun=q.object_noun), resend=True)
-            return QA(q, bool(answer.valid), answer.answer, answer.reason)
+            return qa_from_answer(q, answer, self.goal_handle.request.task_id)
         reply = node.call(node.step_cli, SimStep.Request(action=Action(action=request.action, x=request.x, y=request.y),
                                                          with_depth=False, with_segmentation=False), resend=False)
         if not reply.ok:

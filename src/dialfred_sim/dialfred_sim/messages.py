@@ -1,7 +1,8 @@
 """Conversions between dialfred_msgs messages and the ROS-free `protocol` (no rclpy).
 
 The nodes and the evaluation client use these, so that a QA or a task reads the same whichever
-process made it: `qa_msg`/`qa_from_msg` (protocol.QA <-> QAPair, the question worded by `protocol.question_text`), `public_task_from_msg`
+process made it: `qa_msg`/`qa_from_msg` (protocol.QA <-> QAPair, the question worded by `protocol.question_text`),
+`qa_from_answer` (an /oracle/answer reply, checked to be about the task played), `public_task_from_msg`
 (TaskDescription -> tasks.PublicTask: what an agent is told, never more).
 """
 
@@ -23,6 +24,16 @@ def qa_msg(qa: QA) -> QAPair:
 
 def qa_from_msg(msg: QAPair) -> QA:
     return QA(Question(msg.question_type, msg.object_noun), bool(msg.valid), msg.answer if msg.valid else '')
+
+
+def qa_from_answer(question: Question, msg, task_id: str) -> QA:
+    """The QA of an /oracle/answer reply `msg` to `question`, asked while playing task `task_id`. An answer about
+    another task (the simulator was reset to another since, or a reset failed and left the one before) is
+    invalid, with both tasks named: it says nothing true about this one."""
+    if msg.valid and msg.task_id != task_id:
+        about = repr(msg.task_id) if msg.task_id else 'no task'
+        return QA(question, False, '', f'the oracle answered about {about}, not {task_id!r}')
+    return QA(question, bool(msg.valid), msg.answer, msg.reason)
 
 
 def public_task_from_msg(msg: TaskDescription) -> PublicTask:
