@@ -29,6 +29,7 @@ from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annota
     LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics,
     evidence, expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
 from dialfred_sim.processes import worker_pool
+from dialfred_sim.progress import progress_bar
 from dialfred_sim.protocol import QUESTION_TEMPLATES, QUESTION_TYPES
 from dialfred_sim.tasks import SPLIT_SIZES
 
@@ -81,19 +82,13 @@ def run_split(split: str, job, workers: int, limit: int = 0) -> list[dict]:
     from dialfred_sim.tasks import load_split
     n = len(load_split(split)[:limit or None])
     chunks = [(k, min(k + CHUNK, n)) for k in range(0, n, CHUNK)]
-    out, t0, shown = [], time.monotonic(), 0.0
+    out = []
     with worker_pool(max(1, workers), initializer=_init_worker, initargs=(split,),
-                     maxtasksperchild=CHUNKS_PER_WORKER) as pool:
+                     maxtasksperchild=CHUNKS_PER_WORKER) as pool, \
+            progress_bar(total=n, unit='task', desc=split) as bar:     # plain lines when stderr is a log
         for rows in pool.imap(job, chunks):
             out.extend(rows)
-            elapsed = time.monotonic() - t0
-            if elapsed - shown < 1.0 and len(out) < n:
-                continue
-            shown, rate = elapsed, len(out) / max(elapsed, 1e-9)
-            eta = (n - len(out)) / max(rate, 1e-9)
-            print(f'\r{split}: {len(out)}/{n} tasks, {rate:.1f} tasks/s, {eta:.0f} s left ', end='',
-                  file=sys.stderr, flush=True)
-    print(file=sys.stderr)
+            bar.update(len(rows))
     return out
 
 

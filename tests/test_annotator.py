@@ -384,3 +384,18 @@ def test_rows_made_while_rendering_are_the_scripts_own(tmp_path):
     path.write_text(''.join(json.dumps(r) + '\n' for r in rows))
     assert rows[0]['index'] in _done_rows(demos)
     assert run('mixed', '--from-demonstrations', str(demos)) == own
+
+
+def test_the_scripts_progress_in_a_log_is_plain_lines(tmp_path):
+    """stderr is not a terminal here (a log, CI): progress comes as whole lines, never carriage-return redraws
+    that pile up into one endless line. (3 train tasks, into a folder of the test's own.)"""
+    import os
+    import subprocess
+    import sys
+    done = subprocess.run([sys.executable, str(ROOT / 'scripts' / 'annotate_dialogues.py'), '--splits', 'train',
+                           '--limit', '3', '--workers', '1', '--doc', str(tmp_path / 'd.md')],
+                          env={**os.environ, 'DIALFRED_DIALOGUE_DIR': str(tmp_path)}, capture_output=True,
+                          text=True, timeout=240)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / 'train.jsonl.gz').exists()
+    assert '\r' not in done.stderr and 'train' in done.stderr and '3/3' in done.stderr
