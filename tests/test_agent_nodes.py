@@ -144,3 +144,28 @@ def test_the_questioner_node_asks_like_the_baseline_and_refuses_a_confusion_requ
     assert bad.proc.wait(30) == 1
     time.sleep(0.2)
     assert any('unknown questioner' in line for line in bad.tail)
+
+
+def test_the_performer_node_warns_once_when_the_camera_is_not_its_checkpoints_resolution(tmp_path):
+    """A checkpoint trained at 64 px against a simulator of 32 px: the frames are resized and the performer
+    plays otherwise than in its evaluation. The node says so, naming the resolution to start the simulator
+    with, once per checkpoint and frame size; against a 64 px simulator it says nothing."""
+    from rclpy.action import ActionClient
+
+    from dialfred_msgs.action import RunTask
+    stopping = tiny_checkpoint(tmp_path / 'stop.pt', favour='Stop')       # trained at 64 px: ends at once
+    warned = {}
+    for camera in (32, RES):
+        ns = f'/cam{camera}'
+        performer = NodeProcess('dialfred_performer', {'checkpoint': str(stopping)}, namespace=ns)
+        with Graph([sim_node(camera, ns, publish_observations=False), performer]) as graph:
+            client = ActionClient(graph.client_node, RunTask, f'{ns}/performer/run_task')
+            while not client.wait_for_server(timeout_sec=0.1):
+                graph.check()
+            for task_id in ('valid_unseen/000000', 'valid_unseen/000001'):
+                handle = wait(graph, client.send_goal_async(RunTask.Goal(task_id=task_id, seed=1)))
+                assert handle.accepted and wait(graph, handle.get_result_async()).result.end_reason == 'stop'
+            graph.spin_until_any([], 0.5)
+            warned[camera] = [line for line in performer.tail if 'resolution:=' in line]
+    assert len(warned[32]) == 1 and '32x32 px frames' in warned[32][0] and 'resolution:=64' in warned[32][0]
+    assert warned[RES] == []

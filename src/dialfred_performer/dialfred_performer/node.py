@@ -49,7 +49,7 @@ from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
 from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, refused_request, run_node
 
 from .model import SHIPPED_CHECKPOINT, CheckpointError
-from .models import PERFORMER_MODELS, load_policy
+from .models import PERFORMER_MODELS, camera_resolution, load_policy
 
 RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again
 SETTLE_S = 0.2           # after a service first appears: its reply path may match a moment later
@@ -103,7 +103,8 @@ class PerformerNode(Node):
         self.qa_pub = self.create_publisher(QAPair, 'dialogue/qa', 100)
         self.action_pub = self.create_publisher(Action, 'performer/action', 100)
         self.map_pub = self.create_publisher(Image, 'performer/map', 10)
-        self._policies: dict = {}     # checkpoint path -> ((mtime, size), policy of self.model)
+        self._policies: dict = {}     # checkpoint path -> ((mtime, size), policy of self.model, its camera pixels)
+        self._camera_warned: set = set()   # (checkpoint path, width, height) already warned of
         self._busy = False
         self._lock = threading.Lock()
         self._settled: set = set()
@@ -177,7 +178,7 @@ class PerformerNode(Node):
             policy = self.policy(goal.checkpoint or self.checkpoint)
         except (FileNotFoundError, CheckpointError, ValueError) as exc:
             raise GoalFailed(f'checkpoint: {exc}') from None
-        goal_run = GoalRun(self, goal_handle, policy, result)
+        goal_run = GoalRun(self, goal_handle, policy, result, goal.checkpoint or self.checkpoint)
         episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
                        max_questions=int(self.get_parameter('max_questions').value), asker='questioner',
                        observers=[goal_run])
@@ -198,8 +199,21 @@ class PerformerNode(Node):
         stamp = (st.st_mtime_ns, st.st_size)
         cached = self._policies.get(path)
         if cached is None or cached[0] != stamp:
-            self._policies[path] = (stamp, load_policy(self.model, Path(path)))
+            self._policies[path] = (stamp, load_policy(self.model, Path(path)), camera_resolution(self.model, Path(path)))
         return self._policies[path][1]
+
+    def check_camera(self, path: str, width: int, height: int) -> None:
+        """Warn (once per checkpoint and frame size) when the simulator's frames are not the size the policy
+        of checkpoint `path` plays at: they are area-averaged to it, and it plays otherwise than in its evaluation."""
+        path = str(Path(path).expanduser())
+        want = self._policies[path][2]
+        if (width, height) == (want, want) or (path, width, height) in self._camera_warned:
+            return
+        self._camera_warned.add((path, width, height))
+        self.get_logger().warning(
+            f'the simulator sends {width}x{height} px frames, but the {self.model} performer of {path} plays at '
+            f'{want}x{want}: its frames are resized and it plays otherwise than in its evaluation; start the '
+            f'simulator with resolution:={want}')
 
     def call(self, client, request, resend: bool):
         """The reply to `request`, waited for (this thread blocks; the executor's other threads
@@ -238,8 +252,9 @@ class GoalRun(EpisodeObserver):
     the node's `questioner` parameter is on), the transport (this node's service clients) and an
     observer that fills the result, publishes QAs, actions and feedback, and records the bag."""
 
-    def __init__(self, node: PerformerNode, goal_handle, policy, result: RunTask.Result):
+    def __init__(self, node: PerformerNode, goal_handle, policy, result: RunTask.Result, checkpoint: str):
         self.node, self.goal_handle, self.policy, self.result = node, goal_handle, policy, result
+        self.checkpoint = checkpoint
         self.task, self.dialogue = None, []
 
     # the agent
@@ -292,6 +307,8 @@ class GoalRun(EpisodeObserver):
     # the observer
     def on_started(self, state: EpisodeState, reply) -> None:
         node, task = self.node, reply.task     # the public view: all the simulator tells any client
+        rgb = reply.raw.observation.rgb
+        node.check_camera(self.checkpoint, int(rgb.width), int(rgb.height))
         if node.record_dir:
             node.recorder = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns,
                                             image_format=node.record_format)
