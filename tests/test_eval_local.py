@@ -55,3 +55,19 @@ def test_a_local_run_resumes_and_refuses_what_needs_ros(tmp_path):
     for bad in (dict(agent='et', performer='et'), dict(record=tmp_path / 'bags'), dict(foxglove=8765)):
         with pytest.raises(ValueError, match='--local'):
             EvalConfig(split='valid_unseen', agent=bad.pop('agent', 'random'), local=True, **bad).check()
+
+
+def test_a_run_at_another_resolution_or_question_limit_is_refused_naming_the_difference(tmp_path):
+    """Episodes played at 64 px are not resumed at 48 px (the lines themselves do not say): the results keep
+    a record of the camera and the question limit, and a run that differs is refused before it plays."""
+    from dialfred_sim.metrics import ResultsFileError
+    out = tmp_path / 'r.jsonl'
+    first = dict(split='valid_unseen', agent='random', limit=1, local=True, out=out, workers=1)
+    assert run_eval(EvalConfig(**first, resolution=64), progress=False).ran == 1
+    assert (tmp_path / 'r.run.json').exists()
+    with pytest.raises(ResultsFileError, match='resolution 64, not 48'):
+        run_eval(EvalConfig(**{**first, 'limit': 2}, resolution=48), progress=False)
+    with pytest.raises(ResultsFileError, match='max_questions 20, not 5'):
+        run_eval(EvalConfig(**{**first, 'limit': 2}, resolution=64, max_questions=5), progress=False)
+    assert len(out.read_text().splitlines()) == 1                     # nothing was added
+    assert run_eval(EvalConfig(**{**first, 'limit': 2}, resolution=64), progress=False).ran == 1

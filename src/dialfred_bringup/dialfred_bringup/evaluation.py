@@ -403,7 +403,36 @@ def resumable_results(config: EvalConfig, task_ids: list) -> dict:
             raise ResultsFileError(f'{path} holds results judged by the goal rule {held}, not {config.goal_rule!r}: '
                                    'choose another --out')
     check_tasks_record(config, bool(existing))
+    check_run_record(config, bool(existing))
     return results_by_task(existing, task_ids)
+
+
+def run_record(config: EvalConfig) -> dict:
+    """What a results file's episodes were played with beyond what each result line records."""
+    return {'resolution': int(config.resolution), 'max_questions': int(config.max_questions)}
+
+
+def check_run_record(config: EvalConfig, has_results: bool) -> None:
+    """Results are kept with a record of the camera and the question limit they were played with
+    (<results>.run.json): ResultsFileError, naming the difference, if a run would add episodes played
+    otherwise. Writes the record for a new results file (and for one made before records were kept)."""
+    from dialfred_sim.metrics import write_text_atomically
+    path, want = config.results_path.with_suffix('.run.json'), run_record(config)
+    held = None
+    if has_results and path.exists():
+        try:
+            held = json.loads(path.read_text())
+        except ValueError:
+            held = None
+        if not isinstance(held, dict):
+            raise ResultsFileError(f'{path} is not a record of a run: choose another --out')
+        differ = [f'{k} {held.get(k)!r}, not {v!r}' for k, v in want.items() if held.get(k) != v]
+        if differ:
+            raise ResultsFileError(f'{config.results_path} holds episodes played with {"; ".join(differ)}: '
+                                   'choose another --out (or the same settings)')
+    if held != want:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomically(path, json.dumps(want, indent=1) + '\n')
 
 
 def check_tasks_record(config: EvalConfig, has_results: bool) -> None:
