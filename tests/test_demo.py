@@ -52,6 +52,27 @@ def test_the_demo_prints_the_dialogue_the_actions_and_the_outcome_and_saves_capt
     with Image.open(out / 'contact_sheet.png') as sheet:
         sheet.verify()
         assert sheet.format == 'PNG'
+    # the closing line: how many succeeded, and (a checkpoint not shipped) how to measure it on the whole split
+    assert lines[-1].startswith('0 of 1 succeeded; ') and 'launch eval --local --split valid_unseen' in lines[-1]
+
+
+def test_the_demos_tasks_are_one_of_each_family_by_type_and_its_reference_is_the_shipped_results_table(tmp_path):
+    from dialfred_bringup.demo import DEMO_TYPES, DemoConfig, demo_tasks, reference_line
+    from dialfred_sim.tasks import load_split
+    tasks = load_split('valid_unseen')
+    chosen = demo_tasks(tasks, 6)
+    firsts = [next(k for k, t in enumerate(tasks) if t.task_type == name) for name in DEMO_TYPES]
+    assert [k for k, _ in chosen[:3]] == firsts                  # the first of each type, in DEMO_TYPES' order
+    assert [t.task_type for _, t in chosen] == list(DEMO_TYPES) * 2
+    assert demo_tasks(tasks, 2, first=5) == [(5, tasks[5]), (6, tasks[6])]
+    doc = tmp_path / 'results.md'
+    doc.write_text('| # | setting | split | n | SR [95%] |\n|---|---|---|---|---|\n'
+                   '| 2 | All QAs | valid_seen | 1296 | 46.7 [44.0, 49.5] |\n'
+                   '| 2 | All QAs | valid_unseen | 1363 | 41.9 [39.3, 44.5] |\n')
+    config = DemoConfig().eval_config()
+    assert reference_line(config, doc) == 'on all 1363 valid_unseen tasks this performer with All QAs succeeds on 41.9% (docs/results.md)'
+    other = DemoConfig(checkpoint=tmp_path / 'mine.pt').eval_config()
+    assert 'launch eval --local' in reference_line(other, doc)
 
 
 def test_without_a_checkpoint_the_demo_says_where_one_should_be_and_how_to_make_one(tmp_path):

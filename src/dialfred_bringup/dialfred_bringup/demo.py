@@ -25,7 +25,9 @@ from typing import Optional
 from dialfred_sim.dataclass_cli import arg
 from dialfred_performer.models import PERFORMER_MODELS
 
+from .baselines import BASELINES
 from .evaluation import EvalConfig, foxglove_field, record_field, record_format_field
+from .paths import REPO
 from .workers import LiveHook, PerformerWorker, play_episodes, start_live_view, worker_nodes
 from .graph import Graph
 
@@ -90,13 +92,49 @@ def outcome_text(result) -> str:
             f'{result.questions} questions, end reason {result.end_reason}{why}')
 
 
+# The demo's tasks by default: one of each of three task families (going to an object and picking it up,
+# putting one down, opening something), in that order, the first of each type in valid_unseen, then the
+# second, ... A fixed rule that never looks at how the performer does.
+DEMO_TYPES = ('Move & Pick', 'Move & Put', 'Move & Open')
+RESULTS_DOC = REPO / 'docs' / 'results.md'
+
+
+def demo_tasks(tasks: list, count: int, first: Optional[int] = None) -> list[tuple[int, object]]:
+    """(index in the split, task) of the demo's `count` tasks: from index `first` on, or by DEMO_TYPES."""
+    indexed = list(enumerate(tasks))
+    if first is not None:
+        return indexed[first:first + count]
+    by_type = [[(k, t) for k, t in indexed if t.task_type == name] for name in DEMO_TYPES]
+    chosen = [group[k] for k in range(max(map(len, by_type), default=0)) for group in by_type if k < len(group)]
+    return chosen[:count]
+
+
+def reference_line(config: EvalConfig, doc: Path = RESULTS_DOC) -> str:
+    """Where the demo's few episodes stand: this performer's and questioner's valid_unseen SR in the results
+    document of the shipped checkpoints (Table II), or where to measure it."""
+    from dialfred_performer.model import SHIPPED_CHECKPOINT
+    names = {b.questioner: b.name for b in BASELINES.values()}
+    name, agent = names.get(config.questioner), config.performer or config.agent
+    if agent == 'et' and Path(config.checkpoint_path).resolve() == Path(SHIPPED_CHECKPOINT).resolve() \
+            and name is not None and doc.exists():
+        for line in doc.read_text().splitlines():
+            cells = [c.strip() for c in line.strip('|').split('|')]
+            if len(cells) > 4 and cells[1] == name and cells[2] == 'valid_unseen':
+                return (f'on all {cells[3]} valid_unseen tasks this performer with {name} succeeds on {cells[4].split()[0]}% '
+                        f'(docs/results.md)')
+    return ('this performer\'s success rate on all of valid_unseen: ./dialfred launch eval --local --split valid_unseen '
+            f'--agent {agent} --questioner {config.questioner or "none"}')
+
+
 @dataclass
 class DemoConfig:
     """The learned performer plays a few valid_unseen tasks through the sim, oracle, questioner and
     performer nodes; captioned GIFs."""
 
     tasks: int = arg(3, 'how many tasks')
-    first: int = arg(0, 'index of the first valid_unseen task')
+    first: Optional[int] = arg(None, 'play valid_unseen\'s tasks from this index on (none: the first task of each of '
+                               + ', '.join(repr(t) for t in DEMO_TYPES) + ', then the second of each, ...: chosen by '
+                               'type, never by outcome)', metavar='INDEX')
     questioner: str = arg('all', 'all, random, confusion, none, a learned questioner (rl-anytime, rl-mc, ... or '
                           'learned:PATH: see eval --help), or package.module:ClassName', aliases={'none': ''},
                           metavar='NAME')
@@ -143,10 +181,14 @@ def run_demo(demo: DemoConfig) -> int:
     except ValueError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    tasks = load_split(config.split)[demo.first:demo.first + demo.tasks]
-    if not tasks:
+    if demo.tasks < 1 or (demo.first is not None and demo.first < 0):
+        print('error: --tasks must be at least 1 and --first at least 0', file=sys.stderr)
+        return 2
+    chosen = demo_tasks(load_split(config.split), demo.tasks, demo.first)
+    if not chosen:
         print(f'error: no tasks from index {demo.first} of {config.split}', file=sys.stderr)
         return 2
+    tasks = [t for _, t in chosen]
     out = Path(demo.out)
     out.mkdir(parents=True, exist_ok=True)
     print(f'checkpoint {config.checkpoint_path}, questioner {config.questioner or "none"}, {config.resolution} px, '
@@ -186,8 +228,8 @@ def run_demo(demo: DemoConfig) -> int:
                                    'not appear in 30 s')
         graph.spin_until_any([], 0.3)     # the publishers see this subscriber a moment later
         print(f'graph ready in {time.monotonic() - t0:.1f} s (sim, oracle, questioner, performer nodes)')
-        sheet = []
-        for index, task in enumerate(tasks, start=demo.first):
+        sheet, successes = [], 0
+        for index, task in chosen:
             print(f'\n{task.task_id} ({task.task_type}) in {task.scene}: "{task.instruction}"', flush=True)
             record = EpisodeRecord(task)
             results = []
@@ -197,6 +239,7 @@ def run_demo(demo: DemoConfig) -> int:
             while not record.complete(result) and time.monotonic() < deadline:
                 graph.spin_until_any([], 0.1)
             outcome = outcome_text(result)
+            successes += bool(result.success)
             print(f'  -> {outcome}')
             if record.frames:
                 film, durations = record.film(outcome)
@@ -212,4 +255,5 @@ def run_demo(demo: DemoConfig) -> int:
     if sheet:
         save_contact_sheet(sheet, out / 'contact_sheet.png')
         print(f'\ncontact sheet: {out / "contact_sheet.png"}')
+    print(f'\n{successes} of {len(chosen)} succeeded; {reference_line(config)}')
     return 0
