@@ -16,6 +16,11 @@ agent protocol only, as your agent would be:
     ./dialfred launch eval --agent examples.direction_follower:DirectionFollower \\
         --questioner examples.direction_follower:AskForDirections
 
+Or as one agent that asks by itself (`DirectionAsker`: a protocol.DialogueAgent, with its own
+`ask(observation)`; the evaluation then starts the oracle without a questioner):
+
+    ./dialfred launch eval --agent examples.direction_follower:DirectionAsker
+
 Run from the repository's root, `examples` is importable as it is (with `--local` too). On valid_unseen
 it reaches the goal in 151 of the 163 Move tasks (92.6%). The random agent reaches 5.5% of them.
 """
@@ -74,3 +79,23 @@ class DirectionFollower:
                                                       else 'RotateLeft')
         self.last_action = action
         return (action, -1, -1)
+
+
+class DirectionAsker(DirectionFollower):
+    """The follower asking for itself: a direction question before every action (as AskForDirections)."""
+
+    name = 'direction_asker'
+
+    def reset(self, task, seed: int) -> None:
+        super().reset(task, seed)
+        self._asked = False
+
+    def ask(self, observation):
+        if self._asked:
+            return None
+        self._asked = True
+        return Question('direction')
+
+    def act(self, observation):
+        self._asked = False          # the next action gets its own question
+        return super().act(observation)

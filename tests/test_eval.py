@@ -496,6 +496,12 @@ def test_the_example_agent_reaches_most_move_goals_by_following_the_oracles_dire
                      questioner='examples.direction_follower:AskForDirections', limit=6, workers=1, local=True)
     key = lambda r: (r.task_id, r.success, r.steps, r.questions, r.failed_actions, r.end_reason, r.dialogue)  # noqa: E731 - a sort key
     assert [key(r) for r in local.results] == [key(r) for r in report.results]
+    # The same agent asking by itself (its own ask(): a DialogueAgent), with no questioner: the run starts the
+    # oracle for it and plays the same episodes, through the graph and without ROS.
+    for path, limit in (('graph', 2), ('local', 6)):
+        asker = evaluate(tmp_path / f'asker_{path}.jsonl', agent='examples.direction_follower:DirectionAsker',
+                         limit=limit, workers=1, local=path == 'local')
+        assert [key(r) for r in asker.results] == [key(r) for r in report.results[:limit]], path
 
 
 def test_the_et_performer_is_evaluated_at_its_training_resolution_unless_told_otherwise(tmp_path):

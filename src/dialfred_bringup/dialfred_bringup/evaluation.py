@@ -42,7 +42,7 @@ from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
 from dialfred_sim.metrics import ResultsFileError, played_at
-from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES
+from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES, DialogueAgent
 from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES, under_rule
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
@@ -242,6 +242,16 @@ class EvalConfig:
         from dialfred_sim.agents import make_agent
         return make_agent(self.agent, self.resolution)
 
+    @functools.cached_property
+    def asks(self) -> bool:
+        """Whether the run asks the oracle: with a questioner, or with an agent that asks by itself (a
+        protocol.DialogueAgent, `ask(observation)` and `hear(qa)`: a class of yours)."""
+        if self.questioner:
+            return True
+        if self.performer or self.agent in PERFORMER_MODELS:
+            return False
+        return isinstance(self.make_performer(), DialogueAgent)
+
     def make_agent(self):
         """A new agent as configured (ValueError for an unknown agent or questioner)."""
         from dialfred_questioner.baselines import with_questioner
@@ -284,11 +294,12 @@ class EvalConfig:
         check_results_path(self.results_path)
         if self.answers not in SWAP_MODES:
             raise ValueError(f'--answers must be one of {", ".join(SWAP_MODES)}, got {self.answers!r}')
-        if self.answers == 'swapped' and (not self.questioner or self.perturb_type):
-            raise ValueError('--answers swapped needs a questioner (--questioner) and no --perturb-type')
+        if self.answers == 'swapped' and (not self.asks or self.perturb_type):
+            raise ValueError('--answers swapped needs a questioner (--questioner, or an agent that asks) and no '
+                             '--perturb-type')
         if self.perturb_type:
-            if not self.questioner:
-                raise ValueError('a perturbed oracle needs a questioner (--questioner)')
+            if not self.asks:
+                raise ValueError('a perturbed oracle needs a questioner (--questioner, or an agent that asks)')
             if self.perturb_type not in QUESTION_TYPES:
                 raise ValueError(f'--perturb-type must be one of {", ".join(QUESTION_TYPES)}, '
                                  f'got {self.perturb_type!r}')
@@ -539,7 +550,7 @@ def _run_eval(config: EvalConfig, progress: bool, traces: Optional[dict]) -> Eva
                 if config.performer:
                     worker = PerformerWorker(graph, ns, config)
                 else:
-                    worker = SimWorker(graph, ns, config.make_agent(), config, oracle=bool(config.questioner))
+                    worker = SimWorker(graph, ns, config.make_agent(), config, oracle=config.asks)
                 if view is not None:
                     worker.live = LiveHook(view, f'w{namespaces.index(ns)}')
                 return worker

@@ -54,7 +54,7 @@ def play_episode(config, env, agent, perturbation, index: int, task, swap=None):
     from dialfred_sim.episode import play, run
     from dialfred_sim.protocol import episode_seed
     started = time.monotonic()
-    episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=bool(config.questioner),
+    episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=config.asks,
                    max_questions=config.max_questions)
     state = run(episode, EnvServer(env, task, perturbation, swap))
     return episode_result(config, task, agent, state, time.monotonic() - started)

@@ -437,7 +437,7 @@ def worker_nodes(config, namespace: str, **sim_params) -> list:
     from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
     nodes = [sim_node(config.resolution, namespace, **{'publish_observations': False, 'goal_rule': config.goal_rule,
                                                        **from_file, **sim_params})]
-    if config.questioner:
+    if config.asks:
         withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
                     'seed': config.seed} if config.perturb_type else {}
         if config.answers == 'swapped':
