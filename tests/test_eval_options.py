@@ -126,3 +126,25 @@ def test_ctrl_c_before_the_first_episode_says_nothing_was_written(tmp_path, monk
         evaluation.run_eval_command(
             dialfred_bringup.launch.make_parser().parse_args(['eval', '--agent', 'random', '--out', str(out)]))
     assert 'before the first episode ended: nothing was written' in err.getvalue() and not out.exists()
+
+
+def test_eval_with_human_puts_the_questions_to_a_person_on_standard_input(tmp_path):
+    """`launch eval --human`: the oracle node asks a person in the terminal; what they type is the answer the
+    agent hears and the results record (oracle 'human'). Not --local, and one worker."""
+    import json
+    import subprocess
+    import sys
+    out = tmp_path / 'human.jsonl'
+    base = [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', 'valid_unseen', '--agent', 'random',
+            '--questioner', 'all', '--limit', '1', '--resolution', '64', '--out', str(out)]
+    refused = subprocess.run(base + ['--human', '--local'], capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2 and '--human answers through the graph' in refused.stderr
+    refused = subprocess.run(base + ['--human', '--workers', '2'], capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2 and 'one worker' in refused.stderr
+    typed = ''.join(f'answer number {k}\n' for k in range(10))
+    done = subprocess.run(base + ['--human', '--workers', '1'], input=typed, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    (result,) = [json.loads(line) for line in out.read_text().splitlines()]
+    assert result['oracle'] == 'human' and result['questions'] >= 3
+    assert [qa['answer'] for qa in result['dialogue']] == [f'answer number {k}' for k in range(result['questions'])]
+    assert 'the simulator would say' in done.stdout

@@ -145,6 +145,7 @@ class DemoConfig:
                                      'eval\'s)', metavar='PATH')
     resolution: Optional[int] = arg(None, 'camera pixels (none: the resolution the checkpoint was trained at)',
                                     metavar='PIXELS')
+    human: bool = arg(False, 'the oracle asks you in this terminal (the simulator\'s answer suggested)')
     max_steps: int = arg(100, 'the simulator ends an episode after this many actions (the benchmark\'s limit is 1000)')
     seed: int = arg(0, 'the run\'s seed')
     out: Path = arg(Path('out/demo'), 'where the GIFs and the contact sheet go', metavar='DIR')
@@ -156,7 +157,8 @@ class DemoConfig:
     def eval_config(self) -> EvalConfig:
         """The evaluation the demo's worker plays: one performer node, this questioner."""
         return EvalConfig(split='valid_unseen', performer=self.performer, questioner=self.questioner, checkpoint=self.checkpoint,
-                          resolution=self.resolution, seed=self.seed, workers=1, episode_timeout=self.episode_timeout,
+                          resolution=self.resolution, seed=self.seed, workers=1, human=self.human,
+                          episode_timeout=max(self.episode_timeout, 3600.0) if self.human else self.episode_timeout,
                           foxglove=self.foxglove, record=self.record, record_format=self.record_format)
 
 

@@ -117,6 +117,8 @@ class EvalConfig:
                        "oracle's answer to the same question in another task of the split (a performer that "
                        "reads its answers does worse; dialfred_oracle/swap.py; results are named ..._swapped)",
                        choices=SWAP_MODES)
+    human: bool = arg(False, 'the oracle asks you in this terminal (its answer suggested; an empty line takes it): '
+                      'through the graph, one worker; each request may then wait an hour')
     max_questions: int = arg(MAX_QUESTIONS, 'questions in a row without acting before an episode ends with an '
                              'error (the performer node\'s max_questions)', metavar='N')
     goal_rule: str = arg(DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
@@ -209,6 +211,8 @@ class EvalConfig:
         """How the oracle answers, as results record it: '' exactly, 'location:0.5' perturbed."""
         if self.answers == 'swapped':
             return 'swapped'
+        if self.human:
+            return 'human'
         return f'{self.perturb_type}:{self.perturb_probability:g}' if self.perturb_type else ''
 
     def split_tasks(self) -> list:
@@ -294,6 +298,11 @@ class EvalConfig:
         check_results_path(self.results_path)
         if self.answers not in SWAP_MODES:
             raise ValueError(f'--answers must be one of {", ".join(SWAP_MODES)}, got {self.answers!r}')
+        if self.human:
+            if self.local or self.workers != 1 or not self.asks or self.perturb_type or self.answers != 'oracle':
+                raise ValueError('--human answers through the graph (not --local), with one worker (--workers 1), a '
+                                 'questioner (or an agent that asks), and no --perturb-type or --answers swapped')
+            self.request_timeout = max(self.request_timeout, 3600.0)      # a person takes time
         if self.answers == 'swapped' and (not self.asks or self.perturb_type):
             raise ValueError('--answers swapped needs a questioner (--questioner, or an agent that asks) and no '
                              '--perturb-type')

@@ -69,6 +69,7 @@ class NodesConfig:
     resolution: Optional[int] = arg(None, 'camera pixels (none: what the shipped et performer was trained at, '
                                     '64; a performer node started against the graph plays at that size)',
                                     metavar='PIXELS')
+    human: bool = arg(False, 'the oracle asks you in this terminal (the simulator\'s answer suggested)')
 
 
 @dataclass
@@ -164,7 +165,7 @@ def run_nodes(args: NodesConfig) -> int:
     if not 16 <= args.resolution <= 1024:
         print(f'error: --resolution must be 16 to 1024 pixels, got {args.resolution}', file=sys.stderr)
         return 2
-    with Graph([sim_node(args.resolution), oracle_node()]) as graph:
+    with Graph([sim_node(args.resolution), oracle_node(human=args.human)]) as graph:
         graph.client(SimReset, '/sim/reset')
         graph.client(OracleAnswer, '/oracle/answer')
         print(f'graph up at {args.resolution}x{args.resolution} px: /sim/reset, /sim/step, /sim/ground_truth, '

@@ -442,7 +442,7 @@ def worker_nodes(config, namespace: str, **sim_params) -> list:
                     'seed': config.seed} if config.perturb_type else {}
         if config.answers == 'swapped':
             withhold.update(answers='swapped', swap_resolution=config.resolution, **from_file)
-        nodes.append(oracle_node(namespace, **withhold))
+        nodes.append(oracle_node(namespace, human=config.human, **withhold))
     if config.performer:
         if config.questioner:
             learned = config.learned_questioner_path     # the node may run elsewhere: an absolute path
