@@ -17,6 +17,8 @@ script, a console error and a GIF that does not load.
 
 from __future__ import annotations
 
+import dataclasses
+
 import html
 import json
 import re
@@ -91,7 +93,8 @@ def write_bag(folder: Path, result: EpisodeResult, seed: int = 0) -> Path:
     for k in range(1, steps + 1):
         rec.action(k, 'MoveAhead', -1, -1, True, result.questions)
         rec.observation(k, frame(), (0.25 * k, 0.0, 0.0, 30.0), 1.5)
-    rec.result(success=result.success, steps=steps, end_reason=result.end_reason, questions=result.questions)
+    rec.result(success=result.success, steps=result.steps, end_reason=result.end_reason, questions=result.questions,
+               failed_actions=result.failed_actions)
     return rec.save(folder)
 
 
@@ -198,7 +201,22 @@ def test_each_recorded_episode_gets_its_gif_and_a_missing_or_unreadable_bag_is_s
     assert '1 of 8 episodes have no bag' in err
     assert 'synthetic_000004: recording unreadable' in err and 'shown without a GIF' in err
     assert re.search(r'GIFs: 7/7', err)
-    assert '6 GIFs, 1 without a bag, 1 unreadable bags' in out
+    assert '6 GIFs, 1 without a bag, 1 unreadable bags, 0 bags of another run' in out
+
+
+def test_a_bag_of_another_runs_episode_of_the_same_task_gets_no_gif_and_is_said(run, capsys):
+    """Bags are named by task: a run recorded into a folder that holds another run's bags would show that
+    run's GIFs beside this run's episodes. A bag whose recorded outcome or dialogue is not the results line's
+    is flagged instead."""
+    path, bags, results = run
+    other = dataclasses.replace(results[0], steps=results[0].steps + 3, success=not results[0].success)
+    write_bag(bags, other, seed=99)                       # replaces synthetic/000000's bag with another episode's
+    assert report_main([str(path), '--bags', str(bags)]) == 0
+    out, err = capsys.readouterr()
+    block = episode_block(path.with_suffix('.html').read_text(), results[0].task_id)
+    assert 'the recording is of another episode of this task (success, steps differ' in block and '<img' not in block
+    assert 'another run recorded into that folder' in err
+    assert '5 GIFs, 1 without a bag, 1 unreadable bags, 1 bags of another run' in out
 
 
 def test_without_bags_every_episode_says_no_recording_and_no_media_folder_is_made(run):
@@ -334,7 +352,7 @@ def test_a_recorded_evaluation_is_reported_with_its_gifs_and_instructions(tmp_pa
     report = run_eval(EvalConfig(split='valid_unseen', agent='expert', questioner='all', limit=3, workers=1,
                                  resolution=64, out=tmp_path / 'eval.jsonl', record=tmp_path / 'bags'), progress=False)
     page_path, shown, counts = build_report(tmp_path / 'eval.jsonl', tmp_path / 'bags')
-    assert counts == {'gifs': 3, 'missing': 0, 'unreadable': 0}
+    assert counts == {'gifs': 3, 'missing': 0, 'unreadable': 0, 'mismatched': 0}   # the real bags are this run's
     page = page_path.read_text()
     assert '<dt>agent</dt><dd>expert (privileged reference' in page and '<dt>resolution</dt><dd>64</dd>' in page
     for r in report.results:

@@ -184,9 +184,21 @@ def task_text(task_id: str) -> tuple[str, str]:
 
 # ------------------------------------------------------------------------------------------------ GIFs
 
-def render_gif(bag: Path, gif: Path, width: int) -> dict:
+EPISODE_FIELDS = ('success', 'steps', 'questions', 'failed_actions', 'end_reason')
+
+
+def episode_of(result) -> dict:
+    """What identifies an episode, from a results line (EpisodeResult) or a bag's recorded result (dict):
+    its outcome fields and its dialogue (type, noun, answer)."""
+    get = (lambda k: result[k]) if isinstance(result, dict) else (lambda k: getattr(result, k))
+    return {k: get(k) for k in EPISODE_FIELDS}
+
+
+def render_gif(bag: Path, gif: Path, width: int, expected: Optional[dict] = None) -> dict:
     """Render one bag's captioned GIF (runs in a worker process). Returns {'ok', 'note', 'instruction',
-    'scene', 'frames'}; a bag that cannot be read or has no frames gives ok False and why."""
+    'scene', 'frames'}; a bag that cannot be read or has no frames gives ok False and why. With `expected`
+    (episode_of the results line, and its 'dialogue' [(type, noun, answer)]), a bag of another episode (bags
+    are named by task only: another run's, recorded into the same folder) gives ok False, 'mismatch' True."""
     from .film import save_captioned_gif
     from dialfred_sim.bag import BagError, read_episode
 
@@ -198,6 +210,13 @@ def render_gif(bag: Path, gif: Path, width: int) -> dict:
     except Exception as exc:  # noqa: BLE001 - a damaged file can fail anywhere in the reader; report it
         return {'ok': False, 'note': f'recording unreadable: {type(exc).__name__}: {exc}'}
     info = {'instruction': ep.task.get('instruction', ''), 'scene': ep.task.get('scene', ''), 'frames': len(ep.frames)}
+    if expected is not None and ep.result:
+        held = {**episode_of(ep.result), 'dialogue': [(d[1], d[2], d[4] if d[5] else '') for d in ep.dialogue]}
+        differ = [k for k in expected if held.get(k) != expected[k]]
+        if differ:
+            return {'ok': False, 'mismatch': True, **info,
+                    'note': f'the recording is of another episode of this task ({", ".join(differ)} differ from the '
+                            'results): another run recorded into that folder'}
     if not ep.frames:
         return {'ok': False, 'note': 'the recording has no camera frames', **info}
     save_captioned_gif(film(ep), gif, width=width)
@@ -207,10 +226,10 @@ def render_gif(bag: Path, gif: Path, width: int) -> dict:
 def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Path, width: int, embed: bool,
                 workers: int, say: Callable[[str], None]) -> dict:
     """Render the GIF of every episode whose bag `bags` holds into `media`, and set each view's gif or
-    media_note. Returns counts {'gifs', 'missing', 'unreadable'}."""
+    media_note. Returns counts {'gifs', 'missing', 'unreadable', 'mismatched' (a bag of another episode)}."""
     from dialfred_sim.bag import bag_name
     todo = []
-    counts = {'gifs': 0, 'missing': 0, 'unreadable': 0}
+    counts = {'gifs': 0, 'missing': 0, 'unreadable': 0, 'mismatched': 0}
     for view in views:
         bag = bags / bag_name(view.result.task_id)
         if bag.exists():     # a folder that is no bag is reported as unreadable below
@@ -227,11 +246,14 @@ def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Pat
     with tempfile.TemporaryDirectory(prefix='dialfred-report-') as scratch:
         target = Path(scratch) if embed else media
         jobs = [(view, bag, target / f'{bag.name}.gif') for view, bag in todo]
+        expected = [{**episode_of(v.result), 'dialogue': [(d['type'], d['noun'], d['answer']) for d in v.result.dialogue]}
+                    for v, _ in todo]
         start = last = time.monotonic()
         pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
         try:
-            outcomes = (pool.map(render_gif, [b for _, b, _ in jobs], [g for *_, g in jobs], [width] * len(jobs))
-                        if pool else (render_gif(b, g, width) for _, b, g in jobs))
+            outcomes = (pool.map(render_gif, [b for _, b, _ in jobs], [g for *_, g in jobs], [width] * len(jobs),
+                                 expected)
+                        if pool else (render_gif(b, g, width, e) for (_, b, g), e in zip(jobs, expected)))
             for k, ((view, bag, gif), outcome) in enumerate(zip(jobs, outcomes), start=1):
                 view.instruction = outcome.get('instruction') or view.instruction
                 view.scene = outcome.get('scene') or view.scene
@@ -240,7 +262,7 @@ def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Pat
                     view.gif = (f'data:image/gif;base64,{base64.b64encode(gif.read_bytes()).decode("ascii")}' if embed
                                 else urllib.parse.quote(os.path.relpath(gif, page_dir).replace(os.sep, '/')))
                 else:
-                    counts['unreadable'] += 1
+                    counts['mismatched' if outcome.get('mismatch') else 'unreadable'] += 1
                     view.media_note = outcome['note']
                     say(f'{bag}: {outcome["note"]}; the episode is shown without a GIF')
                 now = time.monotonic()
@@ -288,7 +310,7 @@ def build_report(results_path: Path, bags: Optional[Path] = None, out: Optional[
     for r in results:
         by_type.setdefault(r.task_type, []).append(r)
     views = [EpisodeView(r, *task_text(r.task_id)) for r in results]
-    counts = {'gifs': 0, 'missing': len(views) if bags is None else 0, 'unreadable': 0}
+    counts = {'gifs': 0, 'missing': len(views) if bags is None else 0, 'unreadable': 0, 'mismatched': 0}
     if bags is None:
         for view in views:
             view.media_note = 'no recording'
@@ -342,7 +364,8 @@ def main(argv=None) -> int:
         return 2
     o = report.summary['overall']
     print(f'{page}: {o["n"]} episodes, SR {o["SR"]:.1f} {report.bounds["SR"][0]:.1f}-{report.bounds["SR"][1]:.1f}, '
-          f'{counts["gifs"]} GIFs, {counts["missing"]} without a bag, {counts["unreadable"]} unreadable bags')
+          f'{counts["gifs"]} GIFs, {counts["missing"]} without a bag, {counts["unreadable"]} unreadable bags, '
+          f'{counts["mismatched"]} bags of another run\'s episodes')
     return 0
 
 
