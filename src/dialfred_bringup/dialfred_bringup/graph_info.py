@@ -31,7 +31,10 @@ def read_graph(node, wait_s: float) -> dict:
     services = {name: types for name, types in node.get_service_names_and_types()}
     actions = sorted({name.split(ACTION_MARK)[0] for name in (*topics, *services) if ACTION_MARK in name})
     own = (f'{me}/', '/rosout', '/parameter_events')     # this reader's own endpoints and ROS's own topics
-    keep = lambda name: ACTION_MARK not in name and not name.startswith(own[0]) and name not in own[1:]  # noqa: E731
+
+    def keep(name: str) -> bool:
+        return ACTION_MARK not in name and not name.startswith(own[0]) and name not in own[1:]
+
     return {'nodes': nodes,
             'topics': {n: t for n, t in sorted(topics.items()) if keep(n)},
             'services': {n: t for n, t in sorted(services.items()) if keep(n) and not _parameter_service(n)},
