@@ -21,10 +21,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+from dialfred_sim.ros_util import SETTLE_S
+
 from .paths import REPO
 
-SERVICE_SETTLE_S = 0.2   # see Graph.client
-RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again (see Graph.call)
 
 
 def _spans_hosts(env) -> bool:
@@ -273,7 +273,7 @@ class Graph:
         if probe is not None:
             self.call(cli, probe, timeout=max(1.0, deadline - time.monotonic()), retry_after=0.5)
             return cli
-        settle = time.monotonic() + SERVICE_SETTLE_S
+        settle = time.monotonic() + SETTLE_S
         while time.monotonic() < settle:
             self.executor.spin_once(timeout_sec=0.02)
         return cli

@@ -48,7 +48,9 @@ from .demo import DemoConfig, run_demo
 from .evaluation import (DEFAULT_RESOLUTION, ResultsFileError, add_eval_parser, record_field, record_format_field,
                          run_eval_command)
 from .film import save_captioned_gif
-from .graph import RESEND_AFTER_S, Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain
+from dialfred_sim.ros_util import RESEND_AFTER_S
+
+from .graph import Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain
 
 
 @dataclass

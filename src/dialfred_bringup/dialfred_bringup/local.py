@@ -32,7 +32,7 @@ def _init_worker(config) -> None:
     from dialfred_sim.env import DialfredEnv
     torch.set_num_threads(1)
     _W['config'] = config
-    # the sim node's defaults: 1000 steps, 10 failures
+    # the sim node's defaults: protocol.MAX_STEPS, MAX_FAILURES
     _W['env'] = DialfredEnv(resolution=config.resolution, goal_rule=config.goal_rule)
     _W['agent'] = config.make_agent()
     _W['perturbation'] = (Perturbation(config.perturb_type, config.perturb_probability, config.seed)

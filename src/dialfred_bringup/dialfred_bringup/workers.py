@@ -16,11 +16,11 @@ import time
 from pathlib import Path
 
 from dialfred_sim.episode import EpisodeObserver
+from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
 
 from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service
 
 
-RESEND_AFTER_S = 10.0  # a reset or question unanswered this long is sent again (see SimWorker.resend_if_lost)
 
 
 class SimWorker(EpisodeObserver):
@@ -297,7 +297,6 @@ class PerformerWorker:
                                         for m in r.dialogue] if r else [])
 
 
-SETTLE_S = 0.2
 
 
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor=None) -> None:

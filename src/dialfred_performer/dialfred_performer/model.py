@@ -22,7 +22,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dialfred_sim.protocol import ACTIONS
+from dialfred_sim.protocol import ACTIONS, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig
@@ -45,7 +45,7 @@ class PerformerConfig:
     ff: int = 256
     dropout: float = 0.1
     max_tokens: int = 256          # language tokens: instruction + every QA
-    max_steps: int = 1000          # frames of one episode (the simulator truncates at 1000 steps)
+    max_steps: int = MAX_STEPS     # frames of one episode (the simulator truncates at MAX_STEPS)
     visual: str = 'cnn'            # 'cnn': three convolutions learnt through the action loss, a pointer over
                                    # 8 x 8-pixel cells; 'perception': the pretrained Perception network
                                    # (dialfred_performer.perception), frozen, and a pointer over every pixel

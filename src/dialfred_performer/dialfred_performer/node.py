@@ -46,13 +46,12 @@ from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play
 from dialfred_sim.messages import qa_from_answer, qa_msg, sim_reply, task_description_msg
 from dialfred_sim.protocol import MAX_QUESTIONS, QA, Question, top2_gap
 from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
-from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, refused_request, run_node
+from dialfred_sim.ros_util import (RESEND_AFTER_S, SERVICE_QOS, SETTLE_S, Param, declare_parameters, refused_request,
+                                   run_node)
 
 from .model import SHIPPED_CHECKPOINT, CheckpointError
 from .models import PERFORMER_MODELS, camera_resolution, load_policy
 
-RESEND_AFTER_S = 5.0     # a reset or question unanswered this long is sent again
-SETTLE_S = 0.2           # after a service first appears: its reply path may match a moment later
 
 
 class GoalFailed(RuntimeError):

@@ -48,6 +48,7 @@ from dialfred_sim.processes import worker_pool
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
 from dialfred_performer.models import PERFORMER_MODELS
 
+from dialfred_sim.protocol import MAX_STEPS
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 
 from .checkpoint import resume_training, save
@@ -92,7 +93,7 @@ class FinetuneConfig:
     grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
     resolution: int = arg(0, "the env's frames (0: the performer model's camera, as the evaluation plays it: the et "
                              "performer's training resolution, 128 px for the map performer)")
-    max_steps: int = arg(1000, 'performer steps before an episode is cut off (the evaluation\'s limit)')
+    max_steps: int = arg(MAX_STEPS, 'performer steps before an episode is cut off (the evaluation\'s limit)')
     limit: int = arg(0, 'only the first N tasks of the split (0: all)')
     workers: int = arg(2, 'rollout processes')
     seed: int = arg(0, 'seeds the task order, the episodes and the sampling')

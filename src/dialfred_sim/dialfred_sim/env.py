@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
+from .protocol import MAX_FAILURES, MAX_STEPS
 from .tasks.goals import DEFAULT_GOAL_RULE, check_goal_rule, conditions_met, goal_progress, under_rule
 from .world.bullet import bullet_client, pybullet, quiet_stdout
 from .world.rooms import all_scenes, room_layout, scene_number
@@ -44,7 +45,7 @@ class DialfredEnv(gym.Env):
     metadata = {'render_modes': ['rgb_array'], 'render_fps': 5}
 
     def __init__(self, resolution: int = DEFAULT_RESOLUTION, scene: Optional[str] = None,
-                 max_steps: int = 1000, max_failures: int = 10, dirty_probability: float = 0.25,
+                 max_steps: int = MAX_STEPS, max_failures: int = MAX_FAILURES, dirty_probability: float = 0.25,
                  render_mode: Optional[str] = 'rgb_array', goal_rule: str = DEFAULT_GOAL_RULE):
         if not _is_integer(resolution) or not 16 <= resolution <= 1024:
             raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')

@@ -23,7 +23,7 @@ from .tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.scene import CAMERA_HEIGHT
-from .protocol import fill_image, image_bytes
+from .protocol import MAX_FAILURES, MAX_STEPS, fill_image, image_bytes
 from .ros_util import SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 
 # Observations: every one matters to a recorder, only the newest to a controller.
@@ -68,8 +68,8 @@ class TasksFileError(RuntimeError):
 PARAMETERS = (
     Param('resolution', DEFAULT_RESOLUTION, 'frame width and height in pixels', span=(16, 1024)),
     Param('scene', '', "floor plan for resets that name none; '' draws one from the first reset's seed"),
-    Param('max_steps', 1000, 'an episode ends after this many actions', span=(1, 100_000)),
-    Param('max_failures', 10, 'an episode ends after this many failed actions', span=(1, 100_000)),
+    Param('max_steps', MAX_STEPS, 'an episode ends after this many actions', span=(1, 100_000)),
+    Param('max_failures', MAX_FAILURES, 'an episode ends after this many failed actions', span=(1, 100_000)),
     Param('publish_observations', True, 'publish the observation of every reset and step on `/sim/observation`'),
     Param('tasks_file', '', 'a split file of your own (e.g. a test_unseen split): /sim/reset task ids are '
           "looked up there first, then in the shipped splits; '' = shipped splits only"),

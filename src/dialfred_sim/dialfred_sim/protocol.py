@@ -39,6 +39,8 @@ QUESTION_TEMPLATES = {'location': 'Where is the {noun}?', 'appearance': 'What do
                       'direction': 'Which direction should I turn to?'}
 
 MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
+# The paper's episode limits: an episode ends after MAX_STEPS actions (truncated) or MAX_FAILURES failed ones.
+MAX_STEPS, MAX_FAILURES = 1000, 10
 
 
 def question_text(question_type: str, noun: str = '') -> str:

@@ -16,6 +16,11 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 # KEEP_ALL the server's reader holds every request until the node takes it, so a flood is served in
 # order; tests/test_service_flood.py floods /sim/step and /oracle/answer to check it. Clients use it
 # too, so that many replies arriving at once are not dropped on their side either.
+# A reset or a question unanswered this long is sent again (a request sent before DDS matched the reply path,
+# or to a node being restarted, is lost; both may be repeated). Steps are never repeated: they change the world.
+RESEND_AFTER_S = 5.0
+# After a service first appears, its reply path may match a moment later.
+SETTLE_S = 0.2
 SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE, depth=1)
 
 
