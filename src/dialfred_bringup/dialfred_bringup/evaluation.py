@@ -215,6 +215,11 @@ class EvalConfig:
             return 'human'
         return f'{self.perturb_type}:{self.perturb_probability:g}' if self.perturb_type else ''
 
+    @property
+    def identity(self) -> dict:
+        """What every results line of this run carries (metrics.episode_result's keywords)."""
+        return {'agent': self.agent_name, 'oracle': self.oracle, 'seed': self.seed, 'goal_rule': self.goal_rule}
+
     def split_tasks(self) -> list:
         """Every task of the split played (or of the tasks file), in order, before --limit and --shard."""
         from dialfred_sim.tasks import load_split

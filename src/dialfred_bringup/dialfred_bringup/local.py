@@ -61,18 +61,13 @@ def play_episode(config, env, agent, perturbation, index: int, task, swap=None):
 
 
 def episode_result(config, task, agent, state, wall_s: float):
-    """The results line of an episode played by `config`'s run (an EvalConfig) to `state`."""
-    from dialfred_sim.metrics import EpisodeResult, dialogue_entry
-    return EpisodeResult(
-        task_id=task.task_id, task_type=task.task_type, split=task.split, success=state.success,
-        goal_conditions_met=state.goal_conditions_met, goal_conditions_total=state.goal_conditions_total,
-        steps=state.steps, expert_length=int(task.expert_length), questions=state.questions,
-        invalid_questions=state.invalid_questions, failed_actions=state.failed_actions, end_reason=state.end_reason,
-        error=state.error, agent=config.agent_name, oracle=config.oracle, seed=config.seed, wall_s=round(wall_s, 4),
-        goal_rule=config.goal_rule,
-        privileged=bool(getattr(agent, 'privileged', False)),
-        dialogue=[dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid), qa.answer)
-                  for qa in state.dialogue])
+    """The results line of an episode played by `config`'s run (an EvalConfig) to `state` (the episode loop's
+    EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker)."""
+    from dialfred_sim.metrics import dialogue_entry
+    from dialfred_sim.metrics import episode_result as result_line
+    return result_line(task, state, [dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid),
+                                                    qa.answer) for qa in state.dialogue],
+                       wall_s=wall_s, privileged=bool(getattr(agent, 'privileged', False)), **config.identity)
 
 
 def play_local(config, jobs: list, on_result: Callable) -> None:

@@ -279,22 +279,19 @@ class PerformerWorker:
         self.future = None
 
     def _result(self, result, error: str = ''):
-        from dialfred_sim.metrics import EpisodeResult, dialogue_entry
-        task, r = self.task, result
+        """The results line of the goal's RunTask `result` (None: no result came), or of an error."""
+        from types import SimpleNamespace
+
+        from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
+        r = result
         reason = 'error' if error or r is None or r.end_reason in ('error', 'canceled') else r.end_reason
-        success = bool(r.success) if r is not None and reason != 'error' else False
-        return EpisodeResult(
-            task_id=task.task_id, task_type=task.task_type, split=task.split, success=success,
-            goal_conditions_met=int(r.goal_conditions_met) if r else 0,
-            goal_conditions_total=int(r.goal_conditions_total) if r else 0,
-            steps=int(r.steps) if r else 0, expert_length=int(task.expert_length),
-            questions=int(r.questions) if r else 0, invalid_questions=int(r.invalid_questions) if r else 0,
-            failed_actions=int(r.failed_actions) if r else 0, end_reason=reason,
-            error='' if success else (error or (r.error if r else '')), agent=self.config.agent_name,
-            oracle=self.config.oracle, seed=self.config.seed, wall_s=round(time.monotonic() - self.started, 4),
-            goal_rule=self.config.goal_rule,
-            privileged=False, dialogue=[dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer)
-                                        for m in r.dialogue] if r else [])
+        outcome = SimpleNamespace(**{k: getattr(r, k) if r is not None else 0 for k in OUTCOME_FIELDS})
+        outcome.success = bool(r.success) if r is not None and reason != 'error' else False
+        outcome.end_reason = reason
+        outcome.error = '' if outcome.success else (error or (r.error if r is not None else ''))
+        dialogue = [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in r.dialogue] if r else []
+        return episode_result(self.task, outcome, dialogue, wall_s=time.monotonic() - self.started,
+                              **self.config.identity)
 
 
 

@@ -26,10 +26,10 @@ from typing import Iterable, Optional, Union
 
 import numpy as np
 
+from .protocol import MAX_FAILURES
 from .tasks.schema import TASK_TYPES
 
 END_REASONS = ('success', 'stop', 'max_steps', 'max_failures', 'error')
-MAX_FAILURES = 10   # the paper's failed-action limit; the simulator's default too
 
 
 @dataclass
@@ -123,6 +123,25 @@ class EpisodeResult:
                     and all(_has_type(entry[k], t) for k, t in _DIALOGUE_TYPES.items())):
                 raise ValueError(f'a dialogue entry is {{"type", "noun", "valid", "answer"}}, got {entry!r:.80}')
         return cls(**data)
+
+
+OUTCOME_FIELDS = ('success', 'goal_conditions_met', 'goal_conditions_total', 'steps', 'questions',
+                  'invalid_questions', 'failed_actions', 'end_reason', 'error')
+
+
+def episode_result(task, outcome, dialogue: list, *, agent: str, oracle: str, seed: int, goal_rule: str,
+                   wall_s: float, privileged: bool = False) -> EpisodeResult:
+    """The results line of `task`'s episode, whichever way it was played: `outcome` has OUTCOME_FIELDS (the
+    episode loop's EpisodeState, a RunTask result, ...), `dialogue` its questions as dialogue_entry dicts; the
+    run's identity (agent, oracle, seed, goal rule) and the episode's wall time."""
+    o = {k: getattr(outcome, k) for k in OUTCOME_FIELDS}
+    return EpisodeResult(
+        task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(o['success']),
+        goal_conditions_met=int(o['goal_conditions_met']), goal_conditions_total=int(o['goal_conditions_total']),
+        steps=int(o['steps']), expert_length=int(task.expert_length), questions=int(o['questions']),
+        invalid_questions=int(o['invalid_questions']), failed_actions=int(o['failed_actions']),
+        end_reason=o['end_reason'], error=o['error'], agent=agent, oracle=oracle, seed=seed, wall_s=round(wall_s, 4),
+        goal_rule=goal_rule, privileged=bool(privileged), dialogue=list(dialogue))
 
 
 def has_goto(task_type: str) -> bool:
