@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+from dialfred_sim.bag import RecordingObserver
 from dialfred_sim.episode import EpisodeObserver
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
 
@@ -55,12 +56,17 @@ class SimWorker(EpisodeObserver):
         self.job = (index, task)
         self.task = task
         self.started_at = time.monotonic()
+        observers = [self]
         self.recorder = None
+        if self.config.record is not None:
+            self.recorder = RecordingObserver(self.config.record, self.config.record_format,
+                                              picture=getattr(self.agent, 'picture', None))   # a performer with a map
+            observers.append(self.recorder)
         if self.live is not None:
             self.live.begin(task)
         self.episode = play(self.agent, seed=episode_seed(self.config.seed, index),
                             told=task_view(self.agent, task),      # the public view, unless privileged
-                            asks=self.ask_cli is not None, max_questions=self.config.max_questions, observers=[self])
+                            asks=self.ask_cli is not None, max_questions=self.config.max_questions, observers=observers)
         self._request(next(self.episode))
 
     def overdue(self) -> bool:
@@ -105,49 +111,21 @@ class SimWorker(EpisodeObserver):
             self._send(self.step_cli, SimStep.Request(action=Action(action=request.action, x=request.x, y=request.y),
                                                       with_depth=False, with_segmentation=False), 'step')
 
-    # EpisodeObserver: the recorder, the live view and the traces of the actions sent
-    def on_started(self, state, reply) -> None:
-        if self.config.record is not None:
-            from dialfred_sim.bag import EpisodeRecorder
-            t = reply.raw.task       # what the agent is told
-            self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
-                                            image_format=self.config.record_format)
-            self.recorder.observation_msg(reply.raw.observation)
-
+    # EpisodeObserver: the live view and the traces of the actions sent (the bag: a RecordingObserver beside it)
     def on_question(self, state, qa, step: int) -> None:
-        if self.recorder is not None:
-            from dialfred_sim.messages import qa_msg
-            self.recorder.question_msg(step, qa_msg(qa))
         if self.live is not None:
             self.live.qa(qa.question.question_type, qa.question.object_noun, qa.answer, qa.valid)
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
         self.traces[self.task.task_id].append((action, x, y))
         picture = getattr(self.agent, 'picture', None)     # a performer that keeps a map
-        if picture is not None and (self.recorder is not None or self.live is not None):
-            img = picture()
-            if self.recorder is not None:
-                self.recorder.belief_map(state.steps + 1, img)
-            if self.live is not None:
-                self.live.belief(img)
+        if picture is not None and self.live is not None:
+            self.live.belief(picture())
 
     def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
         obs = reply.raw.observation
-        if self.recorder is not None:
-            self.recorder.action(int(obs.step_count), action, x, y, obs.last_action_success, state.questions)
-            self.recorder.observation_msg(obs)
         if self.live is not None:
             self.live.action(int(obs.step_count), action, obs.last_action_success)
-
-    def on_ended(self, state) -> None:
-        if self.recorder is not None:
-            self.recorder.result(success=state.success, steps=state.steps, goal_conditions_met=state.goal_conditions_met,
-                                 goal_conditions_total=state.goal_conditions_total,
-                                 failed_actions=state.failed_actions, questions=state.questions,
-                                 invalid_questions=state.invalid_questions, end_reason=state.end_reason,
-                                 error=state.error, last_action=state.last_action)
-            self.recorder.save(Path(self.config.record))
-            self.recorder = None
 
     def _send(self, cli, request, pending: str) -> None:
         self.sent_at = self.last_sent = time.monotonic()

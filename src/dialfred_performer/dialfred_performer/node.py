@@ -45,7 +45,7 @@ from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
 from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
 from dialfred_sim.messages import qa_from_answer, qa_msg, sim_reply, task_description_msg
 from dialfred_sim.protocol import MAX_QUESTIONS, QA, Question, top2_gap
-from dialfred_sim.bag import IMAGE_FORMATS, EpisodeRecorder
+from dialfred_sim.bag import IMAGE_FORMATS, RecordingObserver
 from dialfred_sim.ros_util import (RESEND_AFTER_S, SERVICE_QOS, SETTLE_S, Param, declare_parameters, refused_request,
                                    run_node)
 
@@ -87,7 +87,7 @@ class PerformerNode(Node):
         p = self.get_parameter
         self.record_dir = str(p('record_dir').value)
         self.record_format = str(p('record_format').value)
-        self.recorder = None       # the running goal's EpisodeRecorder, when recording
+        self.recorder = None       # the running goal's RecordingObserver, when recording
         torch.set_num_threads(max(1, int(p('torch_threads').value)))
         self.checkpoint = p('checkpoint').value
         self.model = str(p('model').value)
@@ -155,13 +155,13 @@ class PerformerNode(Node):
     def save_recording(self, result: RunTask.Result) -> None:
         """Write the goal's bag (when recording); a failure to write is logged, the goal's result stands."""
         recorder, self.recorder = self.recorder, None
-        if recorder is None:
+        if recorder is None or recorder.recorder is None:
             return
+        task_id = recorder.recorder.task_id
         try:
-            recorder.result_msg(result)
-            recorder.save(Path(self.record_dir))
+            recorder.finish(result)
         except Exception as exc:  # noqa: BLE001 - a full disk must not take the node down
-            self.get_logger().error(f'recording {recorder.task_id}: {type(exc).__name__}: {exc}')
+            self.get_logger().error(f'recording {task_id}: {type(exc).__name__}: {exc}')
 
     def play(self, goal_handle, result: RunTask.Result) -> None:
         """Play the goal's task to its end (the episode loop, `dialfred_sim.episode.play`, its requests
@@ -178,9 +178,14 @@ class PerformerNode(Node):
         except (FileNotFoundError, CheckpointError, ValueError) as exc:
             raise GoalFailed(f'checkpoint: {exc}') from None
         goal_run = GoalRun(self, goal_handle, policy, result, goal.checkpoint or self.checkpoint)
+        observers = [goal_run]
+        if self.record_dir:     # the bag is written with the goal's result, however the goal ends (save_recording)
+            self.recorder = RecordingObserver(Path(self.record_dir), self.record_format,
+                                              picture=getattr(policy, 'picture', None), save_on_end=False)
+            observers.append(self.recorder)
         episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
                        max_questions=int(self.get_parameter('max_questions').value), asker='questioner',
-                       observers=[goal_run])
+                       observers=observers)
         run(episode, goal_run.serve)
 
     # ------------------------------------------------------------------ helpers
@@ -305,13 +310,8 @@ class GoalRun(EpisodeObserver):
 
     # the observer
     def on_started(self, state: EpisodeState, reply) -> None:
-        node, task = self.node, reply.task     # the public view: all the simulator tells any client
         rgb = reply.raw.observation.rgb
-        node.check_camera(self.checkpoint, int(rgb.width), int(rgb.height))
-        if node.record_dir:
-            node.recorder = EpisodeRecorder(task.task_id, task.scene, task.split, task.instruction, task.object_nouns,
-                                            image_format=node.record_format)
-            node.recorder.observation_msg(reply.raw.observation)
+        self.node.check_camera(self.checkpoint, int(rgb.width), int(rgb.height))
         self.result.goal_conditions_total = int(reply.goal_conditions_total)
 
     def on_question(self, state: EpisodeState, qa: QA, step: int) -> None:
@@ -319,18 +319,14 @@ class GoalRun(EpisodeObserver):
         self.result.invalid_questions += not qa.valid
         self.result.dialogue.append(qa_msg(qa))
         self.node.qa_pub.publish(qa_msg(qa))
-        if self.node.recorder is not None:
-            self.node.recorder.question_msg(self.result.steps, qa_msg(qa))
 
     def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
         node = self.node
         picture = getattr(self.policy, 'picture', None)
-        if picture is not None and (node.recorder is not None or node.map_pub.get_subscription_count() > 0):
+        if picture is not None and node.map_pub.get_subscription_count() > 0:
             img = picture()
             h, w = img.shape[:2]
             node.map_pub.publish(Image(height=h, width=w, encoding='rgb8', step=w * 3, data=img.tobytes()))
-            if node.recorder is not None:
-                node.recorder.belief_map(self.result.steps + 1, img)
         node.action_pub.publish(Action(action=action, x=x, y=y))
 
     def on_stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
@@ -342,9 +338,6 @@ class GoalRun(EpisodeObserver):
         self.goal_handle.publish_feedback(RunTask.Feedback(step=result.steps, action=Action(action=action, x=x, y=y),
                                                            action_success=observation.last_action_success,
                                                            questions=result.questions))
-        if self.node.recorder is not None:
-            self.node.recorder.action(result.steps, action, x, y, observation.last_action_success, result.questions)
-            self.node.recorder.observation_msg(observation)
 
     def on_ended(self, state: EpisodeState) -> None:
         if state.end_reason == 'error':          # too many questions in a row: the goal fails

@@ -40,10 +40,11 @@ import re
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 
+from .episode import EpisodeObserver
 from .protocol import image_array
 
 STEP_NS = 100_000_000          # one action of the simulator's clock: 0.1 s
@@ -333,3 +334,52 @@ def read_episode(path: Path) -> RecordedEpisode:
         elif topic == '/episode/result':
             ep.result = {k: getattr(m, k) for k in RESULT_FIELDS}
     return ep
+
+
+class RecordingObserver(EpisodeObserver):
+    """Records the episode it observes (the episode loop's observer, `episode.play(observers=...)`) as a bag in
+    `folder`: the simulator's replies (their `raw` dialfred_msgs/Observation), the questions, the actions with
+    their feedback and, when `picture` is given (a performer that keeps a map: its `picture()`), the belief map
+    each action was decided on. `finish(result)` writes the bag with the result (anything with RESULT_FIELDS:
+    the episode's state, a RunTask result); with `save_on_end`, the episode's end does so itself. The one
+    recorder of the simulator-node and performer-node paths."""
+
+    def __init__(self, folder: Path, image_format: str = 'raw', picture=None, save_on_end: bool = True):
+        if image_format not in IMAGE_FORMATS:
+            raise ValueError(f'image_format must be one of {", ".join(IMAGE_FORMATS)}, got {image_format!r}')
+        self.folder, self.image_format, self.picture, self.save_on_end = Path(folder), image_format, picture, save_on_end
+        self.recorder = None          # the episode's EpisodeRecorder, from its start to finish()
+
+    def on_started(self, state, reply) -> None:
+        t = reply.raw.task            # what the agent is told
+        self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
+                                        image_format=self.image_format)
+        self.recorder.observation_msg(reply.raw.observation)
+
+    def on_question(self, state, qa, step: int) -> None:
+        if self.recorder is not None:
+            q = qa.question
+            self.recorder.question(step, q.question_type, q.object_noun, q.text, qa.answer if qa.valid else '',
+                                   bool(qa.valid))
+
+    def on_action(self, state, action: str, x: int, y: int) -> None:
+        if self.recorder is not None and self.picture is not None:
+            self.recorder.belief_map(state.steps + 1, self.picture())
+
+    def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
+        if self.recorder is not None:
+            obs = reply.raw.observation
+            self.recorder.action(int(obs.step_count), action, x, y, obs.last_action_success, state.questions)
+            self.recorder.observation_msg(obs)
+
+    def on_ended(self, state) -> None:
+        if self.save_on_end:
+            self.finish(state)
+
+    def finish(self, result) -> Optional[Path]:
+        """Write the bag with `result` (None: no episode started); the recorder is done with either way."""
+        recorder, self.recorder = self.recorder, None
+        if recorder is None:
+            return None
+        recorder.result_msg(result)
+        return recorder.save(self.folder)
