@@ -15,7 +15,7 @@ the questioner's samples):
   `--seeds` seed: `dialfred_questioner.finetune` with that seed -> `<out>/<run>_s<seed>/final.pt`
   (resumes from last.pt; a finished run is skipped);
 - each checkpoint is evaluated on `--split` with evaluation seed 0 (the tables' seed), locally (no ROS;
-  the same episodes as through the graph: tests/test_eval_local.py) -> `<out>/eval/...jsonl` (resumable
+  the same episodes as through the graph: tests/bringup/test_eval_local.py) -> `<out>/eval/...jsonl` (resumable
   episode by episode);
 - the shipped checkpoint of the setting is evaluated the same way, as one more draw ("shipped", trained
   with seed 0 on another machine);

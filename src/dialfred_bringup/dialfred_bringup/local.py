@@ -6,7 +6,7 @@ through the simulator and oracle nodes, served here by `dialfred_oracle.local.En
 resets to the task (`DialfredEnv.reset(options={'task': task})`, as the node's `/sim/reset` with a task
 id does), the questions are answered by the oracle node's rules and perturbation, keyed on the same
 situation. The EpisodeResult has the same fields and values as the graph's, but for `wall_s`;
-tests/test_eval_local.py compares the two paths episode by episode for every kind of questioner.
+tests/bringup/test_eval_local.py compares the two paths episode by episode for every kind of questioner.
 
 What the graph adds is the system under test of a robotics user (nodes, services, actions, recording,
 the live view, crash recovery); what this path adds is speed: no serialisation, no executor, one

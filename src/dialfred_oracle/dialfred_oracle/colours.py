@@ -6,7 +6,7 @@ a surface's colour by `0.6 ambient + 0.35 max(0, n.l) + 0.05 specular` and trunc
 (no textures, no shadows here).
 A rendered palette colour is therefore the palette RGB scaled by a factor in [SHADE_MIN, SHADE_MAX].
 Measured by rendering a sphere and a box of every palette colour from several viewpoints under the
-world's light (`measure_shade_range`, re-run by tests/test_answers.py): every rendered channel lies
+world's light (`measure_shade_range`, re-run by tests/oracle/test_answers.py): every rendered channel lies
 at floor(c * s) for s in [0.593, 0.993].
 
 `colour_name` labels each pixel with the nearest shaded palette colour in CIELAB and returns the

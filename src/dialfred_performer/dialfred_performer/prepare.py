@@ -10,7 +10,7 @@
    probe, are replayed (`data.task_dialogue` in DialfredEnv): workers each take every n-th task and
    append a line per task to `dialogues-<worker>.part` as it is produced, so an interrupted run
    resumes where it stopped; the parts are merged in task order at the end (same bytes with any
-   number of workers, and with or without the probe: tests/test_performer_train.py);
+   number of workers, and with or without the probe: tests/performer/test_performer_train.py);
 3. `vocabulary.json`: every token of the instructions, nouns and QAs of the folder, plus every word
    the oracle can say (templates, object nouns, colours, materials), so that no answer heard at
    evaluation is <unk>.

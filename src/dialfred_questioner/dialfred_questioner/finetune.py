@@ -198,7 +198,7 @@ def rollout_chunks(jobs: list, workers: int, per_worker: int = 8) -> list[list]:
     """`jobs` cut into about `per_worker` chunks per worker, handed out as workers free up: episodes'
     lengths vary, and one fixed share per worker left the others idle while the longest share was
     still playing. An episode's outcome depends only on its job and the weights, so
-    the chunks change no result (tests/test_questioner_finetune.py: one worker or two, the same weights)."""
+    the chunks change no result (tests/questioner/test_questioner_finetune.py: one worker or two, the same weights)."""
     if workers <= 1:
         return [jobs] if jobs else []
     size = max(1, -(-len(jobs) // (workers * per_worker)))

@@ -52,7 +52,7 @@ def spin_forever(executor) -> None:
 
     A loop of spin_once rather than spin(): with the Jazzy wheels' EventsExecutor (rclpy 7.1.6),
     spin() never dispatched service requests here, while spin_once() does (tested in
-    tests/test_sim_node.py through the real node). Other executors spin().
+    tests/sim/test_sim_node.py through the real node). Other executors spin().
     """
     import rclpy
     if type(executor).__name__ != 'EventsExecutor':

@@ -312,7 +312,7 @@ class World:
         ys = np.arange(-ay, ay + 1e-9, 0.04) if ay > 0 else np.array([0.0])
         # The grid, x-major, and for each point whether its rectangle (1 cm apart) overlaps a taken
         # one: the same float64 operations as the point-by-point loop this replaced, so the same
-        # spots to the last bit (tests/test_scene_spots.py keeps the loop as the reference).
+        # spots to the last bit (tests/sim/test_scene_spots.py keeps the loop as the reference).
         cx = (surf.center[0] + xs)[:, None].repeat(len(ys), axis=1).ravel()
         cy = np.tile(surf.center[1] + ys, len(xs))
         free = np.ones(len(cx), dtype=bool)

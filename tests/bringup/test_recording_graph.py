@@ -1,0 +1,88 @@
+"""`--record DIR` through the real graph: episode bags written by the performer node (eval --performer
+et), by the launcher's in-process agent path and by the `dialogue` job.
+
+Claims: every evaluated task has a bag whose actions, questions and outcome are those of its results
+line, with a camera frame and a pose for the reset and every action; the same seeded evaluation
+recorded twice gives byte-identical bags; a PNG recording decodes to the raw recording's frames;
+`replay` renders a recorded episode from the bag alone; the dialogue job records what it asked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_sim.bag import bag_name, read_episode
+from dialfred_bringup.replay import main as replay_main
+
+REPO = Path(__file__).resolve().parents[2]
+RES = 64
+
+
+def check_bags_match_results(report, folder: Path) -> None:
+    assert sorted(p.name for p in folder.iterdir()) == sorted(bag_name(r.task_id) for r in report.results)
+    for r in report.results:
+        ep = read_episode(folder / bag_name(r.task_id))
+        assert ep.task['task_id'] == r.task_id
+        assert [a[0] for a in ep.actions] == list(range(1, r.steps + 1))
+        assert len(ep.frames) == r.steps + 1 and len(ep.poses) == r.steps + 1
+        assert [(q[1], q[2], q[5], q[4]) for q in ep.dialogue] == \
+            [(d['type'], d['noun'], d['valid'], d['answer']) for d in r.dialogue]
+        assert len(ep.dialogue) == r.questions
+        assert (ep.result['success'], ep.result['steps'], ep.result['questions'], ep.result['end_reason']) == \
+            (r.success, r.steps, r.questions, r.end_reason)
+        assert sum(not a[4] for a in ep.actions) == r.failed_actions
+
+
+@pytest.mark.slow   # two graph runs end to end; fast: the recording tests below
+def test_the_performer_node_records_each_episode_and_a_rerun_gives_the_same_bytes(checkpoint, tmp_path):
+    common = dict(split='valid_unseen', performer='et', questioner='all', limit=2, workers=1, resolution=RES,
+                  seed=3, checkpoint=checkpoint)
+    a = run_eval(EvalConfig(out=tmp_path / 'a.jsonl', record=tmp_path / 'bags_a', **common), progress=False)
+    check_bags_match_results(a, tmp_path / 'bags_a')
+    assert sum(r.questions for r in a.results) > 0
+    b = run_eval(EvalConfig(out=tmp_path / 'b.jsonl', record=tmp_path / 'bags_b', **common), progress=False)
+    assert [dataclasses.replace(r, wall_s=0.0) for r in b.results] == \
+        [dataclasses.replace(r, wall_s=0.0) for r in a.results]        # the same episodes, wall time aside
+    for r in a.results:
+        for f in sorted((tmp_path / 'bags_a' / bag_name(r.task_id)).iterdir()):
+            assert f.read_bytes() == (tmp_path / 'bags_b' / bag_name(r.task_id) / f.name).read_bytes(), f
+    # replay from the bag alone
+    bag = tmp_path / 'bags_a' / bag_name(a.results[0].task_id)
+    assert replay_main([str(bag), '--gif', str(tmp_path / 'r.gif'), '--sheet', str(tmp_path / 'r.png')]) == 0
+    assert (tmp_path / 'r.gif').stat().st_size > 1000 and (tmp_path / 'r.png').is_file()
+
+
+@pytest.mark.slow   # fast: test_recording (PNG frames decode to the raw ones), the performer node's bags above
+def test_the_in_process_agent_path_records_and_png_frames_equal_raw_ones(tmp_path):
+    common = dict(split='valid_unseen', agent='expert', questioner='all', limit=2, workers=2, resolution=RES, seed=0)
+    raw = run_eval(EvalConfig(out=tmp_path / 'raw.jsonl', record=tmp_path / 'raw', **common), progress=False)
+    check_bags_match_results(raw, tmp_path / 'raw')
+    png = run_eval(EvalConfig(out=tmp_path / 'png.jsonl', record=tmp_path / 'png', record_format='png', **common),
+                   progress=False)
+    for r in png.results:
+        x, y = read_episode(tmp_path / 'raw' / bag_name(r.task_id)), read_episode(tmp_path / 'png' / bag_name(r.task_id))
+        assert '/camera/image/compressed' in y.counts and len(x.frames) == len(y.frames)
+        assert all(np.array_equal(f[2], g[2]) for f, g in zip(x.frames, y.frames))
+
+
+def test_a_bad_record_format_is_refused_before_any_node_starts(tmp_path):
+    with pytest.raises(ValueError, match='record-format'):
+        run_eval(EvalConfig(split='valid_unseen', limit=1, record=tmp_path / 'r', record_format='gif'), progress=False)
+    assert not (tmp_path / 'r').exists()
+
+
+def test_the_dialogue_job_records_its_questions_and_the_experts_actions(tmp_path):
+    from dialfred_bringup.launch import main
+    assert main(['dialogue', '--tasks', '1', '--resolution', str(RES), '--record', str(tmp_path / 'bags')]) == 0
+    (bag,) = (tmp_path / 'bags').iterdir()
+    ep = read_episode(bag)
+    assert [q[1] for q in ep.dialogue] == ['location', 'appearance', 'direction', 'location', 'colour', 'direction']
+    assert [q[5] for q in ep.dialogue][3:5] == [False, False]             # the unicorn and the colour question
+    assert ep.dialogue[-1][0] == len(ep.actions) - 1                      # asked before the expert's last action
+    assert ep.result['success'] and len(ep.frames) == len(ep.actions) + 1

@@ -1,0 +1,47 @@
+"""`./dialfred run PKG EXECUTABLE` starts a node as `ros2 run` does (there is no ros2 CLI on PyPI), and
+`./dialfred graph` lists the running graph's nodes, topics, services and actions as `ros2 node list`,
+`topic list -t`, `service list -t` and `action list` would."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+DIALFRED = str(REPO / 'dialfred')
+
+
+def test_run_names_what_a_package_has_when_the_executable_is_not_there():
+    done = subprocess.run([DIALFRED, 'run', 'dialfred_sim', 'nope'], capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0 and "package 'dialfred_sim' has no executable 'nope' (it has: node" in done.stderr
+    done = subprocess.run([DIALFRED, 'run', 'no_such_pkg', 'node'], capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0 and "no package 'no_such_pkg'" in done.stderr and 'dialfred_oracle' in done.stderr
+
+
+def test_a_node_started_with_run_is_listed_by_graph_with_its_services_and_topics():
+    node = subprocess.Popen([DIALFRED, 'run', 'dialfred_sim', 'node', '--ros-args', '-r', '__ns:=/runtest',
+                             '-p', 'resolution:=32'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        graph = {}
+        for _ in range(5):            # the node starts and discovery settles within a few seconds
+            done = subprocess.run([DIALFRED, 'graph', '--json', '--wait', '3'], capture_output=True, text=True,
+                                  timeout=120)
+            assert done.returncode == 0, done.stderr[-2000:]
+            graph = json.loads(done.stdout)
+            if '/runtest/sim/reset' in graph['services']:
+                break
+        assert '/runtest/dialfred_sim' in graph['nodes']
+        assert graph['services']['/runtest/sim/reset'] == ['dialfred_msgs/srv/SimReset']
+        assert graph['services']['/runtest/sim/step'] == ['dialfred_msgs/srv/SimStep']
+        assert '/runtest/sim/observation' in graph['topics']
+        assert not any(name.endswith('/get_parameters') for name in graph['services'])
+        lists = subprocess.run([DIALFRED, 'graph', '--wait', '3'], capture_output=True, text=True, timeout=120)
+        assert lists.stdout.startswith('nodes (') and '  /runtest/sim/reset [dialfred_msgs/srv/SimReset]' in lists.stdout
+    finally:
+        node.send_signal(signal.SIGINT)
+        try:
+            node.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            node.kill()

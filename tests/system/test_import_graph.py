@@ -1,0 +1,116 @@
+"""The import graph has no circle: no module of src/ imports, at module
+level or inside a function, a module that imports it back (directly or through others). A circle such
+as dialfred_sim.env <-> dialfred_sim.tasks.splits works only in the order its modules happen to be
+imported; each module must import on its own, in a fresh interpreter.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def project_modules() -> dict[str, Path]:
+    """{dotted name: file} of every Python package under src/ (src/<pkg>/<pkg>/...)."""
+    modules = {}
+    for init in sorted(REPO.glob('src/*/*/__init__.py')):
+        root = init.parent
+        for path in sorted(root.rglob('*.py')):
+            parts = path.relative_to(root.parent).with_suffix('').parts
+            modules['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
+    return modules
+
+
+def ancestors(name: str) -> list[str]:
+    parts = name.split('.')
+    return ['.'.join(parts[:k]) for k in range(1, len(parts))]
+
+
+def imports_of(name: str, path: Path, known: set, module_level_only: bool) -> set:
+    """The project modules `name` imports (with the packages that importing them loads first)."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+    nodes = tree.body if module_level_only else list(ast.walk(tree))
+    if module_level_only:      # module level includes if/try blocks, not function or class bodies
+        nodes = [n for top in tree.body if not isinstance(top, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
+                 for n in ast.walk(top)]
+    targets = set()
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            targets |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ''
+            if node.level:
+                anchor = package.split('.')[:len(package.split('.')) - (node.level - 1)]
+                base = '.'.join(anchor + ([base] if base else []))
+            targets.add(base)
+            targets |= {f'{base}.{alias.name}' for alias in node.names}    # `from pkg import submodule`
+    found = set()
+    for target in targets:
+        for t in [*ancestors(target), target]:
+            if t in known and t != name and t not in ancestors(name):
+                found.add(t)
+    return found
+
+
+def find_cycle(graph: dict) -> list:
+    """One cycle of `graph` ({node: set of nodes}) as a list of nodes, or [] if it has none."""
+    state, stack = {}, []
+
+    def visit(n):
+        state[n] = 'open'
+        stack.append(n)
+        for m in sorted(graph.get(n, ())):
+            if state.get(m) == 'open':
+                return stack[stack.index(m):] + [m]
+            if m not in state:
+                cycle = visit(m)
+                if cycle:
+                    return cycle
+        stack.pop()
+        state[n] = 'done'
+        return []
+
+    for n in sorted(graph):
+        if n not in state:
+            cycle = visit(n)
+            if cycle:
+                return cycle
+    return []
+
+
+@pytest.mark.parametrize('module_level_only', [True, False], ids=['module-level imports', 'all imports'])
+def test_no_module_imports_a_module_that_imports_it_back(module_level_only):
+    modules = project_modules()
+    graph = {name: imports_of(name, path, set(modules), module_level_only) for name, path in modules.items()}
+    if not module_level_only:      # env looks tasks up inside functions: the walk must see it
+        assert 'dialfred_sim.tasks' in graph['dialfred_sim.env']
+    cycle = find_cycle(graph)
+    assert not cycle, ' -> '.join(cycle)
+
+
+def test_the_walk_finds_a_circle_through_a_function_level_import(tmp_path):
+    pkg = tmp_path / 'pkg'
+    pkg.mkdir()
+    (pkg / '__init__.py').write_text('')
+    (pkg / 'a.py').write_text('from . import b\n')
+    (pkg / 'b.py').write_text('def f():\n    from .a import x\n')
+    modules = {'pkg': pkg / '__init__.py', 'pkg.a': pkg / 'a.py', 'pkg.b': pkg / 'b.py'}
+    graph = {n: imports_of(n, p, set(modules), False) for n, p in modules.items()}
+    assert find_cycle(graph) in (['pkg.a', 'pkg.b', 'pkg.a'], ['pkg.b', 'pkg.a', 'pkg.b'])
+    module_level = {n: imports_of(n, p, set(modules), True) for n, p in modules.items()}
+    assert find_cycle(module_level) == []
+
+
+@pytest.mark.parametrize('module', ['dialfred_sim.tasks.splits', 'dialfred_sim.env', 'dialfred_sim.tasks.split_files',
+                                    'dialfred_bringup.evaluation', 'dialfred_bringup.launch'])
+def test_each_module_imports_first_in_a_fresh_interpreter(module):
+    proc = subprocess.run([sys.executable, '-c', f'import {module}'], cwd=REPO, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
