@@ -19,6 +19,8 @@ from __future__ import annotations
 import time
 from typing import Callable
 
+from dialfred_sim.metrics import dialogue_entry
+from dialfred_sim.metrics import episode_result as result_line
 from dialfred_sim.processes import worker_pool
 
 _W: dict = {}
@@ -57,14 +59,12 @@ def play_episode(config, env, agent, perturbation, index: int, task, swap=None):
     episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=config.asks,
                    max_questions=config.max_questions)
     state = run(episode, EnvServer(env, task, perturbation, swap))
-    return episode_result(config, task, agent, state, time.monotonic() - started)
+    return state_result(config, task, agent, state, time.monotonic() - started)
 
 
-def episode_result(config, task, agent, state, wall_s: float):
+def state_result(config, task, agent, state, wall_s: float):
     """The results line of an episode played by `config`'s run (an EvalConfig) to `state` (the episode loop's
     EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker)."""
-    from dialfred_sim.metrics import dialogue_entry
-    from dialfred_sim.metrics import episode_result as result_line
     return result_line(task, state, [dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid),
                                                     qa.answer) for qa in state.dialogue],
                        wall_s=wall_s, privileged=bool(getattr(agent, 'privileged', False)), **config.identity)

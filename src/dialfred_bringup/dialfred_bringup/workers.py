@@ -14,12 +14,15 @@ import collections
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 from dialfred_sim.bag import RecordingObserver
 from dialfred_sim.episode import EpisodeObserver
+from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
 
 from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service
+from .local import state_result
 
 
 
@@ -145,8 +148,7 @@ class SimWorker(EpisodeObserver):
         return True
 
     def _result(self, state):
-        from .local import episode_result
-        return episode_result(self.config, self.task, self.agent, state, time.monotonic() - self.started_at)
+        return state_result(self.config, self.task, self.agent, state, time.monotonic() - self.started_at)
 
 
 class PerformerWorker:
@@ -258,9 +260,6 @@ class PerformerWorker:
 
     def _result(self, result, error: str = ''):
         """The results line of the goal's RunTask `result` (None: no result came), or of an error."""
-        from types import SimpleNamespace
-
-        from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
         r = result
         reason = 'error' if error or r is None or r.end_reason in ('error', 'canceled') else r.end_reason
         outcome = SimpleNamespace(**{k: getattr(r, k) if r is not None else 0 for k in OUTCOME_FIELDS})
