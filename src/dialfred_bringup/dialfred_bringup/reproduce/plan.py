@@ -28,13 +28,14 @@ RESOLUTION = 64
 # The perception network (PerceptionConfig fields): wider than PerceptionNetConfig's defaults, trained on more
 # frames, with small objects' cells weighted up. Against the defaults at 250,000 frames it labels 38.9% of
 # pickupable objects' cells with their type (26.0%), 91.1% of held-out object cells (86.2%).
-# Its convolutions train in bfloat16: at 800 updates the same validation loss, cell accuracy and depth error
-# as fp32 (0.868 / 90.55% / 0.167 m against 0.862 / 90.57% / 0.165 m) in 25% less time (docs/figures.md).
-PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_objects=0.5, precision='bf16')
+# It trains in fp32. bfloat16 (`precision='bf16'`) saved 25% of the time on a CPU with AVX512-BF16 at the same
+# validation loss, but on one with AVX2 alone each update took 10 times as long (docs/figures.md), and a
+# reproduce must run in its time on any CPU.
+PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_objects=0.5, precision='fp32')
 # The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch. The frozen
-# perception network runs in bfloat16 while it trains (the agent perceives in fp32).
+# perception network runs in fp32 while it trains, as the agent perceives (bf16: the same CPU caveat).
 PERFORMER_UPDATES = 12_000
-PERFORMER_PERCEPTION_PRECISION = 'bf16'
+PERFORMER_PERCEPTION_PRECISION = 'fp32'
 # Actor-critic updates of every RL fine-tuning: the second 32 of 64 moved RL anytime's SR by -0.1 point.
 RL_UPDATES = 32
 
