@@ -57,7 +57,7 @@ def measure(results: Path, checkpoint: Path, questioner: str, limit: int, resolu
         if step.kind != 'pickup' or step.target not in agent.class_id:
             return
         k = agent.class_id[step.target]
-        seg, depth = observation['segmentation'], observation['depth']
+        seg, depth = observation.segmentation, observation.depth
         ids, names = env.world.instance_table()
         true = np.isin(seg, [b for b, name in zip(ids, names) if name.rsplit('_', 1)[0] == step.target])
         pixels = int(true.sum())
@@ -70,7 +70,7 @@ def measure(results: Path, checkpoint: Path, questioner: str, limit: int, resolu
             cells = true.reshape(s, resolution // s, s, resolution // s).mean(axis=(1, 3)) >= 0.5
             if cells.any():
                 with torch.inference_mode():
-                    out = agent.net(frame_tensor(observation['rgb'], agent.resolution)[None])
+                    out = agent.net(frame_tensor(observation.rgb, agent.resolution)[None])
                     prob = torch.softmax(agent.net.heads(out.fine)[0][0], 0).numpy()
                 frame.setdefault('probability', []).append(float(prob[k][cells].max()))
                 frame.setdefault('top', []).append(bool((prob[:, cells].argmax(0) == k).any()))

@@ -27,7 +27,7 @@ it reaches the goal in 151 of the 163 Move tasks (92.6%). The random agent reach
 
 from __future__ import annotations
 
-from dialfred_sim.protocol import QA, Question, observation_field
+from dialfred_sim.protocol import QA, Observation, Question
 
 ADVICE = (('straight ahead', 'MoveAhead'), ('turn left', 'RotateLeft'), ('turn right', 'RotateRight'),
           ('turn around', 'RotateLeft'), ("don't need to move", 'Stop'))
@@ -69,9 +69,8 @@ class DirectionFollower:
         if qa.question.question_type == 'direction' and qa.valid:
             self.advice = qa.answer
 
-    def act(self, observation):
-        blocked = (self.last_action == 'MoveAhead' and observation is not None
-                   and not observation_field(observation, 'last_action_success', True))
+    def act(self, observation: Observation):
+        blocked = self.last_action == 'MoveAhead' and not observation.last_action_success
         action = next((a for words, a in ADVICE if words in self.advice), 'Stop')
         if blocked and action == 'MoveAhead':
             # Walk around the obstacle: alternate the side we turn to.

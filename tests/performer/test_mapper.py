@@ -12,6 +12,8 @@ from dialfred_performer.mapper.language import InstructionError, Step, parse_ans
 from dialfred_performer.model import SHIPPED_CHECKPOINT as SHIPPED
 from dialfred_performer.mapper.semantic_map import (UNREACHABLE, SemanticMap, distance_field, next_move,
                                                      reach_goals)
+from dialfred_sim.episode import SimReply
+from dialfred_sim.protocol import Observation, env_observation
 
 
 def test_every_instruction_of_the_shipped_splits_is_read():
@@ -141,9 +143,9 @@ class _Stripped:
 
     def __call__(self, request):
         reply = self.server(request)
-        obs = getattr(reply, 'observation', None)
-        if isinstance(obs, dict):
-            reply.observation = {'rgb': obs['rgb'], 'last_action_success': obs['last_action_success']}
+        obs = reply.observation if isinstance(reply, SimReply) else None
+        if obs is not None:
+            reply.observation = Observation(rgb=obs.rgb, last_action_success=obs.last_action_success)
         return reply
 
 
@@ -224,7 +226,7 @@ def _a_first_put_that_misses(agent, env):
     for task in load_split('valid_unseen'):
         if task.task_type != 'Put' or object_type(task.primitives[0].receptacle.rsplit('_', 1)[0]).openable:
             continue
-        obs, _ = env.reset(options={'task': task})
+        obs = env_observation(*env.reset(options={'task': task}))
         agent.reset(task.public(), 0)
         action, x, y = agent.act(obs)
         if action != 'Put':
@@ -350,15 +352,15 @@ def test_the_belief_map_is_pictured_recorded_and_filmed_beside_the_camera(tmp_pa
 
     class Recording(EpisodeObserver):
         def on_started(self, state, reply):
-            rec.observation(0, reply.observation['rgb'], (0.0, 0.0, 0.0, 0.0), 0.9)
+            rec.observation(0, reply.observation.rgb, (0.0, 0.0, 0.0, 0.0), 0.9)
 
         def on_action(self, state, action, x, y):
             pictures.append(agent.picture())
             rec.belief_map(state.steps + 1, pictures[-1])
 
         def on_stepped(self, state, reply, action, x, y):
-            rec.action(state.steps, action, x, y, bool(reply.observation['last_action_success']), 0)
-            rec.observation(state.steps, reply.observation['rgb'], (0.0, 0.0, 0.0, 0.0), 0.9)
+            rec.action(state.steps, action, x, y, reply.observation.last_action_success, 0)
+            rec.observation(state.steps, reply.observation.rgb, (0.0, 0.0, 0.0, 0.0), 0.9)
 
     state = run(play(agent, seed=0, asks=False, observers=[Recording()]), EnvServer(env, task))
     assert len(pictures) == state.steps >= 5
@@ -391,7 +393,7 @@ def test_the_ground_truth_sight_of_the_ceiling_benchmark_labels_cells_from_the_s
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     env = DialfredEnv(resolution=128, max_steps=5)
-    obs, _ = env.reset(options={'task': get_task('valid_unseen/000012')})
+    obs = env_observation(*env.reset(options={'task': get_task('valid_unseen/000012')}))
     agent = bench.truth_sight(MapAgent).from_checkpoint(SHIPPED)
     agent.attach(env)
     labels, conf, depth = agent.sense(obs)
@@ -400,13 +402,13 @@ def test_the_ground_truth_sight_of_the_ceiling_benchmark_labels_cells_from_the_s
     class_id = {name: k for k, name in enumerate(label_classes())}
     body_class = {b: class_id.get(env.world.objects[n].type_name if n in env.world.objects else n, 0)
                   for b, n in zip(ids, names)}
-    pixels = np.vectorize(lambda b: body_class.get(int(b), 0))(obs['segmentation']).reshape(32, 4, 32, 4)
+    pixels = np.vectorize(lambda b: body_class.get(int(b), 0))(obs.segmentation).reshape(32, 4, 32, 4)
     pixels = pixels.transpose(0, 2, 1, 3).reshape(32, 32, 16)
     whole = (pixels == pixels[..., :1]).all(-1)
     assert whole.sum() > 100 and (labels[whole] == pixels[whole][:, 0]).all()
     some_object = ((pixels >= 4).sum(-1) >= 4)
     assert (labels[some_object] >= 4).all()
-    assert depth == pytest.approx(obs['depth'].reshape(32, 4, 32, 4).mean(axis=(1, 3)), abs=1e-5)
+    assert depth == pytest.approx(obs.depth.reshape(32, 4, 32, 4).mean(axis=(1, 3)), abs=1e-5)
 
 
 def _walled_in_beside_a_wall():
@@ -520,14 +522,15 @@ def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
     def look_around(agent):
         """{heading: (the world has the grid point ahead free, the agent believes it free)}."""
         from dialfred_performer.mapper.geometry import HEADING_STEPS
-        obs, _ = env.reset(options={'task': task})
+        obs = env_observation(*env.reset(options={'task': task}))
         agent.reset(task)
         world_free = {}
         for _ in range(4):
             agent.act(obs)
             world_free[agent.pose.heading] = env.world.agent.forward_cell() in env.world.layout.navigable
             agent.last = ('RotateLeft', None, None)
-            obs, *_ = env.step('RotateLeft')
+            raw, _, _, _, info = env.step('RotateLeft')
+            obs = env_observation(raw, info)
         agent.act(obs)
         assert agent.held == env.world.objects[held].type_name and agent.pose.heading == 0
         free, off = agent.map.traversable(), agent.map.node_offset()

@@ -14,6 +14,7 @@ from dialfred_performer.model import load_checkpoint, pointer_ce
 from dialfred_performer.perception import (FIRST_OBJECT_CLASS, Perception, PerceptionNetConfig, cell_targets,
                                           load_perception, main as perception_main)
 from dialfred_sim.tasks.demonstrations import DEPTH_STEP, label_classes
+from dialfred_sim.protocol import Observation, env_observation
 
 TINY = ['--c1', '8', '--c2', '8', '--c3', '16', '--decoder', '8']
 
@@ -165,17 +166,18 @@ def test_the_agent_reads_rgb_only(which, request):
     for strip in (False, True):
         env = DialfredEnv(resolution=32)
         agent = PerformerAgent.from_checkpoint(checkpoint)
-        obs, _ = env.reset(options={'task': task})
+        obs = env_observation(*env.reset(options={'task': task}))
         agent.reset(task)
         actions = []
         for _ in range(12):
-            name, x, y = agent.act({'rgb': obs['rgb']} if strip else obs)
+            name, x, y = agent.act(Observation(rgb=obs.rgb) if strip else obs)
             actions.append((name, x, y))
             assert name == 'Stop' or x < 32 and y < 32
             if name == 'Stop':
                 break
-            obs, _, done, truncated, _ = env.step({'action': name, 'pixel': (max(x, 0), max(y, 0))}
-                                                  if x >= 0 else {'action': name})
+            raw, _, done, truncated, info = env.step({'action': name, 'pixel': (max(x, 0), max(y, 0))}
+                                                     if x >= 0 else {'action': name})
+            obs = env_observation(raw, info)
             if done or truncated:
                 break
         env.close()
@@ -278,7 +280,7 @@ def play_side_by_side(agent, other, check, at_cut=lambda: None, steps: int = 10,
     from dialfred_sim.tasks import load_split
     task = load_split('valid_unseen')[0]
     env = DialfredEnv(resolution=32)
-    obs, _ = env.reset(options={'task': task})
+    obs = env_observation(*env.reset(options={'task': task}))
     agent.reset(task)
     other.reset(task)
     played = 0
@@ -295,7 +297,8 @@ def play_side_by_side(agent, other, check, at_cut=lambda: None, steps: int = 10,
             name = 'RotateLeft'
         elif name == 'Stop':
             break
-        obs, _, done, truncated, _ = env.step({'action': name, **({'pixel': (x, y)} if x >= 0 else {})})
+        raw, _, done, truncated, info = env.step({'action': name, **({'pixel': (x, y)} if x >= 0 else {})})
+        obs = env_observation(raw, info)
         if done or truncated:
             break
     env.close()

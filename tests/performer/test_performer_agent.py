@@ -1,7 +1,7 @@
 """PerformerAgent (dialfred_performer.agent, no ROS) in the real simulator.
 
-Claims: an (untrained) performer plays steps of a valid_unseen task at 64 px without error, from an
-array, a gym observation or an rgb8 Image-like message; its pixels lie in the frame; its action
+Claims: an (untrained) performer plays steps of a valid_unseen task at 64 px without error, from a
+protocol.Observation or a bare frame; its pixels lie in the frame; its action
 probabilities sum to 1 and are the distribution `act` chooses from; a QA heard changes its input.
 """
 
@@ -11,24 +11,18 @@ import json
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import torch
 
-from dialfred_performer.agent import PerformerAgent, observation_rgb
+from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import Performer, PerformerConfig
 from dialfred_performer.preprocess import Vocabulary
-from dialfred_sim.protocol import ACTIONS, QA, Question
+from dialfred_sim.protocol import ACTIONS, QA, Observation, Question
 from dialfred_sim.env import DialfredEnv
 
 torch.set_num_threads(1)
 RES = 64
-
-
-def image_message(rgb: np.ndarray):
-    return SimpleNamespace(encoding='rgb8', height=rgb.shape[0], width=rgb.shape[1], step=rgb.shape[1] * 3,
-                           data=rgb.tobytes())
 
 
 def test_the_agent_plays_steps_of_a_real_task():
@@ -44,7 +38,7 @@ def test_the_agent_plays_steps_of_a_real_task():
     agent.hear(QA(Question('location', 'key chain'), True, 'The key chain is in front of you.'))
     assert len(agent.language_input()) > len(before)
     for k in range(6):
-        view = [obs['rgb'], obs, SimpleNamespace(rgb=image_message(obs['rgb']))][k % 3]
+        view = [obs['rgb'], Observation(rgb=obs['rgb'], depth=obs['depth'])][k % 2]
         p = agent.action_probabilities(view)
         assert p.shape == (len(ACTIONS),) and abs(p.sum() - 1) < 1e-5
         action, x, y = agent.act(view)
@@ -55,12 +49,6 @@ def test_the_agent_plays_steps_of_a_real_task():
             break
     assert agent.step == k + 1
     env.close()
-
-
-def test_an_image_message_gives_the_same_frame_as_the_array():
-    rgb = np.random.default_rng(0).integers(0, 256, (32, 48, 3), dtype=np.uint8)
-    assert np.array_equal(observation_rgb(SimpleNamespace(rgb=image_message(rgb))), rgb)
-    assert np.array_equal(observation_rgb({'rgb': rgb}), rgb)
 
 
 def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():

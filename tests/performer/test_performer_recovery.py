@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import torch
 
-from dialfred_sim.protocol import ACTIONS
+from dialfred_sim.protocol import ACTIONS, Observation
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.data import (START, DemonstrationDataset, collate, insert_failed_interaction,
                                      recovery_places)
@@ -122,8 +122,9 @@ def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction(folder):
             model.action_head.linear.bias[A[first]] += 50.0          # the first action is `first`
         agent = PerformerAgent(model, vocab, incremental=incremental)
         agent.reset(SimpleNamespace(instruction='Pick up the apple.'))
-        assert agent.act({'rgb': frame})[0] == first
-        probs = agent.action_probabilities({'rgb': frame, 'last_action_success': success})
+        assert agent.act(Observation(rgb=frame))[0] == first
+        seen = Observation(rgb=frame) if success is None else Observation(rgb=frame, last_action_success=success)
+        probs = agent.action_probabilities(seen)
         return list(agent._previous_actions), probs
 
     failed, p_failed = after('Pickup', False)
@@ -131,7 +132,7 @@ def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction(folder):
     ok, p_ok = after('Pickup', True)
     assert ok == [START, A['Pickup']] and not np.array_equal(p_failed, p_ok)
     assert np.allclose(after('Pickup', False, incremental=False)[1], p_failed, atol=1e-5)   # both paths alike
-    assert after('Pickup', None)[0] == [START, A['Pickup']]               # no flag: taken as done
+    assert after('Pickup', None)[0] == [START, A['Pickup']]               # no outcome given: the default, done
     assert after('MoveAhead', False)[0] == [START, A['MoveAhead']]       # a blocked move is not a failed click
 
 

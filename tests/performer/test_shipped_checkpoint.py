@@ -15,7 +15,7 @@ import torch
 
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
-from dialfred_sim.protocol import QA, Question
+from dialfred_sim.protocol import QA, Question, env_observation
 from dialfred_sim.env import DialfredEnv
 
 
@@ -37,7 +37,7 @@ def test_the_shipped_checkpoint_is_small_loads_and_says_how_it_was_made():
 
 def play(agent: PerformerAgent, task_id: str, steps: int = 12) -> list:
     env = DialfredEnv(resolution=agent.config.resolution)
-    obs, _ = env.reset(options={'task_id': task_id})
+    obs = env_observation(*env.reset(options={'task_id': task_id}))
     task = env.task.public()
     agent.reset(task, seed=0)
     agent.hear(QA(Question('location', task.object_nouns[0] if task.object_nouns else ''), True,
@@ -46,7 +46,8 @@ def play(agent: PerformerAgent, task_id: str, steps: int = 12) -> list:
     for _ in range(steps):
         decision = agent.act(obs)
         actions.append(decision)
-        obs, _, terminated, truncated, _ = env.step({'action': decision[0], 'pixel': decision[1:]})
+        raw, _, terminated, truncated, info = env.step({'action': decision[0], 'pixel': decision[1:]})
+        obs = env_observation(raw, info)
         if terminated or truncated:
             break
     env.close()

@@ -35,6 +35,7 @@ import dialfred_bringup.workers
 from dialfred_bringup.evaluation import EvalConfig, run_eval
 from dialfred_bringup.workers import worker_nodes
 from dialfred_bringup.graph import Graph, NodeProcess
+from dialfred_sim.protocol import Observation
 
 REPO = Path(__file__).resolve().parents[2]
 SPLIT, TASK_INDEX = 'valid_seen', 11       # 11 steps, direction and appearance questions (so when withheld)
@@ -307,7 +308,7 @@ def test_the_node_serves_a_learned_questioner_refuses_a_request_without_a_gap_an
             reply = graph.call(anytime, QuestionerAsk.Request(task=task, seed=1, step=step, rgb=rgb))
             assert reply.ok, reply.error
             replies.append((reply.ask, reply.question_type, reply.object_noun))
-            q = local.ask({'rgb': frame}, step)
+            q = local.ask(Observation(rgb=frame), step)
             assert replies[-1] == ((True, q.question_type, q.object_noun) if q else (False, '', ''))
         assert [r[0] for r in replies] == [True, False, True, False]    # chances at 0 and 2 (gap 2)
         deadline = time.monotonic() + 5

@@ -20,6 +20,7 @@ from dialfred_questioner.data import catalog_nouns, pretraining_examples
 from dialfred_questioner.model import QuestionerConfig
 from dialfred_questioner.pretrain import PretrainConfig, pretrain
 from dialfred_questioner.frames import FirstFrames, build_first_frames
+from dialfred_sim.protocol import env_observation
 from helpers import tiny_checkpoint
 
 TASKS = 16
@@ -83,9 +84,9 @@ def test_a_pretrained_checkpoint_asks_in_a_rollout_and_as_a_questioner(setup, tm
     assert len(ep.dialogue) == len(asked) and ep.asked_at == [d.step for d in asked]
     # the same inputs give the same greedy question as a Questioner
     greedy = LearnedQuestioner.from_checkpoint(tmp_path / 'q' / 'best.pt')
-    obs, _ = env.reset(options={'task_id': 'valid_unseen/000001'})
+    obs = env_observation(*env.reset(options={'task_id': 'valid_unseen/000001'}))
     greedy.reset(env.task.public(), 0)
-    assert greedy.ask(obs, 0) == greedy.decide(obs['rgb'], env.task.public().instruction, [], 0)[0]
+    assert greedy.ask(obs, 0) == greedy.decide(obs.rgb, env.task.public().instruction, [], 0)[0]
     env.close()
     with pytest.raises(FileNotFoundError):
         LearnedQuestioner.from_checkpoint(tmp_path / 'missing.pt')

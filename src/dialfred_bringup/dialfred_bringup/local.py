@@ -22,6 +22,7 @@ from typing import Callable
 from dialfred_sim.metrics import dialogue_entry
 from dialfred_sim.metrics import episode_result as result_line
 from dialfred_sim.processes import worker_pool
+from dialfred_sim.protocol import is_privileged
 
 _W: dict = {}
 
@@ -58,7 +59,7 @@ def play_episode(config, env, agent, perturbation, index: int, task, swap=None):
     started = time.monotonic()
     episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=config.asks,
                    max_questions=config.max_questions)
-    state = run(episode, EnvServer(env, task, perturbation, swap))
+    state = run(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
     return state_result(config, task, agent, state, time.monotonic() - started)
 
 
@@ -67,7 +68,7 @@ def state_result(config, task, agent, state, wall_s: float):
     EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker)."""
     return result_line(task, state, [dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid),
                                                     qa.answer) for qa in state.dialogue],
-                       wall_s=wall_s, privileged=bool(getattr(agent, 'privileged', False)), **config.identity)
+                       wall_s=wall_s, privileged=is_privileged(agent), **config.identity)
 
 
 def play_local(config, jobs: list, on_result: Callable) -> None:

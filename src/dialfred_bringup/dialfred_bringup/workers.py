@@ -19,6 +19,7 @@ from types import SimpleNamespace
 from dialfred_sim.bag import RecordingObserver
 from dialfred_sim.episode import EpisodeObserver
 from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
+from dialfred_sim.protocol import MapPainter
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
 
 from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service
@@ -63,7 +64,7 @@ class SimWorker(EpisodeObserver):
         self.recorder = None
         if self.config.record is not None:
             self.recorder = RecordingObserver(self.config.record, self.config.record_format,
-                                              picture=getattr(self.agent, 'picture', None))   # a performer with a map
+                                              picture=self.agent.picture if isinstance(self.agent, MapPainter) else None)
             observers.append(self.recorder)
         if self.live is not None:
             self.live.begin(task)
@@ -121,9 +122,8 @@ class SimWorker(EpisodeObserver):
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
         self.traces[self.task.task_id].append((action, x, y))
-        picture = getattr(self.agent, 'picture', None)     # a performer that keeps a map
-        if picture is not None and self.live is not None:
-            self.live.belief(picture())
+        if isinstance(self.agent, MapPainter) and self.live is not None:     # a performer that keeps a map
+            self.live.belief(self.agent.picture())
 
     def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
         obs = reply.raw.observation

@@ -10,11 +10,12 @@ state.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Optional
 
 from dialfred_sim.episode import Ask, Reply, Request, Reset, SimReply
 from dialfred_sim.ground_truth import snapshot
-from dialfred_sim.protocol import QA
+from dialfred_sim.protocol import QA, env_observation
 
 from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, situation_key
 
@@ -39,10 +40,13 @@ class EnvServer:
     """Serves an episode's requests in this process: the simulator from `env` (a DialfredEnv, reset to
     `task`), questions from the oracle's rules (`dialfred_oracle.local.answer_now`, with `perturbation`;
     with `swap`, a `swap.AnswerSwap`, another task's answers), exactly as the simulator and oracle nodes
-    answer them."""
+    answer them. `with_depth` / `with_segmentation` False: the observations carry None for those images,
+    as the simulator node's replies do when a request does not ask for them (evaluations ask for RGB only)."""
 
-    def __init__(self, env, task, perturbation=None, swap=None):
+    def __init__(self, env, task, perturbation=None, swap=None, with_depth: bool = True,
+                 with_segmentation: bool = True):
         self.env, self.task, self.perturbation, self.swap = env, task, perturbation, swap
+        self.with_depth, self.with_segmentation = with_depth, with_segmentation
         self.info: dict = {}
 
     def __call__(self, request: Request) -> Reply:
@@ -67,14 +71,14 @@ class EnvServer:
         self.info = info
         return self._reply(obs, info, terminated=terminated, truncated=truncated)
 
-    @staticmethod
-    def _reply(obs, info: dict, terminated: bool = False, truncated: bool = False, task=None) -> SimReply:
-        # The agent's observation carries what the graph's Observation message does besides the images.
-        obs = {**obs, 'last_action_success': bool(info['last_action_success']),
-               'last_action_error': str(info['last_action_error']), 'step_count': int(info['step_count'])}
-        return SimReply(observation=obs, step_count=int(info['step_count']), failed_actions=int(info['failed_actions']),
-                        last_action_success=bool(info['last_action_success']),
-                        last_action_error=str(info['last_action_error']),
+    def _reply(self, obs, info: dict, terminated: bool = False, truncated: bool = False, task=None) -> SimReply:
+        observation = env_observation(obs, info)
+        if not (self.with_depth and self.with_segmentation):
+            observation = replace(observation, depth=observation.depth if self.with_depth else None,
+                                  segmentation=observation.segmentation if self.with_segmentation else None)
+        return SimReply(observation=observation, step_count=observation.step_count,
+                        failed_actions=observation.failed_actions, last_action_success=observation.last_action_success,
+                        last_action_error=observation.last_action_error,
                         goal_conditions_met=int(info['goal_conditions_met']),
                         goal_conditions_total=int(info['goal_conditions_total']), success=bool(info['success']),
                         terminated=bool(terminated), truncated=bool(truncated), task=task)

@@ -7,9 +7,8 @@ nouns; an agent never gets more); `hear(qa)` adds a QA of the dialogue, asked at
 moves); `action_probabilities(observation)` gives the probabilities over `ACTIONS` of the action
 `act` would choose now (for the model-confusion questioner), computed once per step and observation.
 
-The observation may be an HxWx3 uint8 RGB array, a dict or object with `rgb` being such an array,
-or an object whose `rgb` is a sensor_msgs/Image-like message (encoding rgb8, height, width, data),
-as the dialfred_msgs/Observation message is. Frames go through `preprocess.frame_tensor`, the path
+The observation is a `protocol.Observation` (or, called by hand, an HxWx3 uint8 frame: `as_observation`);
+the agent reads its frame and `last_action_success`. Frames go through `preprocess.frame_tensor`, the path
 training uses. Each frame is encoded once; at every step the transformer reads the whole episode.
 """
 
@@ -21,7 +20,7 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 import torch
 
-from dialfred_sim.protocol import ACTIONS, QA, Decision, image_array
+from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observation
 
 from .data import INTERACTION_IDS, START
 from .model import Performer, load_checkpoint
@@ -29,27 +28,6 @@ from .nn import PerceivedFrames
 from .nn.enc_action import failed_id
 from .nn.heads import cell_centre_pixel
 from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
-
-
-def observation_rgb(observation: Any) -> np.ndarray:
-    """The HxWx3 uint8 RGB frame of an observation (array, {'rgb': ...}, or .rgb array / rgb8 Image)."""
-    if isinstance(observation, np.ndarray):
-        return observation
-    rgb = observation.get('rgb') if isinstance(observation, dict) else getattr(observation, 'rgb', None)
-    if rgb is None:
-        raise ValueError(f'no RGB frame in the observation ({type(observation).__name__})')
-    if isinstance(rgb, np.ndarray):
-        return rgb
-    if getattr(rgb, 'encoding', None) != 'rgb8':
-        raise ValueError(f'expected an rgb8 image, got encoding {getattr(rgb, "encoding", None)!r}')
-    return image_array(rgb)
-
-
-def last_action_success(observation: Any) -> Optional[bool]:
-    """The observation's `last_action_success` (a dict's key or an attribute), or None if it has none."""
-    value = observation.get('last_action_success') if isinstance(observation, dict) else \
-        getattr(observation, 'last_action_success', None)
-    return None if value is None else bool(value)
 
 
 class StepOutputs(NamedTuple):
@@ -155,16 +133,17 @@ class PerformerAgent:
         return self._grids[t]
 
     @torch.inference_mode()
-    def _outputs(self, observation: Any) -> StepOutputs:
+    def _outputs(self, observation: Observation) -> StepOutputs:
         """The model's outputs for the current step and observation (computed once per step and dialogue)."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, len(self.dialogue))
         if self._pending is not None and self._pending[0] is observation and self._pending[1] == key:
             return self._pending[2]
+        obs = as_observation(observation)
         if self.config.failure_input:
-            self._note_failure(observation)
-        rgb = observation_rgb(observation)
+            self._note_failure(obs)
+        rgb = obs.rgb
         frame = frame_tensor(rgb, self.config.resolution)[None]
         if self.channels_last:
             frame = frame.contiguous(memory_format=torch.channels_last)
@@ -212,14 +191,14 @@ class PerformerAgent:
         self._pending = (observation, key, result)
         return result
 
-    def _note_failure(self, observation: Any) -> None:
+    def _note_failure(self, observation: Observation) -> None:
         """With the failure input: the previous action becomes its failed id if it was an interaction and
-        the observation says it failed (`last_action_success`; an observation without it: succeeded)."""
+        the observation says it failed (`last_action_success`)."""
         previous = self._previous_actions[-1]
-        if previous in INTERACTION_IDS and last_action_success(observation) is False:
+        if previous in INTERACTION_IDS and not observation.last_action_success:
             self._previous_actions[-1] = failed_id(previous, len(ACTIONS))
 
-    def action_probabilities(self, observation: Any) -> np.ndarray:
+    def action_probabilities(self, observation: Observation) -> np.ndarray:
         """Probabilities over ACTIONS of the next action given `observation`."""
         return torch.softmax(self._outputs(observation).action_logits, -1).numpy()
 
@@ -230,7 +209,7 @@ class PerformerAgent:
         grid = self.model.visual.keys_of(encoded)
         return grid, self.model.pointer_head(h, grid[0])
 
-    def act(self, observation: Any) -> Decision:
+    def act(self, observation: Observation) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
         in the observation's frame."""
         out = self._outputs(observation)

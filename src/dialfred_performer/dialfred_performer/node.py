@@ -44,7 +44,7 @@ from dialfred_msgs.msg import Action, QAPair
 from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
 from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
 from dialfred_sim.messages import qa_from_answer, qa_msg, sim_reply, task_description_msg
-from dialfred_sim.protocol import MAX_QUESTIONS, QA, Question, top2_gap
+from dialfred_sim.protocol import MAX_QUESTIONS, QA, ConfusionSource, MapPainter, Question, top2_gap
 from dialfred_sim.bag import IMAGE_FORMATS, RecordingObserver
 from dialfred_sim.ros_util import (RESEND_AFTER_S, SERVICE_QOS, SETTLE_S, Param, declare_parameters, refused_request,
                                    run_node)
@@ -181,7 +181,8 @@ class PerformerNode(Node):
         observers = [goal_run]
         if self.record_dir:     # the bag is written with the goal's result, however the goal ends (save_recording)
             self.recorder = RecordingObserver(Path(self.record_dir), self.record_format,
-                                              picture=getattr(policy, 'picture', None), save_on_end=False)
+                                              picture=policy.picture if isinstance(policy, MapPainter) else None,
+                                              save_on_end=False)
             observers.append(self.recorder)
         episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
                        max_questions=int(self.get_parameter('max_questions').value), asker='questioner',
@@ -260,6 +261,7 @@ class GoalRun(EpisodeObserver):
         self.node, self.goal_handle, self.policy, self.result = node, goal_handle, policy, result
         self.checkpoint = checkpoint
         self.task, self.dialogue = None, []
+        self.frame_msg = None          # the latest frame (sensor_msgs/Image) as the simulator sent it
 
     # the agent
     def reset(self, task, seed: int) -> None:
@@ -270,10 +272,10 @@ class GoalRun(EpisodeObserver):
         """What the questioner node asks before this action (with the policy's top-2 action-probability gap)."""
         if self.goal_handle.is_cancel_requested:
             raise GoalCanceled
-        probabilities = getattr(self.policy, 'action_probabilities', None)
-        gap = top2_gap(probabilities(observation)) if probabilities is not None else -1.0
+        gap = top2_gap(self.policy.action_probabilities(observation)) if isinstance(self.policy, ConfusionSource) \
+            else -1.0
         reply = self.node.call(self.node.questioner_cli, QuestionerAsk.Request(
-            task=task_description_msg(self.task), seed=int(self.seed), step=self.result.steps, rgb=observation.rgb,
+            task=task_description_msg(self.task), seed=int(self.seed), step=self.result.steps, rgb=self.frame_msg,
             dialogue=[qa_msg(qa) for qa in self.dialogue], confusion_gap=gap), resend=True)
         if not reply.ok:
             raise GoalFailed(f'questioner: {reply.error}')
@@ -310,7 +312,7 @@ class GoalRun(EpisodeObserver):
 
     # the observer
     def on_started(self, state: EpisodeState, reply) -> None:
-        rgb = reply.raw.observation.rgb
+        rgb = self.frame_msg = reply.raw.observation.rgb      # the frame as the simulator sent it, for the questioner
         self.node.check_camera(self.checkpoint, int(rgb.width), int(rgb.height))
         self.result.goal_conditions_total = int(reply.goal_conditions_total)
 
@@ -322,15 +324,15 @@ class GoalRun(EpisodeObserver):
 
     def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
         node = self.node
-        picture = getattr(self.policy, 'picture', None)
-        if picture is not None and node.map_pub.get_subscription_count() > 0:
-            img = picture()
+        if isinstance(self.policy, MapPainter) and node.map_pub.get_subscription_count() > 0:
+            img = self.policy.picture()
             h, w = img.shape[:2]
             node.map_pub.publish(Image(height=h, width=w, encoding='rgb8', step=w * 3, data=img.tobytes()))
         node.action_pub.publish(Action(action=action, x=x, y=y))
 
     def on_stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
         result, observation = self.result, reply.raw.observation
+        self.frame_msg = observation.rgb
         result.steps, result.failed_actions = int(observation.step_count), int(observation.failed_actions)
         result.goal_conditions_met = int(reply.goal_conditions_met)
         result.goal_conditions_total = int(reply.goal_conditions_total)

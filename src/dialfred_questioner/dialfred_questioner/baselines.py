@@ -28,7 +28,8 @@ from typing import Any, Optional
 import numpy as np
 
 from dialfred_sim.agents import public_view, task_nouns, task_view
-from dialfred_sim.protocol import QA, QUESTION_TYPES, Agent, Decision, Question, Questioner, top2_gap
+from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Decision, Listener, PerformerAware, Question,
+                                  Questioner, is_privileged, top2_gap)
 
 
 def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:
@@ -118,8 +119,10 @@ class ModelConfusionQuestioner:
         self._nouns: list[str] = []
         self._asked_at = -1
 
+    needs_gap = True
+
     def attach(self, performer: Agent) -> None:
-        if not callable(getattr(performer, 'action_probabilities', None)):
+        if not isinstance(performer, ConfusionSource):
             raise ValueError(f'the confusion questioner needs a performer with action_probabilities(); '
                              f'{performer.name!r} has none')
         self.performer = performer
@@ -137,11 +140,13 @@ class ModelConfusionQuestioner:
             raise RuntimeError('attach() the performer before asking')
         if self._asked_at == step:
             return None
-        return self.ask_given_gap(top2_gap(self.performer.action_probabilities(observation)), step)
+        return self.ask_given_gap(observation, step, top2_gap(self.performer.action_probabilities(observation)))
 
-    def ask_given_gap(self, gap: float, step: int) -> Optional[Question]:
+    def ask_given_gap(self, observation: Any, step: int, gap: Optional[float]) -> Optional[Question]:
         """The same decision from the performer's top-2 gap as the performer reports it (the
         questioner node gets it in the /questioner/ask request instead of calling the performer)."""
+        if gap is None:
+            raise ValueError('the confusion questioner needs the performer\'s top-2 gap')
         if self._asked_at == step or gap >= self.epsilon:
             return None
         self._asked_at = step
@@ -161,11 +166,10 @@ class QuestioningAgent:
 
     def __init__(self, performer: Agent, questioner: Questioner):
         self.performer, self.questioner = performer, questioner
-        attach = getattr(questioner, 'attach', None)
-        if attach is not None:         # a questioner that watches the performer (model confusion)
-            attach(performer)
+        if isinstance(questioner, PerformerAware):     # a questioner that watches the performer (model confusion)
+            questioner.attach(performer)
         self.name = f'{performer.name}+{questioner.name}'
-        self.privileged = bool(getattr(performer, 'privileged', False))
+        self.privileged = is_privileged(performer)
         self.dialogue: list[QA] = []
         self._steps = 0
 
@@ -181,9 +185,8 @@ class QuestioningAgent:
     def hear(self, qa: QA) -> None:
         self.dialogue.append(qa)
         self.questioner.hear(qa)
-        listen = getattr(self.performer, 'hear', None)
-        if listen is not None:
-            listen(qa)
+        if isinstance(self.performer, Listener):
+            self.performer.hear(qa)
 
     def act(self, observation: Any) -> Decision:
         self._steps += 1

@@ -26,13 +26,15 @@ ok=false and the reason; the node keeps serving.
 
 from __future__ import annotations
 
+import math
 import sys
 
+import numpy as np
 from rclpy.node import Node
 
-from dialfred_msgs.msg import Observation, QAPair
+from dialfred_msgs.msg import QAPair
 from dialfred_msgs.srv import QuestionerAsk
-from dialfred_sim.protocol import QA
+from dialfred_sim.protocol import QA, GapQuestioner, Observation, image_array
 from dialfred_sim.messages import public_task_from_msg, qa_from_msg, qa_msg
 from dialfred_sim.ros_util import SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 
@@ -54,6 +56,23 @@ PARAMETERS = (
           'confusion)', span=(-1.0, 1.0)),
     Param('torch_threads', 1, 'torch intra-op threads of a learned questioner', span=(1, 256)))
 
+
+def is_learned(questioner) -> bool:
+    """Whether `questioner` is a LearnedQuestioner."""
+    # Imported here: policy imports torch, which the baselines' node does without (its start is faster).
+    from .policy import LearnedQuestioner
+    return isinstance(questioner, LearnedQuestioner)
+
+
+def request_observation(request: QuestionerAsk.Request) -> Observation:
+    """The request's frame as the questioner's observation; a request without a readable frame gives
+    an empty (0x0) one: a learned questioner's request was refused for it first (`refusal`)."""
+    try:
+        return Observation(rgb=image_array(request.rgb, 'rgb8'))
+    except ValueError:
+        return Observation(rgb=np.zeros((0, 0, 3), np.uint8))
+
+
 class QuestionerNode(Node):
     def __init__(self):
         super().__init__('dialfred_questioner')
@@ -74,7 +93,7 @@ class QuestionerNode(Node):
         self.last = None           # (request key, reply fields) of the last request
         self.question_pub = self.create_publisher(QAPair, 'questioner/question', 100)
         self.create_service(QuestionerAsk, 'questioner/ask', self.on_ask, qos_profile=SERVICE_QOS)
-        timing = getattr(self.questioner, 'timing', '')
+        timing = self.questioner.timing if is_learned(self.questioner) else ''
         self.get_logger().info(f'serving questioner/ask with the {name!r} questioner {timing}'.rstrip())
 
     def retime(self, mode: str, gap: int, epsilon: float) -> None:
@@ -87,28 +106,28 @@ class QuestionerNode(Node):
             if mode or gap or epsilon >= 0:
                 raise ValueError(f'the timing, gap and epsilon parameters are not for the {self.name!r} questioner')
             return
-        import torch
+        import torch     # a learned questioner only: the baselines' node starts without torch's import time
 
-        from .policy import LearnedQuestioner, retimed
-        if isinstance(self.questioner, LearnedQuestioner):
+        from .policy import retimed
+        if is_learned(self.questioner):
             torch.set_num_threads(max(1, int(self.get_parameter('torch_threads').value)))
             self.questioner.timing = retimed(self.questioner.timing, mode, gap, epsilon)
         elif mode or gap or epsilon >= 0:
             raise ValueError('the timing, gap and epsilon parameters are for a learned questioner')
 
+    @property
+    def needs_gap(self) -> bool:
+        return isinstance(self.questioner, GapQuestioner) and self.questioner.needs_gap
+
     def refusal(self, request: QuestionerAsk.Request) -> str:
         """Why the request cannot be served ('' if it can), found before any state changes."""
-        import math
         if request.seed < 0:
             return f'seed must be a non-negative integer, got {request.seed}'
         if math.isnan(request.confusion_gap):
             return 'confusion_gap must be a number (< 0 = unknown), got nan'
-        needs_gap = hasattr(self.questioner, 'ask_given_gap') or getattr(self.questioner, 'needs_gap', False)
-        if needs_gap and request.confusion_gap < 0:
+        if self.needs_gap and request.confusion_gap < 0:
             return f'the {self.name!r} questioner needs the performer\'s confusion_gap (>= 0) in the request'
-        from .policy import LearnedQuestioner
-        if isinstance(self.questioner, LearnedQuestioner):
-            from dialfred_sim.protocol import image_array
+        if is_learned(self.questioner):
             try:
                 rgb = image_array(request.rgb, 'rgb8')
             except ValueError as exc:
@@ -138,15 +157,11 @@ class QuestionerNode(Node):
         for qa in request.dialogue[self.heard:]:
             self.questioner.hear(qa_from_msg(qa))
         self.heard = len(request.dialogue)
-        ask_given_gap = getattr(self.questioner, 'ask_given_gap', None)
-        needs_gap = ask_given_gap is not None or getattr(self.questioner, 'needs_gap', False)
-        if ask_given_gap is not None:
-            question = ask_given_gap(float(request.confusion_gap), int(request.step))
-        elif needs_gap:
-            question = self.questioner.ask(Observation(rgb=request.rgb), int(request.step),
-                                           confusion_gap=float(request.confusion_gap))
+        observation = request_observation(request)
+        if self.needs_gap:
+            question = self.questioner.ask_given_gap(observation, int(request.step), float(request.confusion_gap))
         else:
-            question = self.questioner.ask(Observation(rgb=request.rgb), int(request.step))
+            question = self.questioner.ask(observation, int(request.step))
         response.ok = True
         if question is not None:
             response.ask, response.question_type, response.object_noun = True, question.question_type, \

@@ -14,7 +14,7 @@ As a `Questioner` it asks at most once per step, and only at the chances its `ti
 does, so an evaluation plays the episode its fine-tuning played. The timing is the checkpoint's
 (`finetune.py` stores the one it was trained with; a pre-trained checkpoint asks at the start only)
 unless one is given. With the confusion timing it needs the performer's top-2 action-probability gap:
-in process from `attach(performer)`, in the questioner node from the request (`ask(..., confusion_gap)`).
+in process from `attach(performer)`, in the questioner node from the request (`ask_given_gap`).
 
 The shipped checkpoints live in `CHECKPOINTS` (installed with the package), one per name of
 `SHIPPED_LEARNED` ('rl-anytime' -> checkpoints/rl_anytime.pt); `learned_questioner(name)` loads one of
@@ -32,7 +32,7 @@ import torch
 from dialfred_performer.model import PerformerConfig, build_visual, state_digest, visual_state
 from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
-from dialfred_sim.protocol import QA, Question, top2_gap
+from dialfred_sim.protocol import QA, ConfusionSource, Observation, Question, as_observation, top2_gap
 
 from .data import pad_language
 from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
@@ -235,34 +235,40 @@ class LearnedQuestioner:
     # ---- a baselines.Questioner
     def attach(self, performer: Any) -> None:
         """The performer whose confusion the confusion timing watches (in process)."""
-        if self.needs_gap and not callable(getattr(performer, 'action_probabilities', None)):
+        if self.needs_gap and not isinstance(performer, ConfusionSource):
             raise ValueError(f'a questioner with the confusion timing needs a performer with '
-                             f'action_probabilities(); {getattr(performer, "name", performer)!r} has none')
+                             f'action_probabilities(); {performer!r} has none')
         self.performer = performer
 
     def reset(self, task: Any, seed: int) -> None:
         self.task, self.dialogue, self._step, self._asked_at = task, [], 0, -1
         self.generator.manual_seed(seed)
 
-    def ask(self, observation: Any, step: int, confusion_gap: Optional[float] = None) -> Optional[Question]:
+    def ask(self, observation: Observation, step: int) -> Optional[Question]:
         """A question or None before action `step` + 1: at most one per step, at the timing's chances.
-        The confusion timing uses `confusion_gap` if given, else asks the attached performer."""
-        from dialfred_performer.agent import observation_rgb
+        The confusion timing reads the attached performer's top-2 gap."""
+        gap = None
+        if self.needs_gap and step != self._asked_at:
+            if self.performer is None:
+                raise RuntimeError('the confusion timing needs attach(performer) or the performer\'s gap')
+            gap = top2_gap(self.performer.action_probabilities(observation))
+        return self.ask_given_gap(observation, step, gap)
+
+    def ask_given_gap(self, observation: Observation, step: int, gap: Optional[float]) -> Optional[Question]:
+        """ask(), with the performer's top-2 gap given (the questioner node gets it in the request)."""
         if step == self._asked_at:
             return None
         if self.needs_gap:
-            if confusion_gap is None:
-                if self.performer is None:
-                    raise RuntimeError('the confusion timing needs attach(performer) or the confusion_gap')
-                confusion_gap = top2_gap(self.performer.action_probabilities(observation))
-            chance = confusion_gap < self.timing.epsilon
+            if gap is None:
+                raise ValueError('a questioner with the confusion timing needs the performer\'s top-2 gap')
+            chance = gap < self.timing.epsilon
         else:
             chance = self.timing.chance(step, None, None)
         if not chance:
             return None
         # The frame is read (and a bad one refused) before the step is marked: a refused request
         # leaves this step's chance to ask as it was.
-        question = self.decide(observation_rgb(observation), self.task.instruction, self.dialogue, step)[0]
+        question = self.decide(as_observation(observation).rgb, self.task.instruction, self.dialogue, step)[0]
         self._asked_at, self._step = step, step
         return question
 

@@ -22,10 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
+from dialfred_oracle.local import EnvServer
 from dialfred_performer.preprocess import AskedQA
 from dialfred_sim.episode import EpisodeObserver, run
 from dialfred_sim.episode import play as play_episode
 from dialfred_sim.protocol import QA, Question, top2_gap
+from dialfred_sim.tasks import get_task
 
 from .rl import Rewards
 
@@ -114,7 +116,7 @@ class RolloutAgent(EpisodeObserver):
             episode.decisions[-1].reward += self.rewards.step * self.steps_since
         self.steps_since = 0
         asked = [AskedQA(qa, t) for qa, t in zip(episode.dialogue, episode.asked_at)]
-        question, record = self.policy(observation['rgb'], self.task, asked, episode.steps)
+        question, record = self.policy(observation.rgb, self.task, asked, episode.steps)
         episode.decisions.append(Decision(episode.steps, question, record=record))
         return question
 
@@ -139,12 +141,11 @@ class RolloutAgent(EpisodeObserver):
 def play(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing, rewards: Rewards = Rewards(),
          perturbation=None) -> Episode:
     """One episode of `task_id`; see the module's doc."""
-    from dialfred_oracle.local import EnvServer
-    from dialfred_sim.tasks import get_task
     task = get_task(task_id)
     episode = Episode(task_id, seed)
     agent = RolloutAgent(performer, policy, timing, rewards, episode)
-    state = run(play_episode(agent, seed=seed, told=task.public(), observers=[agent]), EnvServer(env, task, perturbation))
+    server = EnvServer(env, task, perturbation, with_depth=False, with_segmentation=False)   # RGB, as evaluations
+    state = run(play_episode(agent, seed=seed, told=task.public(), observers=[agent]), server)
     if state.end_reason == 'error':
         raise RuntimeError(f'{task_id}: {state.error}')
     if episode.decisions:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .protocol import ACTIONS, Agent, Decision, scale_pixel
+from .protocol import ACTIONS, Agent, Decision, is_privileged, scale_pixel
 
 
 def public_view(task: Any) -> Any:
@@ -40,7 +40,7 @@ def task_nouns(task: Any) -> list[str]:
 def task_view(agent: Any, task: Any) -> Any:
     """What `agent` is told of `task`: the whole Task for a privileged reference agent, else its
     public view."""
-    return task if getattr(agent, 'privileged', False) else public_view(task)
+    return task if is_privileged(agent) else public_view(task)
 
 
 class ExpertAgent:
@@ -125,7 +125,7 @@ def make_agent(name: str, resolution: int = 128) -> Agent:
     if ':' not in name:
         raise ValueError(f'unknown agent {name!r}; known: {", ".join(AGENTS)}, or package.module:ClassName')
     cls = load_class(name)
-    if getattr(cls, 'privileged', False):
+    if is_privileged(cls):
         raise ValueError(f'agent {name!r} says it is privileged: only the built-in reference agents '
                          f'({", ".join(k for k, c in AGENTS.items() if c.privileged)}) may see a task\'s solution')
     return cls(resolution=resolution)

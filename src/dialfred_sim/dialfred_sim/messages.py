@@ -3,14 +3,17 @@
 The nodes and the evaluation client use these, so that a QA or a task reads the same whichever
 process made it: `qa_msg`/`qa_from_msg` (protocol.QA <-> QAPair, the question worded by `protocol.question_text`),
 `qa_from_answer` (an /oracle/answer reply, checked to be about the task played), `public_task_from_msg`
-(TaskDescription -> tasks.PublicTask: what an agent is told, never more).
+(TaskDescription -> tasks.PublicTask: what an agent is told, never more), `observation_from_msg`
+(Observation message -> protocol.Observation, the one conversion of what an agent is given) and
+`sim_reply` (a /sim/reset or /sim/step response -> the episode loop's SimReply).
 """
 
 from __future__ import annotations
 
 from dialfred_msgs.msg import QAPair, TaskDescription
+from dialfred_msgs.srv import SimReset
 
-from .protocol import QA, Question
+from .protocol import QA, Observation, Question, image_array
 from .episode import SimReply
 from .tasks.schema import PublicTask
 
@@ -46,11 +49,28 @@ def task_description_msg(task: PublicTask) -> TaskDescription:
                            object_nouns=list(task.object_nouns))
 
 
+def observation_from_msg(msg) -> Observation:
+    """A dialfred_msgs/Observation as what an agent is given: the frames as arrays (depth and segmentation
+    None when the simulator was asked not to send them), the pose, the hand and the last action's outcome.
+    ValueError for a malformed image."""
+    def optional(image, encoding):
+        return image_array(image, encoding) if image.encoding or len(image.data) else None
+
+    p = msg.pose
+    return Observation(rgb=image_array(msg.rgb, 'rgb8'), depth=optional(msg.depth, '32FC1'),
+                       segmentation=optional(msg.segmentation, '32SC1'),
+                       pose=(float(p.x), float(p.y), float(p.rotation_deg), float(p.horizon_deg)),
+                       held_object=msg.held_object, last_action_success=bool(msg.last_action_success),
+                       last_action_error=msg.last_action_error, step_count=int(msg.step_count),
+                       failed_actions=int(msg.failed_actions))
+
+
 def sim_reply(msg):
-    """A /sim/reset or /sim/step response as the episode loop's SimReply (the message kept as `raw`)."""
+    """A /sim/reset or /sim/step response as the episode loop's SimReply (the message kept as `raw`; a
+    refused request's empty observation is None)."""
     obs = msg.observation
-    is_reset = hasattr(msg, 'task')
-    return SimReply(observation=obs, step_count=int(obs.step_count), failed_actions=int(obs.failed_actions),
+    is_reset = isinstance(msg, SimReset.Response)
+    return SimReply(observation=observation_from_msg(obs) if msg.ok else None, step_count=int(obs.step_count), failed_actions=int(obs.failed_actions),
                     last_action_success=bool(obs.last_action_success), last_action_error=obs.last_action_error,
                     goal_conditions_met=0 if is_reset else int(msg.goal_conditions_met),
                     goal_conditions_total=int(msg.goal_conditions_total),

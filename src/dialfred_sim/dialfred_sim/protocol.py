@@ -9,10 +9,18 @@ Everything two packages must agree on is defined here once, and every package im
 - `Question` and `QA`: a question for the oracle and what it said.
 - `MAX_QUESTIONS`: how many questions an agent may ask in a row without acting before its episode ends
   with an error.
+- `Observation`: what an agent is given after a reset or a step, whichever path served it (made once
+  from the graph's message by `messages.observation_from_msg`, from a DialfredEnv's reset or step by
+  `env_observation`, which `EnvServer` calls).
 - `Agent`, `DialogueAgent` and `Questioner`: what the episode loop calls. An agent is told the task at
   the start (`reset(task, seed)`: a `tasks.PublicTask`, never the expert's plan) and names its next
   action (`act(observation)`); a dialogue agent may first `ask(observation)` and `hear(qa)` the answer,
   until `ask` returns None. A questioner decides for an agent what to ask (`ask(observation, step)`).
+- The optional capabilities, each a `Protocol` checked with isinstance: `Listener` (hears answers),
+  `ConfusionSource` (action probabilities, for the model-confusion questioner), `MapPainter` (a picture
+  of what it knows, for the live view and the GIFs), `Privileged` (told the whole task: the expert),
+  `PerformerAware` (a questioner that attaches to its performer) and `GapQuestioner` (a questioner that
+  may ask given the performer's top-2 gap).
 - `episode_seed`, `scale_pixel`, `top2_gap`: small rules every driver of an episode applies the same way.
 - `image_array` / `fill_image`: the one conversion between sensor_msgs/Image and arrays (duck-typed: no rclpy).
 """
@@ -76,21 +84,80 @@ class QA:
     reason: str = ''
 
 
+@dataclass(frozen=True, eq=False)
+class Observation:
+    """What an agent sees and knows after a reset or a step (the fields of dialfred_msgs/Observation an
+    agent may use), the same whichever path served it.
+
+    rgb: HxWx3 uint8; depth: HxW float32 metres along the optical axis; segmentation: HxW int32 instance
+    ids (either None when the simulator was asked not to send it); pose: (x, y, rotation_deg,
+    horizon_deg) of the camera, as dialfred_msgs/AgentPose. The arrays must not be changed in place."""
+
+    rgb: np.ndarray
+    depth: Optional[np.ndarray] = None
+    segmentation: Optional[np.ndarray] = None
+    pose: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    held_object: str = ''
+    last_action_success: bool = True
+    last_action_error: str = ''
+    step_count: int = 0
+    failed_actions: int = 0
+
+    def __post_init__(self):
+        rgb = self.rgb
+        if not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise ValueError(f'Observation.rgb must be an HxWx3 uint8 array, got {_describe(rgb)}')
+
+
+def env_observation(obs: dict, info: dict) -> Observation:
+    """What an agent is given after a reset or a step of a DialfredEnv (`obs`, `info` as they return them):
+    the local path's one conversion, as `messages.observation_from_msg` is the graph's."""
+    return Observation(rgb=obs['rgb'], depth=obs['depth'], segmentation=obs['segmentation'],
+                       pose=tuple(float(v) for v in obs['pose']), held_object=str(info['held_object']),
+                       last_action_success=bool(info['last_action_success']),
+                       last_action_error=str(info['last_action_error']), step_count=int(info['step_count']),
+                       failed_actions=int(info['failed_actions']))
+
+
+def _describe(value) -> str:
+    if isinstance(value, np.ndarray):
+        return f'a {value.dtype} array of shape {value.shape}'
+    return type(value).__name__
+
+
+def as_observation(value) -> Observation:
+    """`value` as an Observation: an Observation as it is, an HxWx3 uint8 frame as an Observation of that
+    frame alone (for calling an agent by hand). ValueError for anything else."""
+    if isinstance(value, Observation):
+        return value
+    if isinstance(value, np.ndarray):
+        return Observation(rgb=value)
+    raise ValueError(f'expected a protocol.Observation or an HxWx3 uint8 frame, got {_describe(value)}')
+
+
 class Agent(Protocol):
     name: str
 
     def reset(self, task: Any, seed: int) -> None:
         """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
 
-    def act(self, observation: Any) -> Decision:
+    def act(self, observation: Observation) -> Decision:
         """The next action (name, x, y) given the latest observation."""
+
+
+@runtime_checkable
+class Listener(Protocol):
+    """Hears the oracle's answers (every dialogue agent and questioner; a performer that reads QAs)."""
+
+    def hear(self, qa: QA) -> None:
+        """The oracle's reply to the question just asked."""
 
 
 @runtime_checkable
 class DialogueAgent(Agent, Protocol):
     """An agent that may ask the oracle before it acts."""
 
-    def ask(self, observation: Any) -> Optional[Question]:
+    def ask(self, observation: Observation) -> Optional[Question]:
         """A question to ask before the next action, or None to act now."""
 
     def hear(self, qa: QA) -> None:
@@ -103,11 +170,63 @@ class Questioner(Protocol):
     def reset(self, task: Any, seed: int) -> None:
         """Start an episode of `task` (a dialfred_sim.tasks.PublicTask); `seed` seeds any randomness."""
 
-    def ask(self, observation: Any, step: int) -> Optional[Question]:
+    def ask(self, observation: Observation, step: int) -> Optional[Question]:
         """A question before the agent's action number `step` + 1, or None."""
 
     def hear(self, qa: QA) -> None:
         """The oracle's reply to the question just asked."""
+
+
+@runtime_checkable
+class ConfusionSource(Protocol):
+    """An agent that says how sure it is: the model-confusion questioner reads the top-2 gap of these."""
+
+    def action_probabilities(self, observation: Observation) -> np.ndarray:
+        """Probabilities over ACTIONS of the action `act` would choose now (without choosing it)."""
+
+
+@runtime_checkable
+class MapPainter(Protocol):
+    """An agent that keeps a picture of what it knows (the map performer): the live view and the GIFs
+    show it beside the camera's frame."""
+
+    def picture(self) -> Optional[np.ndarray]:
+        """An HxWx3 uint8 picture of the agent's state now, or None before it has one."""
+
+
+@runtime_checkable
+class Privileged(Protocol):
+    """A reference agent that is told the whole task (the expert): only built-in ones may say True, and
+    results mark them."""
+
+    privileged: bool
+
+
+def is_privileged(agent_or_class: Any) -> bool:
+    """Whether an agent (or an agent class) is a privileged reference (`Privileged` with True)."""
+    return bool(isinstance(agent_or_class, Privileged) and agent_or_class.privileged)
+
+
+@runtime_checkable
+class PerformerAware(Protocol):
+    """A questioner that reads the performer it asks for (the model-confusion questioner): given it at
+    the start of every episode."""
+
+    def attach(self, performer: Any) -> None:
+        """The performer this questioner asks for."""
+
+
+@runtime_checkable
+class GapQuestioner(Protocol):
+    """A questioner that may decide from the performer's top-2 gap (`needs_gap`: the model-confusion
+    questioner, a learned one with the confusion timing): in process it reads the gap of the performer
+    it is attached to (`ask`); the questioner node gets the gap with each request instead."""
+
+    needs_gap: bool
+
+    def ask_given_gap(self, observation: Observation, step: int, gap: Optional[float]) -> Optional[Question]:
+        """ask(), given the performer's top-2 gap before this action (None: not known; refused when
+        `needs_gap`)."""
 
 
 def episode_seed(run_seed: int, task_index: int) -> int:
@@ -138,14 +257,6 @@ def top2_gap(probabilities) -> float:
 # ------------------------------------------------------------------------- images <-> arrays
 # sensor_msgs/Image encodings of the simulator's three frames: colour, depth in metres, instance ids.
 IMAGE_DTYPES = {'rgb8': np.uint8, '32FC1': np.float32, '32SC1': np.int32}
-
-
-def observation_field(observation, name: str, default=None):
-    """A field of an agent's observation, whichever path gave it: the graph's Observation message
-    (an attribute) or the local path's dict (a key)."""
-    if isinstance(observation, dict):
-        return observation.get(name, default)
-    return getattr(observation, name, default)
 
 
 def image_array(msg, encoding: Optional[str] = None) -> np.ndarray:

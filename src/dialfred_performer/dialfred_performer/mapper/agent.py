@@ -39,11 +39,10 @@ from typing import Any, Optional
 import numpy as np
 import torch
 
-from dialfred_sim.protocol import ACTIONS, QA, Decision
+from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observation
 from dialfred_sim.tasks.demonstrations import label_classes
 from dialfred_sim.world.catalog import load_catalog
 
-from ..agent import last_action_success, observation_rgb
 from ..preprocess import frame_tensor
 from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon, off_bearing,
                        points_in_agent_frame, ray_distance, to_map_frame)
@@ -131,6 +130,8 @@ class MapAgent:
         self.answers = 0
         self._pending = None             # (key, answers, twin, outputs) of action_probabilities
         self.log: list[str] = []
+        self.rgb: Optional[np.ndarray] = None           # the frame perceived last
+        self.class_prob: Optional[torch.Tensor] = None  # the network's class probabilities of that frame
 
     def reset(self, task: Any, seed: int = 0) -> None:
         """Start an episode of `task` (a PublicTask: only its instruction is read)."""
@@ -181,18 +182,18 @@ class MapAgent:
         conf, labels = prob.max(0)
         return labels.numpy(), conf.numpy(), metres[0].numpy()
 
-    def sense(self, observation: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def sense(self, observation: Observation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the agent makes of an observation: `perceive` of its RGB frame (a diagnostic subclass may
         read something else: benchmarks/map_perception_ceiling.py)."""
         return self.perceive(self.rgb)
 
-    def _update(self, observation: Any) -> None:
-        before, self.rgb = getattr(self, 'rgb', None), observation_rgb(observation)
+    def _update(self, observation: Observation) -> None:
+        before, self.rgb = self.rgb, observation.rgb
         labels, conf, depth = self.sense(observation)
         if self.step == 0:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
         else:
-            self._dead_reckon(last_action_success(observation))
+            self._dead_reckon(observation.last_action_success)
         self.labels, self.conf = labels, conf
         self.ray = ray_distance(depth)
         local = points_in_agent_frame(depth, self.pose.horizon)
@@ -479,7 +480,7 @@ class MapAgent:
         least INSIDE_P) within the receptacle's box in the frame; failing that, where the agent put it
         itself, the cell of that box nearest the point it put it down at (within PLACED_M)."""
         none = np.zeros_like(self.labels, bool)
-        prob = getattr(self, 'class_prob', None)
+        prob = self.class_prob
         where = self._inside(step.target) if step.kind == 'pickup' else None
         if where is None or prob is None:
             return none
@@ -710,13 +711,13 @@ class MapAgent:
         metres = (np.arange(self.map.nodes) - self.map.node_offset()) * STEP_M
         return off_bearing(at, bearing, metres[:, None], metres[None, :]) <= half_width
 
-    def _observe(self, observation: Any) -> tuple:
+    def _observe(self, observation: Observation) -> tuple:
         """Perceive the frame (once per step), then take in the answers heard since; its key."""
         if self.task is None:
             raise RuntimeError('reset() the agent before it acts')
         key = (self.step, id(observation))
         if self._observed != key:
-            self._update(observation)
+            self._update(as_observation(observation))
             self._observed = key
         while self._heard:
             self._take_in(self._heard.popleft())
@@ -738,7 +739,7 @@ class MapAgent:
         action, r, c, point = self._decide()
         return action, r, c, point, self.confidence
 
-    def action_probabilities(self, observation: Any) -> np.ndarray:
+    def action_probabilities(self, observation: Observation) -> np.ndarray:
         """Probabilities over ACTIONS of the next action: the chosen one gets the agent's confidence,
         the rest is spread over the others (the model-confusion questioner's signal)."""
         key = self._observe(observation)
@@ -755,7 +756,7 @@ class MapAgent:
         from .picture import belief_picture
         return belief_picture(self)
 
-    def act(self, observation: Any) -> Decision:
+    def act(self, observation: Observation) -> Decision:
         """The next (action, x, y) with the pixel in the observation's frame (-1, -1 for moves)."""
         key = self._observe(observation)
         pending = self._pending
@@ -768,7 +769,7 @@ class MapAgent:
         x = y = -1
         step = self.decided
         if r >= 0:
-            h, w = observation_rgb(observation).shape[:2]
+            h, w = self.rgb.shape[:2]
             s = self.labels.shape[0]
             x, y = int((c + 0.5) * w / s), int((r + 0.5) * h / s)
         self.last = (action, step, point)
