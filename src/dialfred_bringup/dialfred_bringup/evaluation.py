@@ -89,10 +89,11 @@ class EvalConfig:
                      'map-and-plan performer over the perception network of --checkpoint, in this process), or your own '
                      'class as package.module:ClassName (on the Python path; made as ClassName(resolution=R), with '
                      'reset(task, seed) and act(observation))')
-    performer: str = arg('', 'et or map: a performer node per worker (its `model` parameter) plays each task as a '
-                         'RunTask goal (with sim, oracle and questioner nodes in its namespace); this process only '
-                         'sends goals and records results. none: the agent is a Python object of this process '
-                         '(--agent et or map plays the same performer there)', choices=list(PERFORMER_MODELS),
+    performer: str = arg('', f'a performer model ({" or ".join(PERFORMER_MODELS)}, dialfred_performer.models): a '
+                         'performer node per worker (its `model` parameter) plays each task as a RunTask goal (with '
+                         'sim, oracle and questioner nodes in its namespace); this process only sends goals and '
+                         'records results. none: the agent is a Python object of this process (--agent with the '
+                         'model\'s name plays the same performer there)', choices=list(PERFORMER_MODELS),
                          aliases={'none': ''})
     checkpoint: Optional[Path] = arg(None, 'the et performer\'s checkpoint (none: the one shipped in the package, '
                                      'dialfred_performer/checkpoints/et.pt)', metavar='PATH')
@@ -292,7 +293,8 @@ class EvalConfig:
             raise ValueError('--local plays without ROS: it cannot go with --performer, --record or --foxglove')
         if self.performer:
             if self.performer not in PERFORMER_MODELS:
-                raise ValueError(f'--performer must be et or map (the performer node\'s model), got {self.performer!r}')
+                raise ValueError(f'--performer must be one of {", ".join(PERFORMER_MODELS)} (the performer node\'s model), '
+                                 f'got {self.performer!r}')
             self.agent = self.performer
         self.make_agent()     # the node path too: a bad checkpoint or questioner fails before any node starts
         if self.tasks_file:

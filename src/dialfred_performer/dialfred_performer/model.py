@@ -26,12 +26,11 @@ from dialfred_sim.protocol import ACTIONS, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig
+from .models import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 from .preprocess import N_TOKEN_TYPES, Vocabulary
 
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
-# The trained checkpoint shipped in the package (the command that made it is stored inside it and in
-# docs/figures.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
-SHIPPED_CHECKPOINT = Path(__file__).resolve().parent / 'checkpoints' / 'et.pt'
+# The trained checkpoint shipped in the package is defined with the models' registry (models.py).
 
 
 @dataclass(frozen=True)

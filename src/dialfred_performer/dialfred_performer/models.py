@@ -1,37 +1,106 @@
-"""The performer's models by name, as the node's `model` parameter and `launch eval --agent/--performer`
-name them: `et` (the Episodic Transformer, `agent.PerformerAgent`) and `map` (the map-and-plan
-performer over the checkpoint's perception network, `mapper.agent.MapAgent`). No ROS."""
+"""The performer models by name: one registry that the performer node's `model` parameter, `launch
+eval --agent/--performer`, the demo, the RL fine-tuning's `--model` and `reproduce`'s stage hashes all
+read. No ROS.
+
+A model is a `PerformerModel`: its name, what it is, how to load its policy from a checkpoint, the
+camera it plays at, its shipped checkpoint and the source files that play it (relative to the
+repository: a `reproduce` stage that plays the model is rerun when one of them changes). The two
+built in: `et` (the Episodic Transformer, `agent.PerformerAgent`) and `map` (the map-and-plan performer
+over the checkpoint's perception network, `mapper.agent.MapAgent`). Adding a model is its module plus
+one `register(PerformerModel(...))` (docs/performer.md, "Adding a model").
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
-PERFORMER_MODELS = ('et', 'map')
+
+# The trained checkpoint shipped in the package (the command that made it is stored inside it and in
+# docs/figures.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
+SHIPPED_CHECKPOINT = Path(__file__).resolve().parent / 'checkpoints' / 'et.pt'
 # The map performer's camera: 128 px frames, area-averaged down to its network's input. Over
 # the shipped et.pt's network (64 px), valid_unseen instruction only: 45.0 SR, against 41.7 with a camera
 # of the network's own 64 px (an averaged frame keeps objects thinner than one of the network's pixels).
 MAP_CAMERA = 128
 
+_PERF = 'src/dialfred_performer/dialfred_performer'
+
+
+@dataclass(frozen=True)
+class PerformerModel:
+    """A performer model. `load(path)`: its policy (a protocol.Agent) from checkpoint `path`;
+    `camera(path)`: the frame size it plays at with that checkpoint. Both raise FileNotFoundError for a
+    missing file and ValueError for one the model cannot use."""
+
+    name: str
+    description: str
+    load: Callable[[Path], object]
+    camera: Callable[[Path], int]
+    checkpoint: Path
+    sources: tuple[str, ...]
+
+
+PERFORMER_MODELS: dict[str, PerformerModel] = {}
+
+
+def register(model: PerformerModel) -> PerformerModel:
+    """Add `model` to the registry (ValueError if its name is taken)."""
+    if model.name in PERFORMER_MODELS:
+        raise ValueError(f'a performer model named {model.name!r} is registered already')
+    PERFORMER_MODELS[model.name] = model
+    return model
+
+
+def performer_model(name: str) -> PerformerModel:
+    """The registered model `name` (ValueError naming the known ones otherwise)."""
+    if name not in PERFORMER_MODELS:
+        raise ValueError(f'unknown performer model {name!r}; expected one of {", ".join(PERFORMER_MODELS)}')
+    return PERFORMER_MODELS[name]
+
 
 def load_policy(model: str, path: Path):
     """The policy of `model` from checkpoint `path`. FileNotFoundError when there is no file; ValueError
     (a CheckpointError among them) for an unknown model or a checkpoint the model cannot use."""
-    if model == 'et':
-        from .agent import PerformerAgent
-        return PerformerAgent.from_checkpoint(Path(path))
-    if model == 'map':
-        from .mapper.agent import MapAgent
-        return MapAgent.from_checkpoint(Path(path))
-    raise ValueError(f'unknown performer model {model!r}; expected one of {", ".join(PERFORMER_MODELS)}')
+    return performer_model(model).load(Path(path))
 
 
 def camera_resolution(model: str, path: Path) -> int:
-    """The camera pixels `model` plays at: the et performer's training resolution, read from its checkpoint
-    `path` (a frame of another size would be area-averaged, not the rendering it learned from); MAP_CAMERA
-    for the map performer. FileNotFoundError / ValueError as load_policy."""
-    if model == 'et':
-        from .model import load_checkpoint
-        return int(load_checkpoint(Path(path))[0].config.resolution)
-    if model == 'map':
-        return MAP_CAMERA
-    raise ValueError(f'unknown performer model {model!r}; expected one of {", ".join(PERFORMER_MODELS)}')
+    """The camera pixels `model` plays at with checkpoint `path`. FileNotFoundError / ValueError as load_policy."""
+    return performer_model(model).camera(Path(path))
+
+
+# ------------------------------------------------------------------------------ the built-in models
+# Each loader imports its model's module when called: a node or an evaluation of one model does not
+# import (and pay the start-up of) the other.
+
+def _load_et(path: Path):
+    from .agent import PerformerAgent
+    return PerformerAgent.from_checkpoint(path)
+
+
+def _et_camera(path: Path) -> int:
+    """The et performer's training resolution, read from its checkpoint (a frame of another size would be
+    area-averaged, not the rendering it learned from)."""
+    from .model import load_checkpoint
+    return int(load_checkpoint(path)[0].config.resolution)
+
+
+def _load_map(path: Path):
+    from .mapper.agent import MapAgent
+    return MapAgent.from_checkpoint(path)
+
+
+ET_SOURCES = (f'{_PERF}/agent.py', f'{_PERF}/models.py', f'{_PERF}/model.py', f'{_PERF}/preprocess.py',
+              f'{_PERF}/perception.py',
+              *(f'{_PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
+                                                      'heads')))
+# The map performer is made from the E.T.'s checkpoint, so its code is the E.T.'s and the mapper's.
+MAP_SOURCES = (*ET_SOURCES, *(f'{_PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map')))
+
+register(PerformerModel('et', 'the Episodic Transformer performer of the checkpoint', _load_et, _et_camera,
+                        SHIPPED_CHECKPOINT, ET_SOURCES))
+register(PerformerModel('map', "the map-and-plan performer over the checkpoint's perception network "
+                        '(dialfred_performer.mapper)', _load_map, lambda path: MAP_CAMERA, SHIPPED_CHECKPOINT,
+                        MAP_SOURCES))

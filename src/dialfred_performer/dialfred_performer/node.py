@@ -66,8 +66,8 @@ class GoalCanceled(Exception):
 PARAMETERS = (
     Param('checkpoint', str(SHIPPED_CHECKPOINT), "the policy (default: the shipped et.pt; '' = none); a goal may "
           'name another; each file is loaded once, and again if it changes'),
-    Param('model', 'et', 'how the checkpoint decides: et (the Episodic Transformer) or map (the map-and-plan '
-          'performer over the checkpoint\'s perception network, dialfred_performer.mapper)', choices=PERFORMER_MODELS),
+    Param('model', 'et', 'how the checkpoint decides (dialfred_performer.models): ' +
+          '; '.join(f'{m.name}: {m.description}' for m in PERFORMER_MODELS.values()), choices=tuple(PERFORMER_MODELS)),
     Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
     Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
           'fails', span=(0.1, 86_400.0), dynamic=True),

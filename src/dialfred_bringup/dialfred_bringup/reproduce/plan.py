@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Optional
 
 
+from dialfred_performer.models import MAP_CAMERA
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.protocol import QUESTION_TYPES
 
@@ -329,7 +330,6 @@ class Plan:
 def camera(model: str) -> int:
     """The camera pixels a performer model plays at (dialfred_performer.models.camera_resolution): the E.T.
     at the resolution the pipeline trains it at, the map performer at its own camera."""
-    from dialfred_performer.models import MAP_CAMERA
     return MAP_CAMERA if model == 'map' else RESOLUTION
 
 

@@ -15,11 +15,9 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
-
+from dialfred_performer.models import PERFORMER_MODELS
 
 from ..paths import REPO
-
-
 from .document import (build_report, copy_doc, write_outputs)
 from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, settings)
 
@@ -112,13 +110,9 @@ def code_hash(paths: tuple[str, ...], raw: bool = False) -> str:
 PERF, QUES, SIM = 'src/dialfred_performer/dialfred_performer', 'src/dialfred_questioner/dialfred_questioner', \
     'src/dialfred_sim/dialfred_sim'
 UP = 'src/dialfred_bringup/dialfred_bringup'
-MAPPER = tuple(f'{PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map'))
-# What plays each performer model in an episode: the rl and eval stages' items of that model hash it (the
-# map performer is made from the E.T.'s checkpoint, so its code is the E.T.'s and the mapper's).
-ET_CODE = (f'{PERF}/agent.py', f'{PERF}/models.py', f'{PERF}/model.py', f'{PERF}/preprocess.py', f'{PERF}/perception.py',
-           *(f'{PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
-                                                  'heads')))
-MODEL_CODE = {'et': ET_CODE, 'map': (*ET_CODE, *MAPPER)}
+# What plays each performer model in an episode (the registry's sources): the rl and eval stages' items of
+# that model hash it.
+MODEL_CODE = {name: model.sources for name, model in PERFORMER_MODELS.items()}
 # The learned questioner as it plays (its network, its inputs, its timing and rewards), and as it is trained.
 QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/model.py', f'{QUES}/data.py', f'{QUES}/rollout.py', f'{QUES}/rl.py')
 RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/checkpoint.py', f'{SIM}/episode.py', *QUESTIONER_CODE)
