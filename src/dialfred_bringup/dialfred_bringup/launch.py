@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
-from dialfred_sim.protocol import image_array
+from dialfred_sim.protocol import QUESTION_TYPES, image_array
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .demo import DemoConfig, run_demo
@@ -226,7 +226,7 @@ def run_dialogue(args: DialogueConfig) -> int:
             # Ask about what the instruction names (the goto landmark comes first in object_nouns).
             named = [n for n in t.object_nouns if n in t.instruction.lower()]
             noun = (named or list(t.object_nouns) or [''])[0]
-            for qtype in ('location', 'appearance', 'direction'):
+            for qtype in QUESTION_TYPES:
                 ask(qtype, noun, frame, title)
             ask('location', 'unicorn', frame, title)          # not in the scene: the oracle says why
             ask('colour', noun, frame, title)                 # not a question type

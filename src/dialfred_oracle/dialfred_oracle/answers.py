@@ -20,18 +20,18 @@ import math
 import re
 import zlib
 from dataclasses import dataclass, replace
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import QUESTION_KINDS, QUESTION_TYPES, names_object
 from dialfred_sim.protocol import question_text as protocol_question_text
 from dialfred_sim.ground_truth import ObjectFact, Snapshot
 
 from .colours import colour_name
 from .nouns import meanings
 
-QUESTION_ALIASES = {'loc': 'location', 'app': 'appearance', 'dir': 'direction'}   # the questioner's tokens
+QUESTION_ALIASES = {q.token: q.name for q in QUESTION_KINDS}   # the short tokens: 'loc', 'app', 'dir'
 MAX_NOUN_CHARS = 64
 SAME_PLACE_M = 0.125         # the expert's end is "here" on the same grid point (steps are 0.25 m) ...
 SAME_HEADING_DEG = 45.0      # ... and this heading difference
@@ -208,20 +208,39 @@ def answer(snapshot: Snapshot, question_type, object_noun='') -> Answer:
     if qtype is None:
         shown = question_type[:32] if isinstance(question_type, str) else type(question_type).__name__
         return Answer(False, reason=f'unknown question type {shown!r}; expected one of {", ".join(QUESTION_TYPES)}')
-    if qtype == 'direction':
-        if snapshot.expert_end is None:
-            return Answer(False, reason='there is no task, so there is no way to go', question_type=qtype)
-        return Answer(True, direction_advice(snapshot.agent, snapshot.expert_end), question_type=qtype)
+    if qtype not in RULES:
+        return Answer(False, reason=f'the oracle has no rule for {qtype!r} questions', question_type=qtype)
+    if not names_object(qtype):
+        return RULES[qtype](snapshot, '')
     object_id, reason = resolve_object(snapshot, object_noun)
     if not object_id:
         return Answer(False, reason=reason, question_type=qtype)
+    return RULES[qtype](snapshot, object_id)
+
+
+def direction_answer(snapshot: Snapshot, object_id: str = '') -> Answer:
+    if snapshot.expert_end is None:
+        return Answer(False, reason='there is no task, so there is no way to go', question_type='direction')
+    return Answer(True, direction_advice(snapshot.agent, snapshot.expert_end), question_type='direction')
+
+
+def location_answer(snapshot: Snapshot, object_id: str) -> Answer:
     fact = snapshot.objects[object_id]
-    if qtype == 'location':
-        return Answer(True, _location(snapshot, fact), question_type=qtype, object_noun=fact.noun,
-                      object_id=object_id)
+    return Answer(True, _location(snapshot, fact), question_type='location', object_noun=fact.noun,
+                  object_id=object_id)
+
+
+def appearance_answer(snapshot: Snapshot, object_id: str) -> Answer:
+    fact = snapshot.objects[object_id]
     text, from_pixels = _appearance(snapshot, fact)
-    return Answer(True, text, question_type=qtype, object_noun=fact.noun, object_id=object_id,
+    return Answer(True, text, question_type='appearance', object_noun=fact.noun, object_id=object_id,
                   colour_from_pixels=from_pixels)
+
+
+# The oracle's rule of each question type: (snapshot, the id of the object the question names, '' for a
+# type that names none) -> Answer. A type of protocol.QUESTION_KINDS without a rule here is refused.
+RULES: dict[str, Callable[[Snapshot, str], Answer]] = {
+    'location': location_answer, 'appearance': appearance_answer, 'direction': direction_answer}
 
 
 # ---------------------------------------------------------------------- checking answers

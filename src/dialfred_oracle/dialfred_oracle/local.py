@@ -15,7 +15,7 @@ from typing import Optional
 
 from dialfred_sim.episode import Ask, Reply, Request, Reset, SimReply
 from dialfred_sim.ground_truth import snapshot
-from dialfred_sim.protocol import QA, env_observation
+from dialfred_sim.protocol import QA, env_observation, names_object
 
 from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, situation_key
 
@@ -25,7 +25,7 @@ def answer_now(env, question_type: str, object_noun: str = '', perturbation: Opt
     qtype = parse_question_type(question_type)
     if qtype is None:
         return answer(None, question_type, object_noun)
-    if qtype != 'direction' and len(object_noun) > MAX_NOUN_CHARS:
+    if names_object(qtype) and len(object_noun) > MAX_NOUN_CHARS:
         return Answer(False, reason=f'the object noun is longer than {MAX_NOUN_CHARS} characters', question_type=qtype)
     snap = snapshot(env)
     result = answer(snap, qtype, object_noun)

@@ -39,7 +39,7 @@ from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import QUESTION_TYPES, names_object
 from dialfred_sim.ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, make_executor, run_node
 
 from dialfred_sim.tasks.split_files import load_split, read_tasks_file
@@ -169,7 +169,7 @@ class OracleNode(Node):
         if parsed is None:
             return answer(None, qtype, noun)
         qtype = parsed
-        if qtype != 'direction' and len(noun) > MAX_NOUN_CHARS:
+        if names_object(qtype) and len(noun) > MAX_NOUN_CHARS:
             return Answer(False, reason=f'the object noun is longer than {MAX_NOUN_CHARS} characters',
                           question_type=qtype)
         state = self.world_state()

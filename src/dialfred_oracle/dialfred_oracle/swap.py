@@ -23,6 +23,7 @@ from typing import Any, Optional, Sequence
 
 from dialfred_sim.agents import task_nouns
 from dialfred_sim.env import DialfredEnv
+from dialfred_sim.protocol import names_object
 
 from .answers import WITHHELD, Answer, parse_question_type
 from .local import answer_now
@@ -63,7 +64,7 @@ class AnswerSwap:
         task = self.tasks[self.index[task_id]]
         partner = self.partner(task_id)
         noun = ''
-        if qtype != 'direction':
+        if names_object(qtype):
             own, theirs = task_nouns(task), task_nouns(partner)
             place = own.index(object_noun) if object_noun in own else 0
             noun = theirs[min(place, len(theirs) - 1)]

@@ -38,7 +38,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from dialfred_sim.protocol import ACTIONS, QA, QUESTION_TYPES, Question
+from dialfred_sim.protocol import ACTIONS, QA, QUESTION_TYPES, every_question
 from dialfred_sim.tasks.demonstrations import load_demonstrations
 
 from .nn.heads import pixel_cell
@@ -239,7 +239,7 @@ def oracle_qas(env, nouns: Sequence[str], step: int) -> list[AskedQA]:
     from dialfred_oracle.answers import answer
     from dialfred_sim.ground_truth import snapshot, task_object_ids
     snap = snapshot(env, task_object_ids(env))
-    questions = [Question(q, n) for n in nouns for q in ('location', 'appearance')] + [Question('direction')]
+    questions = every_question(nouns)
     out = []
     for q in questions:
         a = answer(snap, q.question_type, q.object_noun)

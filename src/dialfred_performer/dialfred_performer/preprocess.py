@@ -26,11 +26,11 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from dialfred_sim.protocol import QA, QUESTION_TYPES, Question
+from dialfred_sim.protocol import QA, QUESTION_KINDS, QUESTION_TYPES, Question
 
 PAD, UNK = '<pad>', '<unk>'
 QUESTION_MARK, ANSWER_MARK, INVALID_MARK = '<q>', '<a>', '<invalid>'
-TYPE_MARKS = {'location': '<loc>', 'appearance': '<app>', 'direction': '<dir>'}
+TYPE_MARKS = {q.name: f'<{q.token}>' for q in QUESTION_KINDS}      # '<loc>', '<app>', '<dir>'
 SPECIAL_TOKENS = (PAD, UNK, QUESTION_MARK, ANSWER_MARK, INVALID_MARK, *TYPE_MARKS.values())
 
 # Token types, the language encoder's type embedding: 0 = padding, 1 = instruction, 2.. = a QA's type.

@@ -28,16 +28,16 @@ from typing import Any, Optional
 import numpy as np
 
 from dialfred_sim.agents import public_view, task_nouns, task_view
-from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Decision, Listener, PerformerAware, Question,
-                                  Questioner, is_privileged, top2_gap)
+from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Decision, Listener, PerformerAware,
+                                  Question, Questioner, every_question, is_privileged, names_object, top2_gap)
 
 
 def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:
     """A uniform question type; for location and appearance, a uniform noun of `nouns` (only
     direction questions when there is none)."""
-    types = QUESTION_TYPES if nouns else ('direction',)
+    types = QUESTION_TYPES if nouns else tuple(t for t in QUESTION_TYPES if not names_object(t))
     qtype = types[int(rng.integers(len(types)))]
-    return Question(qtype, '' if qtype == 'direction' else nouns[int(rng.integers(len(nouns)))])
+    return Question(qtype, nouns[int(rng.integers(len(nouns)))] if names_object(qtype) else '')
 
 
 # What RandomQuestioner draws at the beginning of a task, each with probability 1/4; None = no question.
@@ -49,8 +49,8 @@ def questions_of_type(question_type: Optional[str], nouns: list[str]) -> list[Qu
     appearance question per noun (none without nouns), one direction question, or none for None."""
     if question_type is None:
         return []
-    if question_type == 'direction':
-        return [Question('direction')]
+    if not names_object(question_type):
+        return [Question(question_type)]
     return [Question(question_type, n) for n in nouns]
 
 
@@ -96,8 +96,7 @@ class AllQuestioner(AtTheStart):
         self._queue: list[Question] = []
 
     def reset(self, task: Any, seed: int) -> None:
-        self._queue = [Question(t, n) for n in task_nouns(task) for t in ('location', 'appearance')]
-        self._queue.append(Question('direction'))
+        self._queue = every_question(task_nouns(task))
 
 
 class ModelConfusionQuestioner:

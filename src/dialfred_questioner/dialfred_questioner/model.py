@@ -29,10 +29,11 @@ import torch
 from torch import nn
 
 from dialfred_performer.preprocess import N_TOKEN_TYPES
+from dialfred_sim.protocol import OBJECT_QUESTION_TYPES, QUESTION_TYPES
 
 NO_QUESTION = 'none'
-TYPE_TOKENS = (NO_QUESTION, 'location', 'appearance', 'direction')
-NEEDS_OBJECT = ('location', 'appearance')
+TYPE_TOKENS = (NO_QUESTION, *QUESTION_TYPES)       # the type head's outputs
+NEEDS_OBJECT = OBJECT_QUESTION_TYPES
 START = '<start>'
 
 
@@ -165,7 +166,7 @@ class Questioner(nn.Module):
 
 def needs_object(types: torch.Tensor) -> torch.Tensor:
     """Which type indices (into TYPE_TOKENS) name an object."""
-    return (types == TYPE_TOKENS.index('location')) | (types == TYPE_TOKENS.index('appearance'))
+    return torch.isin(types, torch.tensor([TYPE_TOKENS.index(t) for t in NEEDS_OBJECT], dtype=types.dtype))
 
 
 def config_dict(config: QuestionerConfig) -> dict:

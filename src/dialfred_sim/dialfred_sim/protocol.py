@@ -4,8 +4,11 @@ Everything two packages must agree on is defined here once, and every package im
 
 - `ACTIONS`: ALFRED's 13 low-level actions (as dialfred_msgs/msg/Action.msg lists them); a decision is
   `(action, x, y)`, the target pixel in the simulator's frame or -1, -1 for actions without one.
-- `QUESTION_TYPES` and `QUESTION_TEMPLATES`: the oracle's three question types in the paper's order and
-  their wording (the paper's templates, section III-B); `question_text` fills one in.
+- `QUESTION_KINDS`: the oracle's question types (`QuestionType`: name, wording, whether a question of
+  it names an object, its short token), in the paper's order; everything that lists the types derives
+  from it (`QUESTION_TYPES`, `QUESTION_TEMPLATES`, `OBJECT_QUESTION_TYPES`, the questioner's outputs, the
+  performer's marks, the oracle's aliases). `question_text` fills one in; `register_question_type`
+  adds one (docs/questioner.md, "Adding a question type").
 - `Question` and `QA`: a question for the oracle and what it said.
 - `MAX_QUESTIONS`: how many questions an agent may ask in a row without acting before its episode ends
   with an error.
@@ -39,12 +42,62 @@ ACTIONS = ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown', 'Pick
 
 Decision = tuple[str, int, int]
 
-# The oracle's question types (dialfred_msgs/srv/OracleAnswer), in the paper's order.
-QUESTION_TYPES = ('location', 'appearance', 'direction')
 
-# The paper's question templates (DialFRED, section III-B); direction questions name no object.
-QUESTION_TEMPLATES = {'location': 'Where is the {noun}?', 'appearance': 'What does the {noun} look like?',
-                      'direction': 'Which direction should I turn to?'}
+@dataclass(frozen=True)
+class QuestionType:
+    """A question type: `name` (what /oracle/answer takes), `template` (its wording; '{noun}' where the
+    object goes), `names_object` (a question of it is about an object of the instruction), `token` (its
+    short name: the oracle accepts it, the performer's input marks its QAs with '<token>')."""
+
+    name: str
+    template: str
+    names_object: bool
+    token: str
+
+
+# The oracle's question types (dialfred_msgs/srv/OracleAnswer), in the paper's order, with the paper's
+# templates (DialFRED, section III-B); direction questions name no object.
+QUESTION_KINDS: tuple[QuestionType, ...] = (
+    QuestionType('location', 'Where is the {noun}?', True, 'loc'),
+    QuestionType('appearance', 'What does the {noun} look like?', True, 'app'),
+    QuestionType('direction', 'Which direction should I turn to?', False, 'dir'))
+
+
+def _derive() -> None:
+    global QUESTION_TYPES, QUESTION_TEMPLATES, OBJECT_QUESTION_TYPES
+    QUESTION_TYPES = tuple(q.name for q in QUESTION_KINDS)
+    QUESTION_TEMPLATES = {q.name: q.template for q in QUESTION_KINDS}
+    OBJECT_QUESTION_TYPES = tuple(q.name for q in QUESTION_KINDS if q.names_object)
+
+
+QUESTION_TYPES: tuple[str, ...] = ()
+QUESTION_TEMPLATES: dict[str, str] = {}
+OBJECT_QUESTION_TYPES: tuple[str, ...] = ()      # the types whose questions name an object
+_derive()
+
+
+def register_question_type(kind: QuestionType) -> None:
+    """Add a question type after the paper's. The modules that list the types read them when they are
+    imported, so a type is registered before them: in this module's QUESTION_KINDS, or by a module
+    imported first (as tests/questioner/test_question_type_registry.py does). ValueError for a name or
+    token that is taken."""
+    if any(kind.name == q.name or kind.token == q.token for q in QUESTION_KINDS):
+        raise ValueError(f'a question type named {kind.name!r} or with the token {kind.token!r} exists')
+    globals()['QUESTION_KINDS'] = (*QUESTION_KINDS, kind)
+    _derive()
+
+
+def names_object(question_type: str) -> bool:
+    """Whether a question of `question_type` names an object (False for a type that is none)."""
+    return question_type in OBJECT_QUESTION_TYPES
+
+
+def every_question(nouns) -> list['Question']:
+    """The paper's All QAs about a task whose instruction names `nouns`: each object question type of each
+    noun in turn (location, appearance), then each type that names no object (direction)."""
+    return [Question(t, n) for n in nouns for t in OBJECT_QUESTION_TYPES] + \
+        [Question(t) for t in QUESTION_TYPES if not names_object(t)]
+
 
 MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
 # The paper's episode limits: an episode ends after MAX_STEPS actions (truncated) or MAX_FAILURES failed ones.
