@@ -59,7 +59,7 @@ def truth_sight(agent_cls):
 def _init(checkpoint: str, seed: int, resolution: int) -> None:
     import torch
 
-    from dialfred_bringup.evaluation import EvalConfig
+    from dialfred_bringup.evaluation import EvalConfig, EvalRun
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_questioner.baselines import with_questioner
     from dialfred_questioner.questioners import make_questioner
@@ -73,8 +73,9 @@ def _init(checkpoint: str, seed: int, resolution: int) -> None:
             agent = cls.from_checkpoint(Path(checkpoint))
             if sight == 'truth':
                 agent.attach(env)
-            config = EvalConfig(split='valid_unseen', agent='map', checkpoint=checkpoint, local=True, seed=seed,
-                                questioner='' if questioner == 'none' else questioner, resolution=resolution)
+            config = EvalRun(EvalConfig(split='valid_unseen', agent='map', checkpoint=checkpoint, local=True, seed=seed,
+                                        questioner='' if questioner == 'none' else questioner, resolution=resolution),
+                             check=False)
             policy = with_questioner(agent, make_questioner(questioner)) if questioner != 'none' else agent
             _W[sight, questioner] = (config, policy)
 

@@ -28,7 +28,7 @@ from dialfred_sim.protocol import ACTIONS, episode_seed, scale_pixel
 from dialfred_sim.metrics import EpisodeResult, append_result, load_results
 from dialfred_sim.tasks import ExpertAction
 
-from dialfred_bringup.evaluation import EvalConfig, print_report, run_eval
+from dialfred_bringup.evaluation import EvalConfig, EvalRun, print_report, run_eval
 from dialfred_bringup.graph import Graph, NodeProcess, sim_service
 
 REPO = Path(__file__).resolve().parents[2]
@@ -125,11 +125,11 @@ def test_the_expert_succeeds_on_the_first_valid_unseen_tasks(expert_run):
 
 
 def test_the_run_writes_its_results_and_a_summary_next_to_them(expert_run):
-    config = expert_run.config
-    in_file = load_results(config.results_path)          # in the order the episodes ended
+    run = expert_run.run
+    in_file = load_results(run.results_path)          # in the order the episodes ended
     assert sorted(in_file, key=lambda r: r.task_id) == expert_run.results
-    assert config.summary_path == config.results_path.with_name('expert.summary.json')
-    summary = json.loads(config.summary_path.read_text())
+    assert run.summary_path == run.results_path.with_name('expert.summary.json')
+    summary = json.loads(run.summary_path.read_text())
     assert summary['tasks'] == 8 and summary['failures'] == []
     assert summary['summary']['overall']['SR'] == 100.0
     assert list(summary['summary']['per_type']) == list(expert_run.summary['per_type'])
@@ -151,7 +151,7 @@ def test_a_resumed_file_of_another_commit_keeps_its_episodes_and_says_so(tmp_pat
     assert second.ran == 2
     err = capfd.readouterr().err
     assert 'holds 3 episodes played at other commits (0123456789ab: 2, unrecorded: 1)' in err, err
-    summary = json.loads(second.config.summary_path.read_text())
+    summary = json.loads(second.run.summary_path.read_text())
     code = summary['this_run']['code']
     assert summary['played_at'] == {'0123456789abcdef' * 2 + '01234567': 2, code: 2, 'unrecorded': 1}
     from dialfred_sim.metrics import same_episode
@@ -251,13 +251,13 @@ def test_a_results_file_of_another_agent_is_not_mixed_in(tmp_path, random_run):
 def test_the_eval_command_prints_the_table_and_the_experts_failures(expert_run, capsys):
     import dialfred_bringup.launch
     code = dialfred_bringup.launch.main(['eval', '--split', SPLIT, '--agent', 'expert', '--limit', '8',
-                                 '--out', str(expert_run.config.results_path), '--no-progress'])
+                                 '--out', str(expert_run.run.results_path), '--no-progress'])
     out = capsys.readouterr().out
     assert code == 0
     assert '8 tasks (0 played now' in out                      # all resumed from the file
     assert out.splitlines()[1].split()[:3] == ['task', 'type', 'n']
     assert 'overall' in out and 'expert failures: 0' in out
-    assert os.path.exists(expert_run.config.summary_path)
+    assert os.path.exists(expert_run.run.summary_path)
 
 
 def test_a_graph_inside_another_shares_the_process_ros_context():
@@ -302,10 +302,10 @@ def test_an_eval_with_a_questioner_asks_each_workers_oracle_and_counts_the_quest
 
 
 def test_the_default_results_file_names_the_questioner():
-    config = EvalConfig(split=SPLIT, agent='random', questioner='random')
-    assert config.agent_name == 'random+random'
-    assert config.results_path.name == 'valid_unseen_random+random.jsonl'
-    assert EvalConfig(split=SPLIT, agent='random').results_path.name == 'valid_unseen_random.jsonl'
+    run = EvalRun(EvalConfig(split=SPLIT, agent='random', questioner='random'))
+    assert run.agent_name == 'random+random'
+    assert run.results_path.name == 'valid_unseen_random+random.jsonl'
+    assert EvalRun(EvalConfig(split=SPLIT, agent='random')).results_path.name == 'valid_unseen_random.jsonl'
 
 
 def test_questioner_none_on_the_command_line_means_no_questions():
@@ -315,7 +315,7 @@ def test_questioner_none_on_the_command_line_means_no_questions():
     add_eval_parser(parser.add_subparsers())
     for argv in (['eval'], ['eval', '--questioner', 'none']):
         config = eval_config(parser.parse_args(argv))
-        assert config.questioner == '' and config.agent_name == 'expert'
+        assert config.questioner == '' and EvalRun(config).agent_name == 'expert'
     assert eval_config(parser.parse_args(['eval', '--questioner', 'all'])).questioner == 'all'
 
 
@@ -401,10 +401,10 @@ def test_a_perturbed_oracle_needs_a_questioner_and_a_known_type():
                        ({'perturb_type': 'colour', 'questioner': 'all'}, 'must be one of'),
                        ({'perturb_type': 'location', 'questioner': 'all', 'perturb_probability': 2.0}, r'\[0, 1\]')):
         with pytest.raises(ValueError, match=match):
-            EvalConfig(split=SPLIT, agent='random', **bad).check()
-    config = EvalConfig(split=SPLIT, agent='random', questioner='all', perturb_type='direction')
-    assert config.oracle == 'direction:0.5'
-    assert config.results_path.name == 'valid_unseen_random+all_withhold-direction-0.5.jsonl'
+            EvalRun(EvalConfig(split=SPLIT, agent='random', **bad))
+    run = EvalRun(EvalConfig(split=SPLIT, agent='random', questioner='all', perturb_type='direction'))
+    assert run.oracle == 'direction:0.5'
+    assert run.results_path.name == 'valid_unseen_random+all_withhold-direction-0.5.jsonl'
 
 
 # ---------------------------------------------------------------------------------------------- your own agent

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
 
 REPO = Path(__file__).resolve().parents[2]
 CASES = {
@@ -54,7 +54,7 @@ def test_a_local_run_resumes_and_refuses_what_needs_ros(tmp_path):
     assert more.ran == 2 and comparable(more.results[:2]) == comparable(first.results)
     for bad in (dict(agent='et', performer='et'), dict(record=tmp_path / 'bags'), dict(foxglove=8765)):
         with pytest.raises(ValueError, match='--local'):
-            EvalConfig(split='valid_unseen', agent=bad.pop('agent', 'random'), local=True, **bad).check()
+            EvalRun(EvalConfig(split='valid_unseen', agent=bad.pop('agent', 'random'), local=True, **bad))
 
 
 def test_a_run_at_another_resolution_or_question_limit_is_refused_naming_the_difference(tmp_path):

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import dialfred_bringup.launch
-from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
 from dialfred_sim.metrics import ResultsFileError, results_lock
 
 REPO = Path(__file__).resolve().parents[2]
@@ -67,7 +67,7 @@ def test_a_run_leaves_no_lock_file_and_a_resumed_run_says_how_many_tasks_are_don
     with contextlib.redirect_stderr(err):
         report = run_eval(config, progress=False)
     assert report.ran == 0 and 'resuming: 2 of 2 tasks are already in' in err.getvalue()
-    assert config.summary_path.exists() and not Path(str(out) + '.lock').exists()
+    assert report.run.summary_path.exists() and not Path(str(out) + '.lock').exists()
 
 
 def test_the_lock_still_keeps_a_second_run_out_and_goes_with_the_first(tmp_path):
@@ -98,16 +98,15 @@ def test_max_questions_ends_an_episode_whose_questioner_asks_more_in_a_row(tmp_p
     from dialfred_bringup.workers import worker_nodes
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
-    config = EvalConfig(split='valid_unseen', agent='random', questioner='all', max_questions=2, performer='',
-                        out=tmp_path / 'capped.jsonl')
-    env = DialfredEnv(resolution=config.resolution)
+    run = EvalRun(EvalConfig(split='valid_unseen', agent='random', questioner='all', max_questions=2, performer='',
+                             out=tmp_path / 'capped.jsonl'))
+    env = DialfredEnv(resolution=run.options.resolution)
     try:
-        result = play_episode(config, env, config.make_agent(), None, 0, load_split('valid_unseen')[0])
+        result = play_episode(run, env, run.make_agent(), None, 0, load_split('valid_unseen')[0])
     finally:
         env.close()
     assert result.end_reason == 'error' and 'asked more than 2 questions without acting' in result.error
-    node = EvalConfig(split='valid_unseen', performer='et', questioner='all', max_questions=7)
-    node.check()
+    node = EvalRun(EvalConfig(split='valid_unseen', performer='et', questioner='all', max_questions=7))
     performer = next(n for n in worker_nodes(node, '/w0') if n.package == 'dialfred_performer')
     assert performer.parameters['max_questions'] == 7
     code, _, err = launch_eval('--max-questions', '0', '--out', str(tmp_path / 'x.jsonl'))

@@ -53,7 +53,7 @@ def check_merge_is_the_whole_run(folder: Path, whole_run) -> None:
     merged = folder / 'run.jsonl'
     assert without_wall_time(load_results(merged)) == without_wall_time(whole_run.results)   # split order
     summary = json.loads(merged.with_suffix('.summary.json').read_text())
-    single = json.loads(whole_run.config.summary_path.read_text())
+    single = json.loads(whole_run.run.summary_path.read_text())
     assert summary['summary'] == single['summary'] == whole_run.summary
     assert summary['failures'] == single['failures'] and summary['missing'] == []
 

@@ -23,7 +23,7 @@ from dialfred_sim.metrics import EpisodeResult, ResultsFileError, append_result,
 from dialfred_bringup.shards import default_out, main, merge_shards, parse_shard, shard_suffix, shard_tasks
 from dialfred_sim.tasks import load_split
 
-from dialfred_bringup.evaluation import EvalConfig, EvalReport, add_eval_parser, eval_config, run_eval
+from dialfred_bringup.evaluation import EvalConfig, EvalReport, EvalRun, add_eval_parser, eval_config, run_eval
 
 REPO = Path(__file__).resolve().parents[2]
 SPLIT = 'valid_unseen'
@@ -65,10 +65,11 @@ def test_each_shard_has_a_results_file_of_its_own():
     add_eval_parser(parser.add_subparsers())
     config = eval_config(parser.parse_args(['eval', '--agent', 'random', '--shard', '1/3']))
     assert config.shard == (1, 3)
-    assert config.results_path.name == 'valid_unseen_random_shard1of3.jsonl'
-    assert config.summary_path.name == 'valid_unseen_random_shard1of3.summary.json'
-    assert EvalConfig(split=SPLIT, agent='random').results_path.name == 'valid_unseen_random.jsonl'
-    assert default_out(config.results_path) == EvalConfig(split=SPLIT, agent='random').results_path
+    run, whole = EvalRun(config), EvalRun(EvalConfig(split=SPLIT, agent='random'))
+    assert run.results_path.name == 'valid_unseen_random_shard1of3.jsonl'
+    assert run.summary_path.name == 'valid_unseen_random_shard1of3.summary.json'
+    assert whole.results_path.name == 'valid_unseen_random.jsonl'
+    assert default_out(run.results_path) == whole.results_path
     assert shard_suffix(None) == ''
 
 
@@ -89,8 +90,8 @@ def fake_results(seed: int = 0) -> list[EpisodeResult]:
 
 def write_run(path: Path, results: list, shard=None, order=None, **config) -> Path:
     """A results file and its summary as run_eval writes them (the episodes appended in `order`)."""
-    c = EvalConfig(**{'split': SPLIT, 'agent': 'random', 'limit': LIMIT, 'resolution': 64, 'out': path,
-                      'shard': shard, 'workers': 2, **config})
+    c = EvalRun(EvalConfig(**{'split': SPLIT, 'agent': 'random', 'limit': LIMIT, 'resolution': 64, 'out': path,
+                              'shard': shard, 'workers': 2, **config}))
     selected = {t.task_id for _, t in shard_tasks(load_split(SPLIT)[:LIMIT], shard)}
     mine = [r for r in results if r.task_id in selected]
     for r in (mine if order is None else [mine[k] for k in order]):

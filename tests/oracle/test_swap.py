@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
 from dialfred_oracle.answers import answer as oracle_answer
 from dialfred_oracle.local import answer_now
 from dialfred_oracle.swap import AnswerSwap
@@ -74,13 +74,13 @@ def test_an_invalid_question_stays_invalid(env, tasks, swap):
 
 def test_an_evaluation_with_swapped_answers_hears_them_and_is_named_apart(tmp_path, tasks):
     with pytest.raises(ValueError, match='swapped needs a questioner'):
-        EvalConfig(split=SPLIT, agent='random', answers='swapped', out=tmp_path / 'x.jsonl').check()
+        EvalRun(EvalConfig(split=SPLIT, agent='random', answers='swapped', out=tmp_path / 'x.jsonl'))
     with pytest.raises(ValueError, match='swapped needs a questioner'):
-        EvalConfig(split=SPLIT, agent='random', questioner='all', answers='swapped', perturb_type='location',
-                   out=tmp_path / 'x.jsonl').check()
-    config = EvalConfig(split=SPLIT, agent='random', questioner='all', answers='swapped', limit=2, workers=1,
-                        resolution=64, local=True)
-    assert config.results_path.name.endswith('_swapped.jsonl') and config.oracle == 'swapped'
+        EvalRun(EvalConfig(split=SPLIT, agent='random', questioner='all', answers='swapped', perturb_type='location',
+                           out=tmp_path / 'x.jsonl'))
+    run = EvalRun(EvalConfig(split=SPLIT, agent='random', questioner='all', answers='swapped', limit=2, workers=1,
+                             resolution=64, local=True))
+    assert run.results_path.name.endswith('_swapped.jsonl') and run.oracle == 'swapped'
     report = run_eval(EvalConfig(split=SPLIT, agent='random', questioner='all', answers='swapped', limit=2,
                                  workers=1, resolution=64, local=True, out=tmp_path / 'run.jsonl'), progress=False)
     swap = AnswerSwap(tasks, resolution=64)

@@ -19,7 +19,7 @@ from dialfred_sim.protocol import QA, Question, env_observation
 from dialfred_sim.env import DialfredEnv
 
 
-from dialfred_bringup.evaluation import EvalConfig
+from dialfred_bringup.evaluation import EvalConfig, EvalRun
 
 REPO = Path(__file__).resolve().parents[2]
 MAX_BYTES = 25 * 1024 * 1024
@@ -32,7 +32,7 @@ def test_the_shipped_checkpoint_is_small_loads_and_says_how_it_was_made():
     assert 'train-performer' in info['command'] or 'dialfred_performer.train' in info['command']
     assert info['git_commit'] != 'unknown'
     assert model.vocab_size == len(vocab)
-    assert EvalConfig(agent='et').checkpoint_path == SHIPPED_CHECKPOINT
+    assert EvalRun(EvalConfig(agent='et')).checkpoint_path == SHIPPED_CHECKPOINT
 
 
 def play(agent: PerformerAgent, task_id: str, steps: int = 12) -> list:

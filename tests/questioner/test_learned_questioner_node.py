@@ -32,7 +32,7 @@ from dialfred_questioner.questioners import make_questioner
 from dialfred_questioner.rollout import Timing
 
 import dialfred_bringup.workers
-from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
 from dialfred_bringup.workers import worker_nodes
 from dialfred_bringup.graph import Graph, NodeProcess
 from dialfred_sim.protocol import Observation
@@ -131,17 +131,18 @@ def test_retimed_changes_only_the_fields_given():
 
 def test_results_of_a_checkpoint_file_are_named_by_its_stem_and_content(checkpoint, tmp_path, monkeypatch):
     import hashlib
-    config = EvalConfig(split=SPLIT, questioner=f'learned:{checkpoint}')
+    run = EvalRun(EvalConfig(split=SPLIT, questioner=f'learned:{checkpoint}'))
     digest = hashlib.sha256(checkpoint.read_bytes()).hexdigest()[:8]
-    assert config.agent_name == f'expert+learned-q-{digest}'
-    assert config.results_path.name == f'valid_seen_expert+learned-q-{digest}.jsonl'
+    assert run.agent_name == f'expert+learned-q-{digest}'
+    assert run.results_path.name == f'valid_seen_expert+learned-q-{digest}.jsonl'
     monkeypatch.setattr(policy, 'CHECKPOINTS', tmp_path)
     shutil.copy(checkpoint, tmp_path / 'rl_anytime.pt')
-    assert EvalConfig(split=SPLIT, questioner='rl-anytime').results_path.name == \
+    assert EvalRun(EvalConfig(split=SPLIT, questioner='rl-anytime')).results_path.name == \
         f'valid_seen_expert+rl-anytime-{digest}.jsonl'
     # The node path hands the questioner node an absolute path (the node runs with its own working folder).
     relative = EvalConfig(split=SPLIT, agent='et', performer='et', questioner=f'learned:{checkpoint.name}')
-    questioner = next(n for n in worker_nodes(relative, '/w0') if n.package == 'dialfred_questioner')
+    questioner = next(n for n in worker_nodes(EvalRun(relative, check=False), '/w0')
+                      if n.package == 'dialfred_questioner')
     assert questioner.parameters['questioner'] == f'learned:{Path(checkpoint.name).resolve()}'
 
 
@@ -161,7 +162,7 @@ def test_the_eval_command_takes_a_shipped_name_and_refuses_a_missing_checkpoint_
     assert 'rl_anytime.pt is not there: it is made by `python -m dialfred_questioner.finetune`' in said
     assert not (tmp_path / 'r.jsonl').exists()
     shutil.copy(checkpoint, tmp_path / 'rl_anytime.pt')
-    agent = eval_config(args).make_agent()
+    agent = EvalRun(eval_config(args)).make_agent()
     assert isinstance(agent.questioner, LearnedQuestioner) and agent.questioner.timing == Timing(**TIMING)
 
 
@@ -203,8 +204,8 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
                         performer='et' if graph else '', **kw)
     if not graph:
         agents = []
-        make_agent = EvalConfig.make_agent
-        monkeypatch.setattr(EvalConfig, 'make_agent', lambda self: agents.append(make_agent(self)) or agents[-1])
+        make_agent = EvalRun.make_agent
+        monkeypatch.setattr(EvalRun, 'make_agent', lambda self: agents.append(make_agent(self)) or agents[-1])
         report = run_eval(config, progress=False)
         dialogue = agents[-1].questioner.dialogue
         return report.results[-1], [(a.step, a.qa.question.question_type, a.qa.question.object_noun, a.qa.valid,
@@ -212,14 +213,14 @@ def eval_episode(checkpoint, tmp_path, monkeypatch, graph: bool, **kw):
     counts, qas, decided = [], [], []
     worker = dialfred_bringup.workers.PerformerWorker.__init__
 
-    def init(self, g, namespace, config, on_feedback=None):
+    def init(self, g, namespace, run, on_feedback=None):
         subs = [g.client_node.create_subscription(QAPair, f'{namespace}/dialogue/qa', qas.append, 100),
                 g.client_node.create_subscription(QAPair, f'{namespace}/questioner/question', decided.append, 100)]
         # the topics are volatile: wait until both publishers are matched, or a loaded machine loses the first
         deadline = time.monotonic() + 60
         while any(s.get_publisher_count() == 0 for s in subs) and time.monotonic() < deadline:
             g.executor.spin_once(timeout_sec=0.1)
-        worker(self, g, namespace, config, on_feedback=lambda task, fb: counts.append(fb.questions))
+        worker(self, g, namespace, run, on_feedback=lambda task, fb: counts.append(fb.questions))
 
     monkeypatch.setattr(dialfred_bringup.workers.PerformerWorker, '__init__', init)
     report = run_eval(config, progress=False, traces={})       # traces: wait for the last messages

@@ -135,7 +135,8 @@ def test_an_eval_config_round_trips_through_the_launcher_command_line(tmp_path):
 
 
 def test_the_et_performer_defaults_to_its_checkpoints_resolution_the_map_performer_and_others_to_128():
-    from dialfred_bringup.evaluation import DEFAULT_RESOLUTION, EvalConfig
+    from dialfred_bringup.evaluation import EvalConfig
+    from dialfred_sim.env import DEFAULT_RESOLUTION
     from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
     shipped = int(load_checkpoint(SHIPPED_CHECKPOINT)[0].config.resolution)
     assert EvalConfig(agent='et').resolution == shipped == EvalConfig(performer='et').resolution

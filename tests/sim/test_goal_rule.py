@@ -167,16 +167,16 @@ def test_an_unknown_goal_rule_is_refused_before_anything_starts():
 
 
 def test_results_judged_by_another_goal_rule_are_not_mixed_in(tmp_path):
-    from dialfred_bringup.evaluation import EvalConfig, resumable_results
+    from dialfred_bringup.evaluation import EvalConfig, EvalRun, resumable_results
     from dialfred_sim.metrics import EpisodeResult, ResultsFileError, append_result
     config = EvalConfig(split=SPLIT, agent='random', out=tmp_path / 'r.jsonl')
     row = EpisodeResult('valid_unseen/000000', 'Move', SPLIT, False, 0, 1, 3, 5, agent='random', goal_rule='visible')
     append_result(config.out, row)
     with pytest.raises(ResultsFileError, match="goal rule 'visible', not 'dialfred'"):
-        resumable_results(config, ['valid_unseen/000000'])
+        resumable_results(EvalRun(config), ['valid_unseen/000000'])
     older = tmp_path / 'old.jsonl'
     append_result(older, dataclasses.replace(row, goal_rule=''))      # written before results recorded it
     with pytest.raises(ResultsFileError, match='written before results recorded the rule'):
-        resumable_results(dataclasses.replace(config, out=older), ['valid_unseen/000000'])
-    assert EvalConfig(split=SPLIT, agent='random', goal_rule='visible').results_path.name == \
+        resumable_results(EvalRun(dataclasses.replace(config, out=older)), ['valid_unseen/000000'])
+    assert EvalRun(EvalConfig(split=SPLIT, agent='random', goal_rule='visible')).results_path.name == \
         'valid_unseen_random_goal-visible.jsonl'

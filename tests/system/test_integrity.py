@@ -138,7 +138,7 @@ def test_the_experts_results_are_marked_privileged(tmp_path):
     report = run_eval(EvalConfig(split=SPLIT, agent='expert', limit=2, workers=1, out=tmp_path / 'expert.jsonl'),
                       progress=False)
     assert all(r.privileged and r.success for r in report.results)
-    summary = json.loads(report.config.summary_path.read_text())
+    summary = json.loads(report.run.summary_path.read_text())
     assert summary['privileged'] is True and summary['agent'] == 'expert'
     assert json.loads((tmp_path / 'expert.jsonl').read_text().splitlines()[0])['privileged'] is True
 

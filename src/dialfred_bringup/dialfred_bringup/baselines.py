@@ -34,7 +34,7 @@ from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.metrics import intervals, summarize
 from dialfred_sim.tasks import load_split
 
-from .evaluation import EvalConfig, resumable_results, run_eval
+from .evaluation import EvalConfig, EvalRun, resumable_results, run_eval
 from .paths import REPO
 
 SPLITS = ('valid_seen', 'valid_unseen')
@@ -108,17 +108,18 @@ class BaselinesConfig:
                           checkpoint=self.path(self.checkpoint) if self.checkpoint else None)
 
 
-def runs_path(config: EvalConfig) -> Path:
+def runs_path(run: EvalRun) -> Path:
     """Where each run of one (split, baseline) records its wall time (one JSON line per run)."""
-    return config.results_path.with_suffix('.runs.jsonl')
+    return run.results_path.with_suffix('.runs.jsonl')
 
 
 def run_baseline(config: EvalConfig, progress: bool) -> None:
-    report = run_eval(config, progress=progress)
+    run = EvalRun(config)
+    report = run_eval(run, progress=progress)
     if report.ran:
         line = {'episodes': report.ran, 'wall_s': round(report.wall_s, 3), 'startup_s': round(report.startup_s, 3),
                 'workers': config.workers, 'through': report.to_json()['through']}
-        with open(runs_path(config), 'a') as f:
+        with open(runs_path(run), 'a') as f:
             f.write(json.dumps(line) + '\n')
 
 
@@ -130,14 +131,15 @@ def sr_of(results: list) -> dict:
 def baseline_row(config: EvalConfig, resamples: int) -> dict:
     """The numbers of one (split, baseline) from its results file: the first `limit` tasks of the split
     that have a result (ResultsFileError if the file holds another checkpoint's or seed's results)."""
+    run = EvalRun(config, check=False)
     tasks = load_split(config.split)[:config.limit]
-    done = resumable_results(config, [t.task_id for t in tasks])
+    done = resumable_results(run, [t.task_id for t in tasks])
     played = [t for t in tasks if t.task_id in done]
     results = [done[t.task_id] for t in played]
     overall = summarize(results)['overall']
     ci = intervals(results, resamples=resamples, seed=config.seed)
-    runs = [json.loads(line) for line in runs_path(config).read_text().splitlines() if line.strip()] \
-        if runs_path(config).exists() else []
+    runs = [json.loads(line) for line in runs_path(run).read_text().splitlines() if line.strip()] \
+        if runs_path(run).exists() else []
     of = lambda keep: [done[t.task_id] for t in played if keep(t)]
     return {
         'n': len(results), 'tasks': len(tasks), 'complete': len(results) == len(tasks),
@@ -147,14 +149,15 @@ def baseline_row(config: EvalConfig, resamples: int) -> dict:
         'target_at_start': {'out_of_view': sr_of(of(lambda t: not t.target_visible_at_start)),
                             'in_view': sr_of(of(lambda t: t.target_visible_at_start))},
         'eval_wall_s': round(sum(r['wall_s'] for r in runs), 1), 'runs': len(runs),
-        'results_file': str(config.results_path),
+        'results_file': str(run.results_path),
     }
 
 
 def checkpoint_info(config: EvalConfig) -> dict:
     from dialfred_performer.model import load_checkpoint
-    _, _, info = load_checkpoint(config.checkpoint_path)
-    return {'path': str(config.checkpoint_path), 'sha256': config.checkpoint_sha256,
+    run = EvalRun(config, check=False)
+    _, _, info = load_checkpoint(run.checkpoint_path)
+    return {'path': str(run.checkpoint_path), 'sha256': run.checkpoint_sha256,
             'command': info.get('command', ''), 'git_commit': info.get('git_commit', '')}
 
 

@@ -26,7 +26,8 @@ from dialfred_sim.dataclass_cli import arg
 from dialfred_performer.models import PERFORMER_MODELS
 
 from .baselines import BASELINES
-from .evaluation import EvalConfig, foxglove_field, record_field, record_format_field
+from .eval_config import EvalConfig, checkpoint_path, foxglove_field, record_field, record_format_field
+from .eval_run import EvalRun
 from .paths import REPO
 from .workers import LiveHook, PerformerWorker, play_episodes, start_live_view, worker_nodes
 from .graph import Graph
@@ -115,7 +116,7 @@ def reference_line(config: EvalConfig, doc: Path = RESULTS_DOC) -> str:
     from dialfred_performer.model import SHIPPED_CHECKPOINT
     names = {b.questioner: b.name for b in BASELINES.values()}
     name, agent = names.get(config.questioner), config.performer or config.agent
-    if agent == 'et' and Path(config.checkpoint_path).resolve() == Path(SHIPPED_CHECKPOINT).resolve() \
+    if agent == 'et' and checkpoint_path(config).resolve() == Path(SHIPPED_CHECKPOINT).resolve() \
             and name is not None and doc.exists():
         for line in doc.read_text().splitlines():
             cells = [c.strip() for c in line.strip('|').split('|')]
@@ -172,20 +173,20 @@ def run_demo(demo: DemoConfig) -> int:
     from dialfred_sim.protocol import image_array
     from dialfred_sim.tasks import load_split
 
-    config = demo.eval_config()
-    if not config.checkpoint_path.is_file():
-        print(f'error: no performer checkpoint at {config.checkpoint_path}; train one with '
+    if not checkpoint_path(demo.eval_config()).is_file():
+        print(f'error: no performer checkpoint at {checkpoint_path(demo.eval_config())}; train one with '
               './dialfred prepare-performer && ./dialfred train-performer --out out/performer (see the README), '
               'or pass --checkpoint PATH', file=sys.stderr)
         return 2
     try:
-        config.check()        # a corrupt checkpoint or an unknown questioner fails before any node starts
+        run = EvalRun(demo.eval_config())    # a corrupt checkpoint or an unknown questioner fails before any node starts
     except ValueError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     if demo.tasks < 1 or (demo.first is not None and demo.first < 0):
         print('error: --tasks must be at least 1 and --first at least 0', file=sys.stderr)
         return 2
+    config = run.options
     chosen = demo_tasks(load_split(config.split), demo.tasks, demo.first)
     if not chosen:
         print(f'error: no tasks from index {demo.first} of {config.split}', file=sys.stderr)
@@ -193,10 +194,10 @@ def run_demo(demo: DemoConfig) -> int:
     tasks = [t for _, t in chosen]
     out = Path(demo.out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f'checkpoint {config.checkpoint_path}, questioner {config.questioner or "none"}, {config.resolution} px, '
+    print(f'checkpoint {run.checkpoint_path}, questioner {config.questioner or "none"}, {config.resolution} px, '
           f'seed {config.seed}')
     t0 = time.monotonic()
-    nodes = worker_nodes(config, '', publish_observations=True, max_steps=demo.max_steps)
+    nodes = worker_nodes(run, '', publish_observations=True, max_steps=demo.max_steps)
     with Graph(nodes) as graph:
         record = None
 
@@ -218,9 +219,9 @@ def run_demo(demo: DemoConfig) -> int:
         qa_sub = node.create_subscription(QAPair, 'dialogue/qa', heard, 100)
         frames_qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
         obs_sub = node.create_subscription(Observation, 'sim/observation', seen, frames_qos)
-        worker = PerformerWorker(graph, '', config, on_feedback=stepped)
+        worker = PerformerWorker(graph, '', run, on_feedback=stepped)
         if config.foxglove is not None:
-            view = start_live_view(config, graph, [''], len(tasks))
+            view = start_live_view(run, graph, [''], len(tasks))
             worker.live = LiveHook(view, 'w0')
         deadline = time.monotonic() + 30.0
         while qa_sub.get_publisher_count() == 0 or obs_sub.get_publisher_count() == 0:

@@ -41,15 +41,15 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
+from dialfred_sim.env import DEFAULT_RESOLUTION
 from dialfred_sim.protocol import QUESTION_TYPES, image_array
+from dialfred_sim.ros_util import RESEND_AFTER_S
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .demo import DemoConfig, run_demo
-from .evaluation import (DEFAULT_RESOLUTION, ResultsFileError, add_eval_parser, record_field, record_format_field,
-                         run_eval_command)
+from .eval_config import record_field, record_format_field
+from .evaluation import ResultsFileError, add_eval_parser, run_eval_command
 from .film import save_captioned_gif
-from dialfred_sim.ros_util import RESEND_AFTER_S
-
 from .graph import Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain
 
 

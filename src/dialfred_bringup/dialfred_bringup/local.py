@@ -19,64 +19,64 @@ from __future__ import annotations
 import time
 from typing import Callable
 
+import torch
+
+from dialfred_oracle.answers import Perturbation
+from dialfred_oracle.local import EnvServer
+from dialfred_oracle.swap import AnswerSwap
+from dialfred_sim.agents import task_view
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.episode import play
+from dialfred_sim.episode import run as run_episode
 from dialfred_sim.metrics import dialogue_entry
 from dialfred_sim.metrics import episode_result as result_line
 from dialfred_sim.processes import worker_pool
-from dialfred_sim.protocol import is_privileged
+from dialfred_sim.protocol import episode_seed, is_privileged
 
 _W: dict = {}
 
 
-def _init_worker(config) -> None:
-    import torch
-
-    from dialfred_oracle.answers import Perturbation
-    from dialfred_oracle.swap import AnswerSwap
-    from dialfred_sim.env import DialfredEnv
+def _init_worker(run) -> None:
     torch.set_num_threads(1)
-    _W['config'] = config
+    o = _W['run'] = run
     # the sim node's defaults: protocol.MAX_STEPS, MAX_FAILURES
-    _W['env'] = DialfredEnv(resolution=config.resolution, goal_rule=config.goal_rule)
-    _W['agent'] = config.make_agent()
-    _W['perturbation'] = (Perturbation(config.perturb_type, config.perturb_probability, config.seed)
-                          if config.perturb_type else None)
-    _W['swap'] = (AnswerSwap(config.split_tasks(), config.resolution, config.goal_rule)
-                  if config.answers == 'swapped' else None)
+    _W['env'] = DialfredEnv(resolution=o.options.resolution, goal_rule=o.options.goal_rule)
+    _W['agent'] = run.make_agent()
+    _W['perturbation'] = (Perturbation(o.options.perturb_type, o.options.perturb_probability, o.options.seed)
+                          if o.options.perturb_type else None)
+    _W['swap'] = (AnswerSwap(run.split_tasks(), o.options.resolution, o.options.goal_rule)
+                  if o.options.answers == 'swapped' else None)
 
 
 def _play_job(job: tuple):
     index, task = job
-    return play_episode(_W['config'], _W['env'], _W['agent'], _W['perturbation'], index, task, _W['swap'])
+    return play_episode(_W['run'], _W['env'], _W['agent'], _W['perturbation'], index, task, _W['swap'])
 
 
-def play_episode(config, env, agent, perturbation, index: int, task, swap=None):
-    """One episode of `task` (at `index` in the split) in `env` with `agent`: its EpisodeResult. `swap`: a
-    dialfred_oracle.swap.AnswerSwap for --answers swapped."""
-    from dialfred_oracle.local import EnvServer
-    from dialfred_sim.agents import task_view
-    from dialfred_sim.episode import play, run
-    from dialfred_sim.protocol import episode_seed
+def play_episode(run, env, agent, perturbation, index: int, task, swap=None):
+    """One episode of `task` (at `index` in the split) in `env` with `agent`, for `run` (an eval_run.EvalRun):
+    its EpisodeResult. `swap`: a dialfred_oracle.swap.AnswerSwap for --answers swapped."""
     started = time.monotonic()
-    episode = play(agent, seed=episode_seed(config.seed, index), told=task_view(agent, task), asks=config.asks,
-                   max_questions=config.max_questions)
-    state = run(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
-    return state_result(config, task, agent, state, time.monotonic() - started)
+    episode = play(agent, seed=episode_seed(run.options.seed, index), told=task_view(agent, task), asks=run.asks,
+                   max_questions=run.options.max_questions)
+    state = run_episode(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
+    return state_result(run, task, agent, state, time.monotonic() - started)
 
 
-def state_result(config, task, agent, state, wall_s: float):
-    """The results line of an episode played by `config`'s run (an EvalConfig) to `state` (the episode loop's
+def state_result(run, task, agent, state, wall_s: float):
+    """The results line of an episode played by `run` (an eval_run.EvalRun) to `state` (the episode loop's
     EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker)."""
     return result_line(task, state, [dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid),
                                                     qa.answer) for qa in state.dialogue],
-                       wall_s=wall_s, privileged=is_privileged(agent), **config.identity)
+                       wall_s=wall_s, privileged=is_privileged(agent), **run.identity)
 
 
-def play_local(config, jobs: list, on_result: Callable) -> None:
-    """Play every (index, task) of `jobs` in `config.workers` processes; `on_result(result)` as each
+def play_local(run, jobs: list, on_result: Callable) -> None:
+    """Play every (index, task) of `jobs` in `run.options.workers` processes; `on_result(result)` as each
     episode ends (in the order they end)."""
     if not jobs:
         return
-    workers = max(1, min(config.workers, len(jobs)))
-    with worker_pool(workers, initializer=_init_worker, initargs=(config,)) as pool:
+    workers = max(1, min(run.options.workers, len(jobs)))
+    with worker_pool(workers, initializer=_init_worker, initargs=(run,)) as pool:
         for result in pool.imap_unordered(_play_job, jobs, chunksize=1):
             on_result(result)

@@ -35,12 +35,12 @@ class SimWorker(EpisodeObserver):
     its next request or returns the episode's EpisodeResult. With `oracle`, the agent's questions go to
     the oracle node of the same namespace before it acts."""
 
-    def __init__(self, graph: Graph, namespace: str, agent, config, oracle: bool = False):
+    def __init__(self, graph: Graph, namespace: str, agent, run, oracle: bool = False):
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
         self.reset_cli = graph.client(SimReset, sim_service(namespace, 'reset'))
         self.step_cli = graph.client(SimStep, sim_service(namespace, 'step'))
         self.ask_cli = graph.client(OracleAnswer, f'{namespace.rstrip("/")}/oracle/answer') if oracle else None
-        self.graph, self.namespace, self.agent, self.config = graph, namespace, agent, config
+        self.graph, self.namespace, self.agent, self.run = graph, namespace, agent, run
         self.future = None
         self.job = None
         self.live = None       # a LiveHook, with --foxglove
@@ -62,19 +62,19 @@ class SimWorker(EpisodeObserver):
         self.started_at = time.monotonic()
         observers = [self]
         self.recorder = None
-        if self.config.record is not None:
-            self.recorder = RecordingObserver(self.config.record, self.config.record_format,
+        if self.run.options.record is not None:
+            self.recorder = RecordingObserver(self.run.options.record, self.run.options.record_format,
                                               picture=self.agent.picture if isinstance(self.agent, MapPainter) else None)
             observers.append(self.recorder)
         if self.live is not None:
             self.live.begin(task)
-        self.episode = play(self.agent, seed=episode_seed(self.config.seed, index),
+        self.episode = play(self.agent, seed=episode_seed(self.run.options.seed, index),
                             told=task_view(self.agent, task),      # the public view, unless privileged
-                            asks=self.ask_cli is not None, max_questions=self.config.max_questions, observers=observers)
+                            asks=self.ask_cli is not None, max_questions=self.run.options.max_questions, observers=observers)
         self._request(next(self.episode))
 
     def overdue(self) -> bool:
-        return self.busy and time.monotonic() - self.sent_at > self.config.request_timeout
+        return self.busy and time.monotonic() - self.sent_at > self.run.options.request_timeout
 
     def close(self) -> None:
         """Abandon the episode in flight (this worker's nodes are being restarted). Its clients stay with
@@ -148,7 +148,7 @@ class SimWorker(EpisodeObserver):
         return True
 
     def _result(self, state):
-        return state_result(self.config, self.task, self.agent, state, time.monotonic() - self.started_at)
+        return state_result(self.run, self.task, self.agent, state, time.monotonic() - self.started_at)
 
 
 class PerformerWorker:
@@ -158,7 +158,7 @@ class PerformerWorker:
     accepted: wait for its result; the result: the episode's EpisodeResult). A goal running longer
     than `episode_timeout` is cancelled, and its episode recorded as an error."""
 
-    def __init__(self, graph: Graph, namespace: str, config, on_feedback=None):
+    def __init__(self, graph: Graph, namespace: str, run, on_feedback=None):
         from rclpy.action import ActionClient
 
         from dialfred_msgs.action import RunTask
@@ -169,7 +169,7 @@ class PerformerWorker:
             graph.check()
             if time.monotonic() > deadline:
                 raise TimeoutError(f'action server {self.name} not available after 60 s')
-        self.graph, self.namespace, self.config = graph, namespace, config
+        self.graph, self.namespace, self.run = graph, namespace, run
         self._prove_paths(deadline)
         self.on_feedback = on_feedback    # called with (task, RunTask.Feedback) as each step's feedback comes
         self.future = self.goal_handle = self.cancel_future = None
@@ -223,7 +223,7 @@ class PerformerWorker:
             if self.on_feedback is not None:
                 self.on_feedback(task, msg.feedback)
 
-        goal = RunTask.Goal(task_id=task.task_id, seed=episode_seed(self.config.seed, index))
+        goal = RunTask.Goal(task_id=task.task_id, seed=episode_seed(self.run.options.seed, index))
         self.future = self.client.send_goal_async(goal, feedback_callback=feedback)
         self.pending = 'goal'
 
@@ -238,14 +238,14 @@ class PerformerWorker:
         from action_msgs.msg import GoalStatus
         result = reply.result
         if reply.status == GoalStatus.STATUS_CANCELED:
-            return self._result(result, error=f'cancelled after {self.config.episode_timeout:g} s (episode_timeout)')
+            return self._result(result, error=f'cancelled after {self.run.options.episode_timeout:g} s (episode_timeout)')
         return self._result(result)
 
     def overdue(self) -> bool:
         """Cancel a goal past episode_timeout (once); True only if even the cancel got no result in 60 s."""
-        late = time.monotonic() - self.started - self.config.episode_timeout
+        late = time.monotonic() - self.started - self.run.options.episode_timeout
         if late < 0 or self.pending != 'result':
-            return self.pending == 'goal' and time.monotonic() - self.sent_at > self.config.request_timeout
+            return self.pending == 'goal' and time.monotonic() - self.sent_at > self.run.options.request_timeout
         if self.cancel_future is None:
             self.cancel_future = self.goal_handle.cancel_goal_async()
         return late > 60.0
@@ -268,7 +268,7 @@ class PerformerWorker:
         outcome.error = '' if outcome.success else (error or (r.error if r is not None else ''))
         dialogue = [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in r.dialogue] if r else []
         return episode_result(self.task, outcome, dialogue, wall_s=time.monotonic() - self.started,
-                              **self.config.identity)
+                              **self.run.identity)
 
 
 
@@ -310,7 +310,7 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor
                 continue
             elif w.busy and w.overdue():
                 node = {'question': 'oracle', 'goal': 'performer', 'result': 'performer'}.get(w.pending, 'sim')
-                message = (f'no reply from {w.namespace or "/"} {node} node after {w.config.request_timeout:.0f} s '
+                message = (f'no reply from {w.namespace or "/"} {node} node after {w.run.options.request_timeout:.0f} s '
                            f'(task {w.task.task_id})')
                 if supervisor is None:
                     raise TimeoutError(message)
@@ -403,31 +403,31 @@ class Supervisor:
         self.restarts += 1
 
 
-def worker_nodes(config, namespace: str, **sim_params) -> list:
+def worker_nodes(run, namespace: str, **sim_params) -> list:
     """The nodes of one worker in `namespace`: its simulator; with a questioner, its oracle; with the
     performer node, also the questioner node and the performer node (a RunTask server). `sim_params`:
     more parameters of the simulator node (default: it publishes no observations)."""
-    from_file = {'tasks_file': str(config.tasks_source.path)} if config.tasks_file else {}
-    nodes = [sim_node(config.resolution, namespace, **{'publish_observations': False, 'goal_rule': config.goal_rule,
+    from_file = {'tasks_file': str(run.tasks_source.path)} if run.options.tasks_file else {}
+    nodes = [sim_node(run.options.resolution, namespace, **{'publish_observations': False, 'goal_rule': run.options.goal_rule,
                                                        **from_file, **sim_params})]
-    if config.asks:
-        withhold = {'perturb_type': config.perturb_type, 'perturb_probability': config.perturb_probability,
-                    'seed': config.seed} if config.perturb_type else {}
-        if config.answers == 'swapped':
-            withhold.update(answers='swapped', swap_resolution=config.resolution, **from_file)
-        nodes.append(oracle_node(namespace, human=config.human, **withhold))
-    if config.performer:
-        if config.questioner:
-            learned = config.learned_questioner_path     # the node may run elsewhere: an absolute path
-            name = f'learned:{learned.resolve()}' if learned is not None else config.questioner
+    if run.asks:
+        withhold = {'perturb_type': run.options.perturb_type, 'perturb_probability': run.options.perturb_probability,
+                    'seed': run.options.seed} if run.options.perturb_type else {}
+        if run.options.answers == 'swapped':
+            withhold.update(answers='swapped', swap_resolution=run.options.resolution, **from_file)
+        nodes.append(oracle_node(namespace, human=run.options.human, **withhold))
+    if run.options.performer:
+        if run.options.questioner:
+            learned = run.learned_questioner_path     # the node may run elsewhere: an absolute path
+            name = f'learned:{learned.resolve()}' if learned is not None else run.options.questioner
             nodes.append(NodeProcess('dialfred_questioner', {'questioner': name}, namespace=namespace))
-        record = {'record_dir': str(Path(config.record).resolve()),
-                  'record_format': config.record_format} if config.record is not None else {}
-        nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(config.checkpoint_path.resolve()),
-                                                        'model': config.performer,
-                                                        'questioner': bool(config.questioner),
-                                                        'max_questions': config.max_questions,
-                                                        'request_timeout': config.request_timeout, **record},
+        record = {'record_dir': str(Path(run.options.record).resolve()),
+                  'record_format': run.options.record_format} if run.options.record is not None else {}
+        nodes.append(NodeProcess('dialfred_performer', {'checkpoint': str(run.checkpoint_path.resolve()),
+                                                        'model': run.options.performer,
+                                                        'questioner': bool(run.options.questioner),
+                                                        'max_questions': run.options.max_questions,
+                                                        'request_timeout': run.options.request_timeout, **record},
                                  namespace=namespace))
     return nodes
 
@@ -454,7 +454,7 @@ class LiveHook:
         self.view.result(self.worker, r.task_id, r.success, r.end_reason, r.steps, r.questions)
 
 
-def start_live_view(config, graph: Graph, namespaces: list, total: int):
+def start_live_view(run, graph: Graph, namespaces: list, total: int):
     """The Foxglove server of --foxglove, fed from each worker's sim/observation (camera, pose) and,
     for performer nodes, dialogue/qa and performer/map; the workers' LiveHooks tell it the rest."""
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -464,7 +464,7 @@ def start_live_view(config, graph: Graph, namespaces: list, total: int):
     from dialfred_msgs.msg import Observation, QAPair
     from dialfred_sim.protocol import image_array
     from dialfred_bringup.live import LiveView, describe
-    view = LiveView(len(namespaces), port=config.foxglove, total=total)
+    view = LiveView(len(namespaces), port=run.options.foxglove, total=total)
     print(describe(view), file=sys.stderr, flush=True)
     qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1)
     for k, ns in enumerate(namespaces):
@@ -476,7 +476,7 @@ def start_live_view(config, graph: Graph, namespaces: list, total: int):
                        int(obs.step_count))
 
         graph.client_node.create_subscription(Observation, f'{base}/sim/observation', seen, qos)
-        if config.performer:
+        if run.options.performer:
             graph.client_node.create_subscription(
                 QAPair, f'{base}/dialogue/qa',
                 lambda m, w=w: view.qa(w, m.question_type, m.object_noun, m.answer, m.valid), 100)

@@ -26,11 +26,10 @@ from dialfred_sim.protocol import ACTIONS, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig
-from .models import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
+from .shipped import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 from .preprocess import N_TOKEN_TYPES, Vocabulary
 
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
-# The trained checkpoint shipped in the package is defined with the models' registry (models.py).
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from .shipped import SHIPPED_CHECKPOINT
 
-# The trained checkpoint shipped in the package (the command that made it is stored inside it and in
-# docs/figures.md); the default of the performer node, `launch eval --agent/--performer et` and the demo.
-SHIPPED_CHECKPOINT = Path(__file__).resolve().parent / 'checkpoints' / 'et.pt'
 # The map performer's camera: 128 px frames, area-averaged down to its network's input. Over
 # the shipped et.pt's network (64 px), valid_unseen instruction only: 45.0 SR, against 41.7 with a camera
 # of the network's own 64 px (an averaged frame keeps objects thinner than one of the network's pixels).

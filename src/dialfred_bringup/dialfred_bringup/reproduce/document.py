@@ -22,14 +22,14 @@ from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, W
 
 def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
     """The numbers of one setting from its results file (n = 0 when it has none)."""
-    from dialfred_bringup.evaluation import resumable_results
+    from dialfred_bringup.evaluation import EvalRun, resumable_results
     from dialfred_sim.metrics import intervals, summarize
     from dialfred_sim.tasks import load_split
     if not plan.available(s) or not (plan.eval_dir / f'{s.split}_{s.key}.jsonl').exists():
         return {'n': 0}
     config = plan.eval_config(s)
     tasks = load_split(s.split)[:config.limit]
-    done = resumable_results(config, [t.task_id for t in tasks])
+    done = resumable_results(EvalRun(config, check=False), [t.task_id for t in tasks])
     results = [done[t.task_id] for t in tasks if t.task_id in done]
     if not results:
         return {'n': 0}

@@ -432,7 +432,7 @@ class Runner:
         """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
         from dialfred_bringup.baselines import run_baseline
 
-        from dialfred_bringup.evaluation import resumable_results
+        from dialfred_bringup.evaluation import EvalRun, resumable_results
         from dialfred_sim.metrics import same_episode, write_text_atomically
         from dialfred_sim.tasks import load_split
         p = self.plan
@@ -443,8 +443,8 @@ class Runner:
             t0 = time.monotonic()
             run_baseline(config, self.cfg.progress)
             ids = [t.task_id for t in load_split(s.split)[:config.limit]]
-            graph = resumable_results(config, ids)
-            tables = resumable_results(p.eval_config(s), ids)
+            graph = resumable_results(EvalRun(config, check=False), ids)
+            tables = resumable_results(EvalRun(p.eval_config(s), check=False), ids)
             differing = [i for i in ids if i not in tables or not same_episode(graph[i], tables[i])]
             report['settings'][f'{s.split}/{s.key}'] = {'episodes': len(ids), 'differing': differing,
                                                         'seconds': round(time.monotonic() - t0, 1)}
