@@ -24,7 +24,7 @@ DOCS = Path(__file__).resolve().parents[1] / 'docs'
 BLOCK = re.compile(r'(<!-- options: (?P<target>[\w.]+:\w+) -->\n)(?P<table>.*?)(<!-- /options -->)', re.S)
 PARAMETER_BLOCK = re.compile(r'(<!-- parameters: (?P<target>[\w.]+) -->\n)(?P<table>.*?)(<!-- /parameters -->)', re.S)
 # Options a job's parser adds beside its config's fields: (flag, meaning, default).
-EXTRA = {'dialfred_bringup.evaluation:EvalConfig': [('--no-progress', 'no progress bar on stderr', '--progress')]}
+EXTRA = {'dialfred_bringup.eval_config:EvalConfig': [('--no-progress', 'no progress bar on stderr', '--progress')]}
 
 
 def table(target: str) -> str:

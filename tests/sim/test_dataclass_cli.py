@@ -155,7 +155,7 @@ def test_the_option_tables_of_the_docs_are_made_from_the_dataclasses():
     done = subprocess.run([sys.executable, 'scripts/doc_options.py', '--check'], cwd=REPO, capture_output=True,
                           text=True)
     assert done.returncode == 0, done.stderr
-    assert '<!-- options: dialfred_bringup.evaluation:EvalConfig -->' in (REPO / 'docs' / 'evaluation.md').read_text()
+    assert '<!-- options: dialfred_bringup.eval_config:EvalConfig -->' in (REPO / 'docs' / 'evaluation.md').read_text()
     assert '| `--limit N` | only the first N tasks of the split (none: all) | `none` |' in (
         REPO / 'docs' / 'evaluation.md').read_text()
 
