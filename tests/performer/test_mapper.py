@@ -511,7 +511,7 @@ def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
     """A task that starts with a bulky object in hand (a box: valid_unseen/000263 as found by
     _a_box_carried_in_the_open; first seen with a laptop). Turning around on the spot, the agent saw it
     a step ahead in every direction and walled itself in."""
-    from dialfred_performer.mapper import agent as agent_module
+    from dialfred_performer.mapper import sensing as sensing_module
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.models import MAP_CAMERA
     from dialfred_sim.env import DialfredEnv
@@ -541,7 +541,7 @@ def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
     # The first frame (heading 0) is mapped before the agent guesses what it holds (a guess that is
     # often wrong at the start of tasks that put nothing down); the frames after it leave the hand out.
     assert all(believed for h, (world, believed) in now.items() if world and h != 0)
-    monkeypatch.setattr(agent_module, 'carried_volume', lambda local: np.zeros(local.shape[:2], bool))
+    monkeypatch.setattr(sensing_module, 'carried_volume', lambda local: np.zeros(local.shape[:2], bool))
     before = look_around(MapAgent.from_checkpoint(SHIPPED))
     assert not any(believed for h, (world, believed) in before.items() if world and h != 0)
 

@@ -95,7 +95,9 @@ ET_SOURCES = (f'{_PERF}/agent.py', f'{_PERF}/models.py', f'{_PERF}/model.py', f'
               *(f'{_PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
                                                       'heads')))
 # The map performer is made from the E.T.'s checkpoint, so its code is the E.T.'s and the mapper's.
-MAP_SOURCES = (*ET_SOURCES, *(f'{_PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map')))
+MAP_SOURCES = (*ET_SOURCES, *(f'{_PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map',
+                                                                     'navigation', 'reading', 'rules', 'sensing',
+                                                                     'targets')))
 
 register(PerformerModel('et', 'the Episodic Transformer performer of the checkpoint', _load_et, _et_camera,
                         SHIPPED_CHECKPOINT, ET_SOURCES))

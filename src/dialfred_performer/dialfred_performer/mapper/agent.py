@@ -31,7 +31,6 @@ action is decided (the performer node and worker processes play the same episode
 from __future__ import annotations
 
 import copy
-import math
 from collections import Counter, deque
 from pathlib import Path
 from typing import Any, Optional
@@ -43,33 +42,25 @@ from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observa
 from dialfred_sim.tasks.demonstrations import label_classes
 from dialfred_sim.world.catalog import load_catalog
 
-from ..preprocess import frame_tensor
-from .geometry import (HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, Pose, bearing_deg, estimate_horizon, off_bearing,
-                       points_in_agent_frame, ray_distance, to_map_frame)
-from .language import Fact, InstructionError, Step, parse_answer, parse_instruction
-from .semantic_map import TIGHT_CELLS, UNREACHABLE, SemanticMap, distance_field, next_move, reach_goals, unexamined_goals
+from .geometry import Pose
+from .language import Fact, InstructionError, Step, parse_instruction
+from .navigation import Navigation
+from .reading import AnswerReading
+from .rules import EXPLORING, INTERACTIONS, MAX_STEP_ACTIONS, REACH_M, REPLAN, SURE, WALKING
+from .semantic_map import SemanticMap
+from .sensing import Sensing
+from .targets import Targets
 
-STRUCTURE = 4                    # label classes below this are nothing, Floor, Wall, Ceiling
-FLOOR = 1
-REACH_M = 1.3                    # stay inside the simulator's 1.5 m by more than the predicted depth's usual error
-MIN_TARGET_CELLS = 1
-PUT_CHANGE = 30.0                # _where_put: mean change of a cell's RGB (summed over channels) taken as a change
-PLACED_M = 0.15                  # _inside_opened: how near the point of its own Put a cell must lie
-INSIDE_P = 0.03                   # _inside_opened: the least probability of the target's type taken as it
-MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
-SCAN_TURNS = 3                   # turns of the first look around
-SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
-ANSWER_CONE_DEG = 67.5           # half a location answer's 45-degree direction bin, and one bin more either side
-REPLAN = 'replan'                # _navigate changed the plan: decide again
 # Attributes a decision reads but never changes (shared with the copy action_probabilities decides on).
 _SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points', 'class_prob',
                      '_pending', '_heard'})
-INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
-                'toggle_off': 'ToggleOff', 'slice': 'Slice'}
 
 
-class MapAgent:
-    """The map-and-plan performer over a perception network (see the module)."""
+class MapAgent(Sensing, AnswerReading, Targets, Navigation):
+    """The map-and-plan performer over a perception network (see the module). Its parts, each in a module
+    of its own over the state `reset_state` makes: `Sensing` (the frame, the pose, the hand), `AnswerReading`
+    (answers as facts), `Targets` (what to click), `Navigation` (moving, facing, exploring); here, the plan's
+    steps, what follows a failure, and the decision."""
 
     name = 'map'
 
@@ -144,131 +135,15 @@ class MapAgent:
             self.log.append(f'cannot read the instruction: {exc}')
             self.plan = deque([Step('stop')])
 
-    def hear(self, qa: QA) -> None:
-        """A QA of the dialogue: location, appearance and direction answers become facts (taken in
-        when the step's frame has been perceived: `_observe`)."""
-        self._heard.append(qa)
 
-    def _take_in(self, qa: QA) -> None:
-        self.answers += 1
-        if not qa.valid:
-            return
-        fact = parse_answer(qa.question.question_type, qa.answer)
-        if fact is None:
-            return
-        if fact.kind == 'held' and fact.receptacle == '':
-            self.held, self.held_known, self.held_confirmed = fact.object_type, True, True
-        elif fact.kind == 'location' and fact.object_type == self.held and not self.held_confirmed:
-            self.held = None                      # it is somewhere in the room, so not in hand
-        elif fact.kind == 'direction':
-            if fact.turn_deg == 90:
-                self.turns = deque(['RotateLeft'])
-            elif fact.turn_deg == -90:
-                self.turns = deque(['RotateRight'])
-            elif fact.turn_deg == 180:
-                self.turns = deque(['RotateLeft', 'RotateLeft'])
-        self.facts[(fact.kind, fact.object_type)] = (fact, Pose(self.pose.i, self.pose.j, self.pose.heading,
-                                                                 self.pose.horizon))
 
     # ------------------------------------------------------------------ perception
 
-    @torch.inference_mode()
-    def perceive(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(class [S, S], its probability [S, S], depth m [S, S]) at the network's cells."""
-        out = self.net(frame_tensor(rgb, self.resolution)[None])
-        logits, metres, _ = self.net.heads(out.fine)
-        prob = torch.softmax(logits[0], 0)
-        self.class_prob = prob
-        conf, labels = prob.max(0)
-        return labels.numpy(), conf.numpy(), metres[0].numpy()
 
-    def sense(self, observation: Observation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """What the agent makes of an observation: `perceive` of its RGB frame (a diagnostic subclass may
-        read something else: benchmarks/map_perception_ceiling.py)."""
-        return self.perceive(self.rgb)
 
-    def _update(self, observation: Observation) -> None:
-        before, self.rgb = self.rgb, observation.rgb
-        labels, conf, depth = self.sense(observation)
-        if self.step == 0:
-            self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
-        else:
-            self._dead_reckon(observation.last_action_success)
-        self.labels, self.conf = labels, conf
-        self.ray = ray_distance(depth)
-        local = points_in_agent_frame(depth, self.pose.horizon)
-        points = to_map_frame(local, self.pose)
-        self.points = points
-        if self._just_put is not None and before is not None and before.shape == self.rgb.shape:
-            self._where_put(self._just_put, before)
-        self._just_put = None
-        mapped = self.ray
-        if self.held is not None:
-            ray = self.ray.copy()
-            ray[self.hand_window()] = np.inf          # the object in hand is not part of the room
-            self.ray = ray
-            # Nor is it an obstacle: what is seen where the hand carries things is left off the map
-            # (else it walls the agent in, a step ahead in every direction it turns to).
-            mapped = ray.copy()
-            mapped[carried_volume(local)] = np.inf
-        self.map.update(points, labels, conf, mapped, FLOOR, STRUCTURE)
-        self.map.visited.add((self.pose.i, self.pose.j))
-        if not self.held_known and self.step == 0:
-            # A put, heat, cool or clean instruction is given with the object in hand 91% of the time
-            # in train; the hand's view or a failed Put says otherwise.
-            wanted = [s.held for s in self.plan if s.kind == 'put' and s.held]
-            self.held = wanted[0] if wanted else self._held_in_view()
-            self.held_known = True
 
-    def _held_in_view(self) -> Optional[str]:
-        """The pickupable type seen most (at least 3 cells) where the hand carries an object, if any."""
-        seen = Counter(self.labels[self.hand_window() & (self.labels >= STRUCTURE)].tolist())
-        for k, count in seen.most_common():
-            t = self.catalog.get(self.classes[k])
-            if t is not None and t.pickupable and count >= 3:
-                return self.classes[k]
-        return None
 
-    def hand_window(self, radius: int = 3) -> np.ndarray:
-        """[S, S] bool: the cells around where the hand's object appears at the current horizon."""
-        s = self.labels.shape[0]
-        r, c = hand_cell(self.pose.horizon, s)
-        window = np.zeros((s, s), bool)
-        window[max(r - radius, 0):r + radius + 1, max(c - radius, 0):c + radius + 1] = True
-        return window
 
-    def _dead_reckon(self, success: Optional[bool]) -> None:
-        if self.last is None:
-            return
-        action, step, point = self.last
-        if success is None:
-            success = True
-        if action in ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown'):
-            if success:
-                self.pose = self.pose.after(action)
-            elif action == 'MoveAhead':
-                self.map.blocked.add(self.pose.forward())
-            return
-        if success:
-            self.step_failures = 0
-            if point is not None:
-                self.anchors[step.target] = point
-            if action == 'Pickup':
-                self.held, self.held_confirmed = step.target, True
-                self.placed.pop(step.target, None)
-            elif action == 'Put':
-                if self.held or step.held:
-                    self.placed[self.held or step.held] = (step.target, None)
-                    self._just_put = self.held or step.held
-                self.held = None
-            elif action == 'Open':
-                self.opened.add(step.target)
-            elif action == 'Close':
-                self.opened.discard(step.target)
-            self._step_done(action)
-        else:
-            self.step_failures += 1
-            self._after_failure(action, step, point)
 
     # ------------------------------------------------------------------ the plan
 
@@ -384,332 +259,20 @@ class MapAgent:
             return 'Stop', -1, -1, None
         return move, -1, -1, None
 
-    def _seen_within(self, k: int, metres: float) -> bool:
-        return bool(((self.labels == k) & (self.ray < metres)).sum() >= MIN_TARGET_CELLS)
 
-    def _target_pixel(self, k: int, step: Step):
-        """((row, col), map point) of the cell to click on class k, or None when none is in reach."""
-        mask = (self.labels == k) & (self.conf > 0.3)
-        if not mask.any():
-            mask = self._inside_opened(k, step)
-        if self.held is not None:
-            mask &= ~self.hand_window()
-        given_up = self.map.excluded.get(k)
-        if given_up is not None and mask.any():
-            # Places given up on (two failed interactions there) are given up on in view too.
-            cx, cy = self.map.cell_of(self.points[..., 0], self.points[..., 1])
-            inside = (cx >= 0) & (cx < self.map.n) & (cy >= 0) & (cy < self.map.n)
-            mask &= ~(inside & given_up[np.clip(cx, 0, self.map.n - 1), np.clip(cy, 0, self.map.n - 1)])
-        reach = mask & (self.ray < (REACH_M - 0.15 if step.kind == 'goto' else REACH_M))
-        if reach.sum() < (2 if step.kind == 'goto' else MIN_TARGET_CELLS):
-            return None
-        comps = _components(mask)
-        colour = self._colour_wanted(step)
-        best, best_score = None, None
-        for comp in comps:
-            inside = comp & reach
-            if not inside.any():
-                continue
-            rows, cols = np.nonzero(comp)
-            p = self.points[rows, cols].mean(0)
-            cone = self._answered_cone(step.target, p[:1], p[1:2])
-            if cone is not None and not cone[0]:
-                continue                      # not where the location answer said
-            score = -float(inside.sum())
-            if colour is not None:
-                named = self._colour_of(comp)
-                score += 0.0 if named == colour else 1000.0
-            score += self._place_penalty(step.target, p)
-            if best_score is None or score < best_score:
-                best, best_score = (comp, inside), score
-        if best is None:
-            return None
-        comp, inside = best
-        rows, cols = np.nonzero(comp)
-        cr, cc = rows.mean(), cols.mean()
-        interior = inside.copy()
-        interior[1:, :] &= comp[:-1, :]
-        interior[:-1, :] &= comp[1:, :]
-        interior[:, 1:] &= comp[:, :-1]
-        interior[:, :-1] &= comp[:, 1:]
-        safe = interior & (self.ray < REACH_M - 0.1)
-        if safe.any():
-            inside = safe
-        elif interior.any():
-            inside = interior
-        ir, ic = np.nonzero(inside)
-        j = int(np.argmin((ir - cr) ** 2 + (ic - cc) ** 2 + 4.0 * (self.step_failures > 0) * self.ray[ir, ic]))
-        r, c = int(ir[j]), int(ic[j])
-        p = self.points[r, c]
-        return (r, c), (float(p[0]), float(p[1]))
 
-    def _where_put(self, obj: str, before: np.ndarray) -> None:
-        """Where `obj`, just put down, lies: the middle (map point) of the receptacle's cells whose colour
-        changed between the frame before the Put and this one (the agent did not move; the network mostly
-        labels a small thing inside a receptacle as the receptacle, and where the hand carried it, as what
-        lies behind)."""
-        recep = self.placed[obj][0]
-        rk = self.class_id.get(recep)
-        s = self.labels.shape[0]
-        f = self.rgb.shape[0] // s
-        if rk is None or f < 1 or self.rgb.shape[0] != f * s:
-            return
-        change = np.abs(self.rgb.astype(np.int16) - before.astype(np.int16)).sum(-1)
-        change = change.reshape(s, f, s, f).mean((1, 3))
-        moved = (change > PUT_CHANGE) & (self.labels == rk) & (self.ray < REACH_M)
-        if moved.any():
-            p = self.points[moved].mean(0)
-            self.placed[obj] = (recep, (float(p[0]), float(p[1])))
 
-    def _inside(self, target: str) -> Optional[str]:
-        """The receptacle `target` lies in, open, as far as the agent knows: the one it put it into itself,
-        else the one a location answer said it is in; None if unknown or shut (an openable one the agent
-        has not opened)."""
-        where = self.placed[target][0] if target in self.placed else None
-        if where is None:
-            fact = self.facts.get(('location', target))
-            if fact is None or not fact[0].inside:
-                return None
-            where = fact[0].receptacle
-        kind = self.catalog.get(where)
-        return where if where in self.opened or (kind is not None and not kind.openable) else None
 
-    def _inside_opened(self, k: int, step: Step) -> np.ndarray:
-        """[S, S] bool: where a pickup's target may lie unlabelled in view: inside the open receptacle it is
-        known to be in (`_inside`), at the cell the network gives the target's type the most probability (at
-        least INSIDE_P) within the receptacle's box in the frame; failing that, where the agent put it
-        itself, the cell of that box nearest the point it put it down at (within PLACED_M)."""
-        none = np.zeros_like(self.labels, bool)
-        prob = self.class_prob
-        where = self._inside(step.target) if step.kind == 'pickup' else None
-        if where is None or prob is None:
-            return none
-        rk = self.class_id.get(where)
-        if rk is None:
-            return none
-        rows, cols = np.nonzero(self.labels == rk)
-        if len(rows) < 2:
-            return none
-        box = none.copy()
-        box[max(rows.min() - 1, 0):rows.max() + 2, max(cols.min() - 1, 0):cols.max() + 2] = True
-        near = box & (self.ray < REACH_M)
-        p = np.where(near, prob[k].numpy(), 0.0)
-        if p.max() >= INSIDE_P:
-            return p == p.max()
-        put = self.placed.get(step.target, (None, None))[1]
-        if put is None:
-            return none
-        d = np.where(near, np.hypot(self.points[..., 0] - put[0], self.points[..., 1] - put[1]), np.inf)
-        return d == d.min() if d.min() <= PLACED_M else none
 
-    def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
-        """How far a mask of `type_name` centred on map point p lies from the instance acted on before
-        (an opened fridge is the one to put into and close), else from where a location answer said it is."""
-        anchor = self.anchors.get(type_name)
-        if anchor is not None:
-            return 100.0 * math.hypot(p[0] - anchor[0], p[1] - anchor[1])
-        fact = self.facts.get(('location', type_name))
-        if fact is not None:
-            f, at = fact
-            diff = float(off_bearing(at, f.bearing_deg, p[:1], p[1:2])[0])
-            return 2.0 * diff + (500.0 if diff > ANSWER_CONE_DEG else 0.0)
-        return 0.0
 
-    def _answered_cone(self, type_name: str, x: np.ndarray, y: np.ndarray) -> Optional[np.ndarray]:
-        """Which map points (x, y) lie in the direction a location answer gave for `type_name` (within
-        ANSWER_CONE_DEG of it, seen from where the answer was heard); None without such an answer, or
-        once an instance of the type has been acted on (that one is the one)."""
-        fact = self.facts.get(('location', type_name))
-        if fact is None or type_name in self.anchors or type_name in self.cone_spent:
-            return None
-        f, at = fact
-        return off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
 
-    def _colour_wanted(self, step: Step) -> Optional[str]:
-        """The colour an appearance answer gave for the step's target, if the target is pickupable.
 
-        Fixed things (a faucet, a lamp, a fridge) are left out: their predicted masks are few cells that
-        spill onto the wall or counter behind them, so the colour read off a mask names the background
-        (All QAs, valid_unseen: Turn off 52.4 -> 90.5 when they were left out), and a room rarely has two
-        of them side by side to choose between."""
-        kind = self.catalog.get(step.target)
-        if kind is None or not kind.pickupable:
-            return None
-        fact = self.facts.get(('appearance', step.target))
-        return fact[0].colour if fact is not None else None
 
-    def _colour_of(self, comp: np.ndarray) -> Optional[str]:
-        from dialfred_oracle.colours import colour_name
-        h, w = self.rgb.shape[:2]
-        s = comp.shape[0]
-        rows = (np.arange(h) * s // h)
-        cols = (np.arange(w) * s // w)
-        full = comp[rows[:, None], cols[None, :]]
-        return colour_name(self.rgb[full])
 
-    def _navigate(self, k: int, step: Step) -> Optional[str]:
-        """The next move towards where class k can be reached, or towards where it may be found."""
-        if self.turns:
-            self.confidence = WALKING
-            return self.turns.popleft()
-        free = self.map.traversable()
-        cx, cy, height = self.map.object_cells(k)
-        cone = self._answered_cone(step.target, *self.map.cell_centre(cx, cy)) if len(cx) else None
-        if cone is not None:
-            # A location answer: the instances in its direction first, then a look there, and only
-            # then the others (the answer's direction is spent).
-            if cone.any():
-                move = self._approach(k, step, free, cx[cone], cy[cone], height[cone])
-                if move is not None:
-                    return move
-            move = self._explore(k, step, free)
-            if move is not None:
-                return move
-            self.cone_spent.add(step.target)
-        if len(cx):
-            move = self._approach(k, step, free, cx, cy, height)
-            if move is not None:
-                return move
-        return self._explore(k, step, free) if cone is None else None
 
-    def _approach(self, k: int, step: Step, free: np.ndarray, cx, cy, height) -> Optional[str]:
-        """The next move towards where the cells (cx, cy) of class k can be reached; None when there
-        is no way."""
-        off = self.map.node_offset()
-        goals = reach_goals(self.map, cx, cy, height)
-        at = (self.pose.i + off, self.pose.j + off)
-        dist = distance_field(free, goals, until=at)
-        here = dist[at]
-        if here >= UNREACHABLE and goals.any():
-            # No way with the safe clearance (an obstacle a cell too near on the far side walls it
-            # in): plan with the tight one, and let failed moves tell.
-            dist = distance_field(self.map.traversable(TIGHT_CELLS), goals, until=at)
-            here = dist[at]
-        if here == 0:
-            move = self._face(cx, cy, height)
-            if move is not None:
-                self.confidence = WALKING
-                return move
-            # At a place from which it should be in reach and facing it, yet not in reach: give it up.
-            x, y = self.map.cell_centre(cx, cy)
-            d = (x - self.pose.xy[0]) ** 2 + (y - self.pose.xy[1]) ** 2
-            n = int(np.argmin(d))
-            self.map.exclude(k, float(x[n]), float(y[n]))
-            return self._navigate(k, step)
-        if here < UNREACHABLE:
-            move = next_move(dist, self.pose, off)
-            if move is not None and self._loop_guard(move):
-                self.confidence = WALKING
-                return move
-        return None
 
-    def _loop_guard(self, move: str) -> bool:
-        key = (self.pose.i, self.pose.j, self.pose.heading, self.pose.horizon, move)
-        self.visits[key] += 1
-        return self.visits[key] <= 3
 
-    def _face(self, cx, cy, height) -> Optional[str]:
-        """A turn or tilt that brings the nearest of the cells into view; None when it is in view."""
-        x, y = self.map.cell_centre(cx, cy)
-        x0, y0 = self.pose.xy
-        d = np.sqrt((x - x0) ** 2 + (y - y0) ** 2)
-        n = int(np.argmin(d))
-        b = bearing_deg(self.pose, float(x[n]), float(y[n]))
-        if b > 45:
-            return 'RotateLeft' if self._loop_guard('RotateLeft') else None
-        if b < -45:
-            return 'RotateRight' if self._loop_guard('RotateRight') else None
-        want = math.degrees(math.atan2(1.5 - float(height[n]), max(float(d[n]), 0.05)))
-        want = min(max(round(want / LOOK_DEG) * LOOK_DEG, HORIZON_MIN), HORIZON_MAX)
-        if want > self.pose.horizon + 1e-6:
-            return 'LookDown' if self._loop_guard('LookDown') else None
-        if want < self.pose.horizon - 1e-6:
-            return 'LookUp' if self._loop_guard('LookUp') else None
-        return None
 
-    def _explore(self, k: int, step: Step, free: np.ndarray) -> Optional[str]:
-        self.confidence = EXPLORING
-        off = self.map.node_offset()
-        # A location answer: walk to its receptacle in its direction, if mapped.
-        name = step.held if step.kind == 'put' and self.held != step.held else step.target
-        fact = self.facts.get(('location', name))
-        if fact is not None and fact[0].receptacle:
-            f, at = fact
-            rk = self.class_id.get(f.receptacle)
-            if rk is not None and rk != k:
-                cx, cy, height = self.map.object_cells(rk)
-                if len(cx):
-                    x, y = self.map.cell_centre(cx, cy)
-                    keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
-                    if keep.any():
-                        goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
-                        if f.inside and f.receptacle in self.opened:
-                            # opened to be searched: stand where it lies ahead, so its inside is in view
-                            facing = reach_goals(self.map, cx[keep], cy[keep], height[keep], facing_deg=25.0)
-                            if (facing & free).any():
-                                goals = facing
-                        dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
-                        if dist[self.pose.i + off, self.pose.j + off] == 0:
-                            move = self._face(cx[keep], cy[keep], height[keep])
-                            if move is not None:
-                                return move
-                            t = self.catalog.get(f.receptacle)
-                            if t is not None and t.openable and f.inside and f.receptacle not in self.opened \
-                                    and step.kind == 'pickup':
-                                self.plan.appendleft(Step('open', f.receptacle, search=True))
-                                self.plan.insert(2, Step('close', f.receptacle, search=True))
-                                return REPLAN
-                            # Looked at this part of the receptacle and the object is not there: the next part.
-                            d = (x[keep] - self.pose.xy[0]) ** 2 + (y[keep] - self.pose.xy[1]) ** 2
-                            n = int(np.argmin(d))
-                            self.map.exclude(rk, float(x[keep][n]), float(y[keep][n]), radius_m=1.0)
-                            return REPLAN
-                        else:
-                            move = next_move(dist, self.pose, off)
-                            if move is not None and self._loop_guard(move):
-                                return move
-        if self.scans < SCAN_TURNS:
-            self.scans += 1
-            return 'RotateLeft'
-        # The nearest furniture not yet looked at from close by (objects lie on it), in the answered
-        # direction if there is one ...
-        goals = unexamined_goals(self.map, free)
-        for (i, j) in self.map.visited:
-            goals[i + off, j + off] = False
-        if fact is not None and goals.any():
-            toward = goals & self._cone(fact[1], fact[0].bearing_deg)
-            goals = toward if toward.any() else goals
-        if goals.any():
-            dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
-            if dist[self.pose.i + off, self.pose.j + off] < UNREACHABLE:
-                move = next_move(dist, self.pose, off)
-                if move is not None and self._loop_guard(move):
-                    return move
-        # ... else the nearest edge of what has been seen.
-        known = self.map.known()
-        unknown = ~known
-        edge = np.zeros_like(known)
-        edge[1:, :] |= unknown[:-1, :]
-        edge[:-1, :] |= unknown[1:, :]
-        edge[:, 1:] |= unknown[:, :-1]
-        edge[:, :-1] |= unknown[:, 1:]
-        goals = edge & known & free
-        for (i, j) in self.map.visited:
-            goals[i + off, j + off] = False
-        if not goals.any():
-            return None
-        dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
-        if dist[self.pose.i + off, self.pose.j + off] >= UNREACHABLE:
-            return None
-        move = next_move(dist, self.pose, off)
-        if move is None:
-            return 'RotateLeft' if self._loop_guard('RotateLeft') else None
-        return move if self._loop_guard(move) else None
-
-    def _cone(self, at: Pose, bearing: float, half_width: float = ANSWER_CONE_DEG) -> np.ndarray:
-        """[nodes, nodes] bool: grid points within half_width degrees of `bearing` seen from `at`."""
-        metres = (np.arange(self.map.nodes) - self.map.node_offset()) * STEP_M
-        return off_bearing(at, bearing, metres[:, None], metres[None, :]) <= half_width
 
     def _observe(self, observation: Observation) -> tuple:
         """Perceive the frame (once per step), then take in the answers heard since; its key."""
@@ -777,51 +340,11 @@ class MapAgent:
         return action, x, y
 
 
-HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object (ahead, left, height)
 
 
-CARRIED_M = (0.8, 0.45, 0.45)       # a held object's points: nearer ahead, to either side, higher than these
 
 
-def carried_volume(local: np.ndarray) -> np.ndarray:
-    """[S, S] bool: the points (in the agent's frame: forward, left, height) where an object carried
-    in the hand may be seen (HAND_M, give or take the largest pickupable object's half size)."""
-    ahead, side, low = CARRIED_M
-    return (local[..., 0] < ahead) & (np.abs(local[..., 1]) < side) & (local[..., 2] > low)
 
 
-def hand_cell(horizon: float, size: int) -> tuple[int, int]:
-    """(row, col) of the cell where the hand's object appears in a size x size grid at `horizon`."""
-    pitch = math.radians(-horizon)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    f, l, up = HAND_M[0], HAND_M[1], HAND_M[2] - 1.5
-    z = f * cp + up * sp
-    u = -l / z
-    v = (-f * sp + up * cp) / z
-    col = int(round((u + 1) / 2 * size - 0.5))
-    row = int(round((1 - v) / 2 * size - 0.5))
-    return min(max(row, 0), size - 1), min(max(col, 0), size - 1)
 
 
-def _components(mask: np.ndarray) -> list[np.ndarray]:
-    """The 4-connected components of a small bool mask, largest first."""
-    seen = np.zeros_like(mask)
-    out = []
-    h, w = mask.shape
-    for r0, c0 in zip(*np.nonzero(mask)):
-        if seen[r0, c0]:
-            continue
-        comp = np.zeros_like(mask)
-        stack = [(r0, c0)]
-        seen[r0, c0] = True
-        while stack:
-            r, c = stack.pop()
-            comp[r, c] = True
-            for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-                a, b = r + dr, c + dc
-                if 0 <= a < h and 0 <= b < w and mask[a, b] and not seen[a, b]:
-                    seen[a, b] = True
-                    stack.append((a, b))
-        out.append(comp)
-    out.sort(key=lambda m: -int(m.sum()))
-    return out

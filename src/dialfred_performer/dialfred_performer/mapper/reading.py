@@ -1,0 +1,81 @@
+"""`AnswerReading`, a part of `MapAgent` (mapper/agent.py): The dialogue as the map performer reads it: answers become facts (`language.parse_answer`), taken in against the pose the frame of their step was seen from."""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Optional
+
+import numpy as np
+
+from dialfred_sim.protocol import QA
+
+from .geometry import Pose, STEP_M, off_bearing
+from .language import Step, parse_answer
+from .rules import ANSWER_CONE_DEG
+
+
+class AnswerReading:
+    """The reading of the map performer (its state is `MapAgent`'s: see `MapAgent.reset_state`)."""
+
+    def hear(self, qa: QA) -> None:
+        """A QA of the dialogue: location, appearance and direction answers become facts (taken in
+        when the step's frame has been perceived: `_observe`)."""
+        self._heard.append(qa)
+
+    def _take_in(self, qa: QA) -> None:
+        self.answers += 1
+        if not qa.valid:
+            return
+        fact = parse_answer(qa.question.question_type, qa.answer)
+        if fact is None:
+            return
+        if fact.kind == 'held' and fact.receptacle == '':
+            self.held, self.held_known, self.held_confirmed = fact.object_type, True, True
+        elif fact.kind == 'location' and fact.object_type == self.held and not self.held_confirmed:
+            self.held = None                      # it is somewhere in the room, so not in hand
+        elif fact.kind == 'direction':
+            if fact.turn_deg == 90:
+                self.turns = deque(['RotateLeft'])
+            elif fact.turn_deg == -90:
+                self.turns = deque(['RotateRight'])
+            elif fact.turn_deg == 180:
+                self.turns = deque(['RotateLeft', 'RotateLeft'])
+        self.facts[(fact.kind, fact.object_type)] = (fact, Pose(self.pose.i, self.pose.j, self.pose.heading,
+                                                                 self.pose.horizon))
+
+    def _answered_cone(self, type_name: str, x: np.ndarray, y: np.ndarray) -> Optional[np.ndarray]:
+        """Which map points (x, y) lie in the direction a location answer gave for `type_name` (within
+        ANSWER_CONE_DEG of it, seen from where the answer was heard); None without such an answer, or
+        once an instance of the type has been acted on (that one is the one)."""
+        fact = self.facts.get(('location', type_name))
+        if fact is None or type_name in self.anchors or type_name in self.cone_spent:
+            return None
+        f, at = fact
+        return off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
+
+    def _colour_wanted(self, step: Step) -> Optional[str]:
+        """The colour an appearance answer gave for the step's target, if the target is pickupable.
+
+        Fixed things (a faucet, a lamp, a fridge) are left out: their predicted masks are few cells that
+        spill onto the wall or counter behind them, so the colour read off a mask names the background
+        (All QAs, valid_unseen: Turn off 52.4 -> 90.5 when they were left out), and a room rarely has two
+        of them side by side to choose between."""
+        kind = self.catalog.get(step.target)
+        if kind is None or not kind.pickupable:
+            return None
+        fact = self.facts.get(('appearance', step.target))
+        return fact[0].colour if fact is not None else None
+
+    def _colour_of(self, comp: np.ndarray) -> Optional[str]:
+        from dialfred_oracle.colours import colour_name
+        h, w = self.rgb.shape[:2]
+        s = comp.shape[0]
+        rows = (np.arange(h) * s // h)
+        cols = (np.arange(w) * s // w)
+        full = comp[rows[:, None], cols[None, :]]
+        return colour_name(self.rgb[full])
+
+    def _cone(self, at: Pose, bearing: float, half_width: float = ANSWER_CONE_DEG) -> np.ndarray:
+        """[nodes, nodes] bool: grid points within half_width degrees of `bearing` seen from `at`."""
+        metres = (np.arange(self.map.nodes) - self.map.node_offset()) * STEP_M
+        return off_bearing(at, bearing, metres[:, None], metres[None, :]) <= half_width
