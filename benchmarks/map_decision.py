@@ -20,7 +20,7 @@ import torch
 
 
 def main(argv=None) -> int:
-    from dialfred_oracle.local import EnvServer
+    from dialfred_oracle.in_process import EnvServer
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import SHIPPED_CHECKPOINT
     from dialfred_sim.env import DialfredEnv

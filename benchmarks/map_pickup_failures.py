@@ -30,7 +30,7 @@ NEAR_M = 1.5
 
 
 def measure(results: Path, checkpoint: Path, questioner: str, limit: int, resolution: int) -> dict:
-    from dialfred_oracle.local import EnvServer
+    from dialfred_oracle.in_process import EnvServer
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.preprocess import frame_tensor
     from dialfred_questioner.baselines import with_questioner

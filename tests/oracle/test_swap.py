@@ -9,7 +9,7 @@ import pytest
 
 from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
 from dialfred_oracle.answers import answer as oracle_answer
-from dialfred_oracle.local import answer_now
+from dialfred_oracle.in_process import answer_now
 from dialfred_oracle.swap import AnswerSwap
 from dialfred_sim.agents import task_nouns
 from dialfred_sim.tasks import load_split

@@ -150,7 +150,7 @@ class _Stripped:
 
 
 def test_the_map_performer_reads_rgb_and_its_own_success_only():
-    from dialfred_oracle.local import EnvServer
+    from dialfred_oracle.in_process import EnvServer
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.episode import play, run
     from dialfred_performer.mapper.agent import MapAgent
@@ -173,7 +173,7 @@ def test_the_map_performer_reads_rgb_and_its_own_success_only():
 def test_asking_for_the_confusion_signal_first_changes_no_action():
     """The performer node asks the policy for its action probabilities before each step's dialogue;
     worker processes do not. Both must play the same episode, answers included."""
-    from dialfred_oracle.local import EnvServer
+    from dialfred_oracle.in_process import EnvServer
     from dialfred_questioner.baselines import AllQuestioner, QuestioningAgent
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.episode import play, run
@@ -243,11 +243,11 @@ def test_a_failed_pickup_of_what_the_task_puts_down_does_not_trade_the_step_back
     agent fetched the object, whose Pickup failed (the hand holds it), and then put again at the same cell:
     Put, Pickup, Put, ... until the tenth failed action, each rule resetting the other's failures. A failed
     Pickup now confirms the hand."""
-    from dialfred_oracle.local import EnvServer
+    from dialfred_oracle.in_process import EnvServer
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.episode import play, run
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.models import MAP_CAMERA
+    from dialfred_performer.registry import MAP_CAMERA
 
     env = DialfredEnv(resolution=MAP_CAMERA)
     agent = MapAgent.from_checkpoint(SHIPPED)
@@ -326,7 +326,7 @@ def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_o
 def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
     from dialfred_performer.agent import PerformerAgent
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.models import load_policy
+    from dialfred_performer.registry import load_policy
     assert isinstance(load_policy('map', SHIPPED), MapAgent)
     assert isinstance(load_policy('et', SHIPPED), PerformerAgent)
     with pytest.raises(ValueError, match='unknown performer model'):
@@ -337,7 +337,7 @@ def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
 
 def test_the_belief_map_is_pictured_recorded_and_filmed_beside_the_camera(tmp_path):
     from dialfred_bringup.replay import film
-    from dialfred_oracle.local import EnvServer
+    from dialfred_oracle.in_process import EnvServer
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.mapper.picture import TARGET
     from dialfred_sim.bag import EpisodeRecorder, read_episode
@@ -513,7 +513,7 @@ def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
     a step ahead in every direction and walled itself in."""
     from dialfred_performer.mapper import sensing as sensing_module
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.models import MAP_CAMERA
+    from dialfred_performer.registry import MAP_CAMERA
     from dialfred_sim.env import DialfredEnv
 
     task, held = _a_box_carried_in_the_open()

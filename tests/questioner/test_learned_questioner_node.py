@@ -4,7 +4,7 @@ the graph).
 Claims: `make_questioner` makes the learned questioner of a shipped name (its checkpoint in the package's
 checkpoints folder) or of learned:PATH, greedy, with the checkpoint's timing; a missing shipped checkpoint
 is named with the command that makes it. The same task and episode seed give the same episode (steps,
-every question at the same step, every answer's validity, success) played by `rollout.play` in process,
+every question at the same step, every answer's validity, success) played by `rollout.play_rollout` in process,
 by the in-process evaluation (the agent in the eval process, sim and oracle nodes), and through the graph
 (performer, questioner, oracle and sim nodes as separate processes), also with a perturbed oracle. The
 questioner node publishes each question it decides on, refuses a request it cannot serve (a confusion
@@ -175,9 +175,9 @@ def questions_of(episode) -> list:
 
 
 def in_process_episode(checkpoint, perturbation=None):
-    """The episode of rollout.play (as the RL fine-tuning plays it) of the eval's task and seed."""
+    """The episode of rollout.play_rollout (as the RL fine-tuning plays it) of the eval's task and seed."""
     from dialfred_performer.agent import PerformerAgent
-    from dialfred_questioner.rollout import play
+    from dialfred_questioner.rollout import play_rollout
     from dialfred_sim.protocol import episode_seed
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
@@ -185,7 +185,7 @@ def in_process_episode(checkpoint, perturbation=None):
     env = DialfredEnv(resolution=128)
     try:
         task = load_split(SPLIT)[TASK_INDEX]
-        return play(env, PerformerAgent.from_checkpoint(SHIPPED_CHECKPOINT), questioner, task.task_id,
+        return play_rollout(env, PerformerAgent.from_checkpoint(SHIPPED_CHECKPOINT), questioner, task.task_id,
                     episode_seed(0, TASK_INDEX), questioner.timing, perturbation=perturbation)
     finally:
         env.close()

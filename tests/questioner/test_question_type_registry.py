@@ -58,7 +58,7 @@ def count_answer(snapshot, object_id):
 
 answers.RULES['count'] = count_answer
 
-from dialfred_oracle.local import EnvServer
+from dialfred_oracle.in_process import EnvServer
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import Performer, PerformerConfig
 from dialfred_performer.preprocess import TYPE_OF_QUESTION, Vocabulary

@@ -69,13 +69,13 @@ def test_a_tiny_run_learns_and_a_resumed_run_ends_with_the_same_weights(setup, t
 def test_a_pretrained_checkpoint_asks_in_a_rollout_and_as_a_questioner(setup, tmp_path):
     from dialfred_performer.agent import PerformerAgent
     from dialfred_questioner.policy import LearnedQuestioner, batch_records
-    from dialfred_questioner.rollout import Timing, play
+    from dialfred_questioner.rollout import Timing, play_rollout
     from dialfred_sim.env import DialfredEnv
     pretrain(config(setup, tmp_path / 'q', epochs=1))
     policy = LearnedQuestioner.from_checkpoint(tmp_path / 'q' / 'best.pt', greedy=False, seed=3)
     env = DialfredEnv(resolution=64, max_steps=6)
     performer = PerformerAgent.from_checkpoint(setup[1])
-    ep = play(env, performer, policy, 'valid_unseen/000001', 0, Timing('anytime', gap=2))
+    ep = play_rollout(env, performer, policy, 'valid_unseen/000001', 0, Timing('anytime', gap=2))
     assert len(ep.decisions) == 3 and all(d.record is not None for d in ep.decisions)
     records = [d.record for d in ep.decisions]
     b = batch_records(records)

@@ -14,7 +14,7 @@ import torch
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import SHIPPED_CHECKPOINT
 from dialfred_questioner.rl import Rewards
-from dialfred_questioner.rollout import Timing, play
+from dialfred_questioner.rollout import Timing, play_rollout
 from dialfred_sim.protocol import Question
 from dialfred_sim.env import DialfredEnv
 
@@ -44,21 +44,21 @@ def paper_return(ep, rw=Rewards()):
 @pytest.mark.parametrize('task_id', ['valid_unseen/000054', 'valid_unseen/000000'])
 def test_timings_rewards_and_determinism(world, task_id):
     env, performer = world
-    begin = play(env, performer, ask_location, task_id, 0, Timing('begin'))
+    begin = play_rollout(env, performer, ask_location, task_id, 0, Timing('begin'))
     assert len(begin.decisions) == 1 and begin.decisions[0].step == 0 and begin.questions == 1
     assert begin.dialogue[0].valid and begin.dialogue[0].answer
     assert sum(begin.rewards) == pytest.approx(paper_return(begin))
-    every = play(env, performer, ask_location, task_id, 0, Timing('anytime', gap=1))
+    every = play_rollout(env, performer, ask_location, task_id, 0, Timing('anytime', gap=1))
     assert [d.step for d in every.decisions] == list(range(every.steps))
     assert [d.record for d in every.decisions] == [('loc', s) for s in range(every.steps)]
     assert sum(every.rewards) == pytest.approx(paper_return(every))
-    again = play(env, performer, ask_location, task_id, 0, Timing('anytime', gap=1))
+    again = play_rollout(env, performer, ask_location, task_id, 0, Timing('anytime', gap=1))
     assert again.steps == every.steps and again.dialogue == every.dialogue and again.rewards == every.rewards
 
 
 def test_an_invalid_question_costs_the_invalid_penalty(world):
     env, performer = world
-    ep = play(env, performer, ask_nonsense, 'valid_unseen/000054', 0, Timing('begin'))
+    ep = play_rollout(env, performer, ask_nonsense, 'valid_unseen/000054', 0, Timing('begin'))
     assert ep.invalid_questions == 1 and not ep.dialogue[0].valid
     assert sum(ep.rewards) == pytest.approx(paper_return(ep))
 

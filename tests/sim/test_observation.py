@@ -21,7 +21,7 @@ from std_msgs.msg import Header
 
 from dialfred_msgs.msg import Observation as ObservationMsg
 from dialfred_msgs.srv import SimReset, SimStep
-from dialfred_oracle.local import EnvServer
+from dialfred_oracle.in_process import EnvServer
 from dialfred_questioner.baselines import AllQuestioner, ModelConfusionQuestioner, RandomQuestioner
 from dialfred_sim.agents import ExpertAgent, RandomAgent
 from dialfred_sim.env import DialfredEnv

@@ -23,9 +23,9 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.dataclass_cli import arg
-from dialfred_performer.models import PERFORMER_MODELS
+from dialfred_performer.registry import PERFORMER_MODELS
 
-from .baselines import BASELINES
+from .baseline_runs import BASELINES
 from .eval_config import EvalConfig, checkpoint_path, foxglove_field, record_field, record_format_field
 from .eval_run import EvalRun
 from .paths import REPO

@@ -2,7 +2,7 @@
 that each hold a simulator, the oracle's rules and the agent (`./dialfred launch eval --local`).
 
 Each worker plays the one episode loop (`dialfred_sim.episode.play`) that `workers.SimWorker` plays
-through the simulator and oracle nodes, served here by `dialfred_oracle.local.EnvServer`: the simulator
+through the simulator and oracle nodes, served here by `dialfred_oracle.in_process.EnvServer`: the simulator
 resets to the task (`DialfredEnv.reset(options={'task': task})`, as the node's `/sim/reset` with a task
 id does), the questions are answered by the oracle node's rules and perturbation, keyed on the same
 situation. The EpisodeResult has the same fields and values as the graph's, but for `wall_s`;
@@ -22,7 +22,7 @@ from typing import Callable
 import torch
 
 from dialfred_oracle.answers import Perturbation
-from dialfred_oracle.local import EnvServer
+from dialfred_oracle.in_process import EnvServer
 from dialfred_oracle.swap import AnswerSwap
 from dialfred_sim.agents import task_view
 from dialfred_sim.env import DialfredEnv

@@ -26,7 +26,7 @@ from dialfred_sim.env import DialfredEnv
 from dialfred_sim.protocol import names_object
 
 from .answers import WITHHELD, Answer, parse_question_type
-from .local import answer_now
+from .in_process import answer_now
 
 SWAP_MODES = ('oracle', 'swapped')   # how the oracle answers: its own answers, or the swap's
 

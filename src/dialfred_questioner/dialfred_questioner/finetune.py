@@ -9,9 +9,9 @@
     python -m dialfred_questioner.finetune --out out/questioner/map_rl_anytime --model map   # the map performer
 
 Starts from a pre-trained questioner (`--init`, `pretrain.py`) and plays episodes of `--split`
-(valid_seen, as the paper) in process: `rollout.play` with the shipped performer frozen (`--model`: the
+(valid_seen, as the paper) in process: `rollout.play_rollout` with the shipped performer frozen (`--model`: the
 Episodic Transformer, or the map-and-plan performer over its perception network), the oracle's
-rules (`dialfred_oracle.local`, with the perturbation if any) and the env at the evaluation's
+rules (`dialfred_oracle.in_process`, with the perturbation if any) and the env at the evaluation's
 resolution, on `--workers` processes. Each update plays `--episodes-per-update` episodes with the
 current policy (sampled with a generator seeded per episode, so the episodes do not depend on the
 number of workers): `--samples-per-task` episodes of each task from the same start, the questioner
@@ -46,7 +46,7 @@ import torch
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
-from dialfred_performer.models import PERFORMER_MODELS
+from dialfred_performer.registry import PERFORMER_MODELS
 
 from dialfred_sim.protocol import MAX_STEPS
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
@@ -156,7 +156,7 @@ _W: dict = {}
 
 def _init_worker(cfg_json: str) -> None:
     from dialfred_oracle.answers import Perturbation
-    from dialfred_performer.models import load_policy
+    from dialfred_performer.registry import load_policy
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
 
@@ -175,7 +175,7 @@ def _init_worker(cfg_json: str) -> None:
 
 def _play_chunk(args: tuple[dict, list[tuple[int, int, int, int]]]) -> list[tuple[int, dict]]:
     """Play (episode number, task index, episode seed, sampling seed) with the policy's weights `state`."""
-    from .rollout import play
+    from .rollout import play_rollout
     state, jobs = args
     cfg, policy = _W['cfg'], _W['policy']
     policy.model.load_state_dict(state)
@@ -183,7 +183,7 @@ def _play_chunk(args: tuple[dict, list[tuple[int, int, int, int]]]) -> list[tupl
     out = []
     for number, task_index, seed, sample_seed in jobs:
         policy.generator.manual_seed(sample_seed)
-        ep = play(_W['env'], _W['performer'], policy, _W['tasks'][task_index], seed, cfg.timing_of,
+        ep = play_rollout(_W['env'], _W['performer'], policy, _W['tasks'][task_index], seed, cfg.timing_of,
                   REWARDS[cfg.rewards], _W['perturbation'])
         out.append((number, {
             'task_id': ep.task_id, 'success': ep.success, 'steps': ep.steps, 'questions': ep.questions,
@@ -270,7 +270,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
 
     from .policy import LearnedQuestioner
     if not cfg.resolution:
-        from dialfred_performer.models import camera_resolution
+        from dialfred_performer.registry import camera_resolution
         cfg = dataclasses.replace(cfg, resolution=camera_resolution(cfg.model, Path(cfg.performer)))
     out = Path(cfg.out)
     commit = git_commit()

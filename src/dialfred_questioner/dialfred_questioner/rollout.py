@@ -1,9 +1,9 @@
 """Episodes of a questioner with a frozen performer in one process (no ROS): the RL fine-tuning's
 rollouts (the paper's MDP, "Questioner fine-tuning using RL").
 
-`play(env, performer, policy, task_id, seed, timing, rewards)` resets `env` (a DialfredEnv) to the
+`play_rollout(env, performer, policy, task_id, seed, timing, rewards)` resets `env` (a DialfredEnv) to the
 task, and before each performer action where `timing` gives the questioner a chance, asks `policy`
-for a question or none; the in-process oracle (`dialfred_oracle.local.answer_now`, the node's rules)
+for a question or none; the in-process oracle (`dialfred_oracle.in_process.answer_now`, the node's rules)
 answers and the performer hears it, as the graph does through `/questioner/ask` and `/oracle/answer`.
 The performer is handed the observation as the graph's Observation carries it (the RGB frame and
 whether the last action succeeded, which the map performer dead-reckons from).
@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
-from dialfred_oracle.local import EnvServer
+from dialfred_oracle.in_process import EnvServer
 from dialfred_performer.preprocess import AskedQA
 from dialfred_sim.episode import EpisodeObserver, run
 from dialfred_sim.episode import play as play_episode
@@ -138,7 +138,7 @@ class RolloutAgent(EpisodeObserver):
         self.episode.success = bool(reply.success)
 
 
-def play(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing, rewards: Rewards = Rewards(),
+def play_rollout(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing, rewards: Rewards = Rewards(),
          perturbation=None) -> Episode:
     """One episode of `task_id`; see the module's doc."""
     task = get_task(task_id)

@@ -6,7 +6,7 @@ a step, a `protocol.QA` for a question, or `Failed(error)` when a request got no
 returns the episode's `EpisodeState` (how it ended, with its counts and dialogue). Whoever drives it
 chooses the transport:
 
-- `run(episode, serve)` drives it synchronously: `serve(request) -> reply`. `dialfred_oracle.local.EnvServer`
+- `run(episode, serve)` drives it synchronously: `serve(request) -> reply`. `dialfred_oracle.in_process.EnvServer`
   serves requests from a `DialfredEnv` in this process and the oracle's rules: local evaluation workers
   and the RL rollouts. The performer node serves them with ROS service calls.
 - the evaluation's `SimWorker` sends each request as an asynchronous ROS call and resumes the generator

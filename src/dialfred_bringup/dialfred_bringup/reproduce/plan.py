@@ -9,11 +9,11 @@ from pathlib import Path
 from typing import Optional
 
 
-from dialfred_performer.models import MAP_CAMERA
+from dialfred_performer.registry import MAP_CAMERA
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.protocol import QUESTION_TYPES
 
-from ..baselines import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4
+from ..baseline_runs import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4
 from ..paths import REPO
 
 
@@ -81,7 +81,7 @@ WORTH_ROWS = {
     'map': ('map-and-plan', 'map_instruction_only', 'map_all_qas', 'map_random_qa', 'map_all_qas_swapped'),
 }
 
-# The paper's numbers. Table II rows 1-4 come from dialfred_bringup/baselines.py; rows 5-6 here.
+# The paper's numbers. Table II rows 1-4 come from dialfred_bringup/baseline_runs.py; rows 5-6 here.
 PAPER_T2 = {
     **{k: {'number': b.number, 'name': b.name, 'SR': b.paper_sr, 'PWSR': b.paper_pwsr, 'NQ': b.paper_nq}
        for k, b in TABLE2_BASELINES.items()},
@@ -118,7 +118,7 @@ class Setting:
     split: str
     questioner: str   # '' = none; a dialfred_questioner baseline; or 'rl:<run>' (an RL run's checkpoint)
     perturb_type: str = ''
-    performer: str = 'et'   # the performer's model (dialfred_performer.models): et or map
+    performer: str = 'et'   # the performer's model (dialfred_performer.registry): et or map
     answers: str = 'oracle'   # or 'swapped': the swap control (EvalConfig.answers)
 
 
@@ -328,7 +328,7 @@ class Plan:
 
 
 def camera(model: str) -> int:
-    """The camera pixels a performer model plays at (dialfred_performer.models.camera_resolution): the E.T.
+    """The camera pixels a performer model plays at (dialfred_performer.registry.camera_resolution): the E.T.
     at the resolution the pipeline trains it at, the map performer at its own camera."""
     return MAP_CAMERA if model == 'map' else RESOLUTION
 

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
-from dialfred_performer.models import PERFORMER_MODELS
+from dialfred_performer.registry import PERFORMER_MODELS
 
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)
@@ -130,7 +130,7 @@ CODE = {
     'rl': (*RL_CODE, *MODEL_CODE['map']),
     'eval': (*EVAL_CODE, *MODEL_CODE['map']),
     'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
-    'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baselines.py', f'{SIM}/metrics.py',
+    'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baseline_runs.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
 }
 # The simulator's rules. They are not in the stages' hashes (a change would rerun every stage from the
@@ -404,7 +404,7 @@ class Runner:
         return {'items': items}
 
     def eval(self, resume: bool) -> dict:
-        from dialfred_bringup.baselines import run_baseline
+        from dialfred_bringup.baseline_runs import run_baseline
         p, items = self.plan, {}
         p.eval_dir.mkdir(parents=True, exist_ok=True)
         performer = file_sha256(p.performer_checkpoint)
@@ -430,7 +430,7 @@ class Runner:
 
     def check(self, resume: bool) -> dict:
         """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
-        from dialfred_bringup.baselines import run_baseline
+        from dialfred_bringup.baseline_runs import run_baseline
 
         from dialfred_bringup.evaluation import EvalRun, resumable_results
         from dialfred_sim.metrics import same_episode, write_text_atomically

@@ -90,7 +90,7 @@ def _load_map(path: Path):
     return MapAgent.from_checkpoint(path)
 
 
-ET_SOURCES = (f'{_PERF}/agent.py', f'{_PERF}/models.py', f'{_PERF}/model.py', f'{_PERF}/preprocess.py',
+ET_SOURCES = (f'{_PERF}/agent.py', f'{_PERF}/registry.py', f'{_PERF}/model.py', f'{_PERF}/preprocess.py',
               f'{_PERF}/perception.py',
               *(f'{_PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
                                                       'heads')))

@@ -38,7 +38,7 @@ def answer_now(env, question_type: str, object_noun: str = '', perturbation: Opt
 
 class EnvServer:
     """Serves an episode's requests in this process: the simulator from `env` (a DialfredEnv, reset to
-    `task`), questions from the oracle's rules (`dialfred_oracle.local.answer_now`, with `perturbation`;
+    `task`), questions from the oracle's rules (`dialfred_oracle.in_process.answer_now`, with `perturbation`;
     with `swap`, a `swap.AnswerSwap`, another task's answers), exactly as the simulator and oracle nodes
     answer them. `with_depth` / `with_segmentation` False: the observations carry None for those images,
     as the simulator node's replies do when a request does not ask for them (evaluations ask for RGB only)."""

@@ -1,4 +1,4 @@
-"""dialfred_bringup/baselines.py: the paper's baselines 1-4 with a performer checkpoint, as JSON and docs/results.md.
+"""dialfred_bringup/baseline_runs.py: the paper's baselines 1-4 with a performer checkpoint, as JSON and docs/results.md.
 
 Claims: on 3 valid_unseen tasks with a small (untrained) checkpoint, in process, every baseline gets a
 results file and a JSON row (n, SR/PWSR/GC/NQ inside their 95% intervals, the distractor and
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-import dialfred_bringup.baselines as baselines
+import dialfred_bringup.baseline_runs as baselines
 from helpers import tiny_checkpoint
 
 ROOT = Path(__file__).resolve().parents[2]
