@@ -85,7 +85,7 @@ def test_the_lock_still_keeps_a_second_run_out_and_goes_with_the_first(tmp_path)
 def test_launch_nodes_starts_the_camera_the_shipped_performer_was_trained_at():
     from dialfred_bringup.launch import NodesConfig, nodes_resolution
     from dialfred_performer.model import SHIPPED_CHECKPOINT
-    from dialfred_performer.registry import camera_resolution
+    from dialfred_performer.model_registry import camera_resolution
     assert NodesConfig().resolution is None
     assert nodes_resolution(None) == camera_resolution('et', SHIPPED_CHECKPOINT) == 64
     assert nodes_resolution(128) == 128

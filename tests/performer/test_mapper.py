@@ -247,7 +247,7 @@ def test_a_failed_pickup_of_what_the_task_puts_down_does_not_trade_the_step_back
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.episode import play, run
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.registry import MAP_CAMERA
+    from dialfred_performer.model_registry import MAP_CAMERA
 
     env = DialfredEnv(resolution=MAP_CAMERA)
     agent = MapAgent.from_checkpoint(SHIPPED)
@@ -326,7 +326,7 @@ def test_the_map_performer_reads_a_perception_file_too_and_refuses_a_truncated_o
 def test_the_performer_models_load_by_name_and_an_unknown_one_is_refused():
     from dialfred_performer.agent import PerformerAgent
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.registry import load_policy
+    from dialfred_performer.model_registry import load_policy
     assert isinstance(load_policy('map', SHIPPED), MapAgent)
     assert isinstance(load_policy('et', SHIPPED), PerformerAgent)
     with pytest.raises(ValueError, match='unknown performer model'):
@@ -513,7 +513,7 @@ def test_the_object_in_hand_is_not_mapped_as_an_obstacle(monkeypatch):
     a step ahead in every direction and walled itself in."""
     from dialfred_performer.mapper import sensing as sensing_module
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.registry import MAP_CAMERA
+    from dialfred_performer.model_registry import MAP_CAMERA
     from dialfred_sim.env import DialfredEnv
 
     task, held = _a_box_carried_in_the_open()

@@ -1,4 +1,4 @@
-"""The performer models' registry (dialfred_performer.registry): every consumer reads it.
+"""The performer models' registry (dialfred_performer.model_registry): every consumer reads it.
 
 Claims: the built-in models are `et` and `map`, each with its loader, camera, shipped checkpoint and the
 source files that reproduce's stages hash (files that exist); the node's `model` parameter, `launch
@@ -16,7 +16,7 @@ from dialfred_bringup.evaluation import EvalConfig, run_eval
 from dialfred_bringup.paths import REPO
 from dialfred_bringup.reproduce.stages import MODEL_CODE
 from dialfred_performer import node as performer_node
-from dialfred_performer.registry import (MAP_CAMERA, PERFORMER_MODELS, SHIPPED_CHECKPOINT, PerformerModel,
+from dialfred_performer.model_registry import (MAP_CAMERA, PERFORMER_MODELS, SHIPPED_CHECKPOINT, PerformerModel,
                                        camera_resolution, load_policy, performer_model, register)
 
 

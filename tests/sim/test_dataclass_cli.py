@@ -143,7 +143,7 @@ def test_the_et_performer_defaults_to_its_checkpoints_resolution_the_map_perform
     assert EvalConfig(agent='random').resolution == DEFAULT_RESOLUTION == 128
     assert EvalConfig(agent='et', resolution=32).resolution == 32
     # the map performer plays at its own camera (128 px, area-averaged to its 64 px network), whatever file
-    from dialfred_performer.registry import MAP_CAMERA
+    from dialfred_performer.model_registry import MAP_CAMERA
     assert EvalConfig(agent='map').resolution == EvalConfig(performer='map').resolution == MAP_CAMERA == 128
     assert EvalConfig(agent='map', checkpoint=SHIPPED_CHECKPOINT).resolution == MAP_CAMERA
 

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_sim.dataclass_cli import arg
-from dialfred_performer.registry import PERFORMER_MODELS
+from dialfred_performer.model_registry import PERFORMER_MODELS
 
 from .baseline_runs import BASELINES
 from .eval_config import EvalConfig, checkpoint_path, foxglove_field, record_field, record_format_field

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_oracle.swap import SWAP_MODES
-from dialfred_performer.registry import PERFORMER_MODELS, SHIPPED_CHECKPOINT, camera_resolution
+from dialfred_performer.model_registry import PERFORMER_MODELS, SHIPPED_CHECKPOINT, camera_resolution
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
@@ -57,7 +57,7 @@ class EvalConfig:
                      'map-and-plan performer over the perception network of --checkpoint, in this process), or your own '
                      'class as package.module:ClassName (on the Python path; made as ClassName(resolution=R), with '
                      'reset(task, seed) and act(observation))')
-    performer: str = arg('', f'a performer model ({" or ".join(PERFORMER_MODELS)}, dialfred_performer.registry): a '
+    performer: str = arg('', f'a performer model ({" or ".join(PERFORMER_MODELS)}, dialfred_performer.model_registry): a '
                          'performer node per worker (its `model` parameter) plays each task as a RunTask goal (with '
                          'sim, oracle and questioner nodes in its namespace); this process only sends goals and '
                          'records results. none: the agent is a Python object of this process (--agent with the '
@@ -128,7 +128,7 @@ def checkpoint_path(config: EvalConfig) -> Path:
 
 
 def default_resolution(config: EvalConfig) -> int:
-    """The camera of the performer model played (dialfred_performer.registry.camera_resolution: the et
+    """The camera of the performer model played (dialfred_performer.model_registry.camera_resolution: the et
     performer's training resolution, 128 for the map performer); 128 for other agents. An unreadable
     checkpoint: 128, and EvalRun says why."""
     model = config.agent if config.agent in PERFORMER_MODELS else config.performer

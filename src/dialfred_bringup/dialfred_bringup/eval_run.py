@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_oracle.swap import SWAP_MODES
-from dialfred_performer.registry import PERFORMER_MODELS, load_policy
+from dialfred_performer.model_registry import PERFORMER_MODELS, load_policy
 from dialfred_questioner.baselines import with_questioner
 from dialfred_questioner.questioners import make_questioner
 from dialfred_sim.agents import make_agent as make_reference_agent

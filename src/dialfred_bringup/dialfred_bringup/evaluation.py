@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_performer.registry import PERFORMER_MODELS
+from dialfred_performer.model_registry import PERFORMER_MODELS
 from dialfred_sim.dataclass_cli import add_fields, from_args
 from dialfred_sim.metrics import ResultsFileError, played_at
 from dialfred_sim.tasks.goals import under_rule

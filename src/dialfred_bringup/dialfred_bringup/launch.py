@@ -156,7 +156,7 @@ def nodes_resolution(resolution: Optional[int]) -> int:
     if resolution is not None:
         return resolution
     from dialfred_performer.model import SHIPPED_CHECKPOINT
-    from dialfred_performer.registry import camera_resolution
+    from dialfred_performer.model_registry import camera_resolution
     return camera_resolution('et', SHIPPED_CHECKPOINT)
 
 

@@ -50,7 +50,7 @@ from dialfred_sim.ros_util import (RESEND_AFTER_S, SERVICE_QOS, SETTLE_S, Param,
                                    run_node)
 
 from .model import SHIPPED_CHECKPOINT, CheckpointError
-from .registry import PERFORMER_MODELS, camera_resolution, load_policy
+from .model_registry import PERFORMER_MODELS, camera_resolution, load_policy
 
 
 
@@ -66,7 +66,7 @@ class GoalCanceled(Exception):
 PARAMETERS = (
     Param('checkpoint', str(SHIPPED_CHECKPOINT), "the policy (default: the shipped et.pt; '' = none); a goal may "
           'name another; each file is loaded once, and again if it changes'),
-    Param('model', 'et', 'how the checkpoint decides (dialfred_performer.registry): ' +
+    Param('model', 'et', 'how the checkpoint decides (dialfred_performer.model_registry): ' +
           '; '.join(f'{m.name}: {m.description}' for m in PERFORMER_MODELS.values()), choices=tuple(PERFORMER_MODELS)),
     Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
     Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '

@@ -46,7 +46,7 @@ import torch
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
 from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
-from dialfred_performer.registry import PERFORMER_MODELS
+from dialfred_performer.model_registry import PERFORMER_MODELS
 
 from dialfred_sim.protocol import MAX_STEPS
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
@@ -156,7 +156,7 @@ _W: dict = {}
 
 def _init_worker(cfg_json: str) -> None:
     from dialfred_oracle.answers import Perturbation
-    from dialfred_performer.registry import load_policy
+    from dialfred_performer.model_registry import load_policy
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
 
@@ -270,7 +270,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
 
     from .policy import LearnedQuestioner
     if not cfg.resolution:
-        from dialfred_performer.registry import camera_resolution
+        from dialfred_performer.model_registry import camera_resolution
         cfg = dataclasses.replace(cfg, resolution=camera_resolution(cfg.model, Path(cfg.performer)))
     out = Path(cfg.out)
     commit = git_commit()

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Optional
 
 
-from dialfred_performer.registry import MAP_CAMERA
+from dialfred_performer.model_registry import MAP_CAMERA
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.protocol import QUESTION_TYPES
 
@@ -118,7 +118,7 @@ class Setting:
     split: str
     questioner: str   # '' = none; a dialfred_questioner baseline; or 'rl:<run>' (an RL run's checkpoint)
     perturb_type: str = ''
-    performer: str = 'et'   # the performer's model (dialfred_performer.registry): et or map
+    performer: str = 'et'   # the performer's model (dialfred_performer.model_registry): et or map
     answers: str = 'oracle'   # or 'swapped': the swap control (EvalConfig.answers)
 
 
@@ -328,7 +328,7 @@ class Plan:
 
 
 def camera(model: str) -> int:
-    """The camera pixels a performer model plays at (dialfred_performer.registry.camera_resolution): the E.T.
+    """The camera pixels a performer model plays at (dialfred_performer.model_registry.camera_resolution): the E.T.
     at the resolution the pipeline trains it at, the map performer at its own camera."""
     return MAP_CAMERA if model == 'map' else RESOLUTION
 

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
-from dialfred_performer.registry import PERFORMER_MODELS
+from dialfred_performer.model_registry import PERFORMER_MODELS
 
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)

@@ -44,7 +44,7 @@ from dialfred_sim.world.catalog import load_catalog
 
 from .geometry import Pose
 from .language import Fact, InstructionError, Step, parse_instruction
-from .navigation import Navigation
+from .wayfinding import Navigation
 from .reading import AnswerReading
 from .rules import EXPLORING, INTERACTIONS, MAX_STEP_ACTIONS, REACH_M, REPLAN, SURE, WALKING
 from .semantic_map import SemanticMap

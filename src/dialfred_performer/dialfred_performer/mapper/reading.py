@@ -1,4 +1,6 @@
-"""`AnswerReading`, a part of `MapAgent` (mapper/agent.py): The dialogue as the map performer reads it: answers become facts (`language.parse_answer`), taken in against the pose the frame of their step was seen from."""
+"""`AnswerReading`, a part of `MapAgent` (mapper/agent.py): the dialogue as the map performer reads it:
+answers become facts (`language.parse_answer`), taken in against the pose the frame of their step was
+seen from."""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""`Sensing`, a part of `MapAgent` (mapper/agent.py): What the agent makes of a frame: the network's reading of its cells, the pose dead-reckoned from its own actions, the points of the map and the object in hand."""
+"""`Sensing`, a part of `MapAgent` (mapper/agent.py): what the agent makes of a frame: the network's
+reading of its cells, the pose dead-reckoned from its own actions, the points of the map and the object
+in hand."""
 
 from __future__ import annotations
 

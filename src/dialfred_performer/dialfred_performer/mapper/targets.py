@@ -1,4 +1,6 @@
-"""`Targets`, a part of `MapAgent` (mapper/agent.py): Where the object of a step is in view and which cell to click: masks within reach, inside open receptacles, where the agent put things, the answers' colour and direction."""
+"""`Targets`, a part of `MapAgent` (mapper/agent.py): where the object of a step is in view and which cell
+to click: masks within reach, inside open receptacles, where the agent put things, the answers' colour
+and direction."""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""`Navigation`, a part of `MapAgent` (mapper/agent.py): Moving about: towards where a type can be reached on the map, turning and tilting to face it, and exploring (the first look around, the answers' directions, the nearest unexplored edge)."""
+"""`Navigation`, a part of `MapAgent` (mapper/agent.py): moving about: towards where a type can be reached
+on the map, turning and tilting to face it, and exploring (the first look around, the answers'
+directions, the nearest unexplored edge)."""
 
 from __future__ import annotations
 

@@ -90,13 +90,13 @@ def _load_map(path: Path):
     return MapAgent.from_checkpoint(path)
 
 
-ET_SOURCES = (f'{_PERF}/agent.py', f'{_PERF}/registry.py', f'{_PERF}/model.py', f'{_PERF}/preprocess.py',
+ET_SOURCES = (f'{_PERF}/agent.py', f'{_PERF}/model_registry.py', f'{_PERF}/model.py', f'{_PERF}/preprocess.py',
               f'{_PERF}/perception.py',
               *(f'{_PERF}/nn/{name}.py' for name in ('enc_action', 'enc_lang', 'enc_perceived', 'enc_visual', 'enc_vl',
                                                       'heads')))
 # The map performer is made from the E.T.'s checkpoint, so its code is the E.T.'s and the mapper's.
 MAP_SOURCES = (*ET_SOURCES, *(f'{_PERF}/mapper/{name}.py' for name in ('agent', 'geometry', 'language', 'semantic_map',
-                                                                     'navigation', 'reading', 'rules', 'sensing',
+                                                                     'wayfinding', 'reading', 'rules', 'sensing',
                                                                      'targets')))
 
 register(PerformerModel('et', 'the Episodic Transformer performer of the checkpoint', _load_et, _et_camera,
