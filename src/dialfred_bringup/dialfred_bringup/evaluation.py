@@ -36,7 +36,8 @@ from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
 from dialfred_sim.dataclass_cli import add_fields, from_args
-from dialfred_sim.metrics import ResultsFileError, played_at
+from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, load_results, played_at,
+                                  results_by_task, results_lock, summarize, write_text_atomically)
 from dialfred_sim.tasks.goals import under_rule
 
 from .eval_config import EvalConfig
@@ -45,8 +46,6 @@ from .graph import Graph
 from .shards import shard_tasks
 from .workers import (LiveHook, PerformerWorker, SimWorker, Supervisor, play_episodes, start_live_view,
                       worker_nodes)
-
-
 
 
 @dataclass
@@ -63,7 +62,6 @@ class EvalReport:
     code: str = ''          # the commit the run started at ('+dirty': an edited checkout)
 
     def to_json(self) -> dict:
-        from dialfred_sim.metrics import failures
         run, c = self.run, self.run.options
         loop_s = self.wall_s - self.startup_s
         return {
@@ -112,7 +110,6 @@ def warn_of_other_code(path, results, code: str) -> None:
 def resumable_results(run: EvalRun, task_ids: list) -> dict:
     """{task_id: result} already in the results file for the selected tasks (a cut-off last line is
     dropped from the file); ResultsFileError if the file is corrupt or holds another split, agent or seed."""
-    from dialfred_sim.metrics import load_results, results_by_task
     path, config = run.results_path, run.options
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always')
@@ -146,7 +143,6 @@ def check_run_record(run: EvalRun, has_results: bool) -> None:
     """Results are kept with a record of the camera and the question limit they were played with
     (<results>.run.json): ResultsFileError, naming the difference, if a run would add episodes played
     otherwise. Writes the record for a new results file (and for one made before records were kept)."""
-    from dialfred_sim.metrics import write_text_atomically
     path, want = run.results_path.with_suffix('.run.json'), run_record(run)
     held = None
     if has_results and path.exists():
@@ -180,7 +176,6 @@ def check_tasks_record(run: EvalRun, has_results: bool) -> None:
                                'choose another --out')
     if not has_results:
         if source:
-            from dialfred_sim.metrics import write_text_atomically
             record_path.parent.mkdir(parents=True, exist_ok=True)
             write_text_atomically(record_path, json.dumps(source.describe(), indent=1) + '\n')
         elif record is not None:
@@ -215,7 +210,6 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
     takes them from the goals' feedback). The results file is this run's alone while it runs
     (`metrics.results_lock`: a second run into it is refused, naming this one).
     """
-    from dialfred_sim.metrics import results_lock
     # An unknown agent or questioner, or a bad setting, fails here before any node starts.
     run = config if isinstance(config, EvalRun) else EvalRun(config)
     with results_lock(run.results_path):
@@ -224,7 +218,6 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
 
 def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalReport:
     from dialfred_performer.model import git_commit
-    from dialfred_sim.metrics import append_result, summarize, write_text_atomically
 
     t0 = time.monotonic()
     config = run.options
@@ -295,7 +288,6 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalRepor
 
 
 def print_report(report: EvalReport) -> None:
-    from dialfred_sim.metrics import failures, format_table
     run, c, info = report.run, report.run.options, report.to_json()['this_run']
     rate = f', {info["episodes_per_s"]:.2f} episodes/s' if info['episodes_per_s'] else ''
     privileged = (' (PRIVILEGED: given the expert\'s plan; a reference, not a benchmark result)'

@@ -11,8 +11,11 @@ evaluation), and by the tests and benchmarks.
 from __future__ import annotations
 
 import collections
+import ctypes
 import os
+import re
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -21,10 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.ros_util import SETTLE_S
+from dialfred_sim.ros_util import SERVICE_QOS, SETTLE_S, make_executor
 
 from .paths import REPO
-
 
 
 def _spans_hosts(env) -> bool:
@@ -78,8 +80,6 @@ use_project_environment(REPO)      # this process, the nodes it starts, and what
 
 def host_token() -> str:
     """This host's name as a ROS name token (letters, digits, single underscores)."""
-    import re
-    import socket
     token = re.sub(r'_+', '_', re.sub(r'[^A-Za-z0-9_]', '_', socket.gethostname())).strip('_')
     return token or 'host'
 
@@ -113,7 +113,6 @@ class NodeDied(RuntimeError):
 
 def _libc_prctl():
     try:
-        import ctypes
         return ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):   # pragma: no cover - not Linux
         return None
@@ -216,7 +215,6 @@ class Graph:
         import rclpy
         from rclpy.signals import SignalHandlerOptions
 
-        from dialfred_sim.ros_util import make_executor
         for n in self.nodes:
             n.start()
         if not rclpy.ok():
@@ -256,7 +254,6 @@ class Graph:
 
     def client(self, srv_type, name: str, timeout: float = 30.0):
         """A client for service `name`, once it is available; NodeDied if a node dies meanwhile."""
-        from dialfred_sim.ros_util import SERVICE_QOS
         cli = self.client_node.create_client(srv_type, name, qos_profile=SERVICE_QOS)
         deadline = time.monotonic() + timeout
         while not cli.wait_for_service(timeout_sec=0.1):

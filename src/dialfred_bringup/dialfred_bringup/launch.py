@@ -42,7 +42,7 @@ from typing import Optional
 
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION
-from dialfred_sim.protocol import QUESTION_TYPES, image_array
+from dialfred_sim.protocol import QUESTION_TYPES, Question, image_array, scale_pixel
 from dialfred_sim.ros_util import RESEND_AFTER_S
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
@@ -183,7 +183,6 @@ def run_dialogue(args: DialogueConfig) -> int:
     from dialfred_msgs.msg import Action
     from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
-    from dialfred_sim.protocol import Question, scale_pixel
     from dialfred_sim.bag import EpisodeRecorder
     from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]

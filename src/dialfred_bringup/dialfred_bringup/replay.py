@@ -15,7 +15,7 @@ from typing import Optional
 from dialfred_sim.bag import STEP_NS, BagError, RecordedEpisode, read_episode
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
-from .live import FOXGLOVE_PORT
+from .live import FOXGLOVE_PORT, LiveView, describe
 
 # --------------------------------------------------------------------------------------------- replay
 
@@ -147,7 +147,6 @@ def main(argv=None) -> int:
         save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
         print(f'contact sheet: {sheet}')
     if args.foxglove is not None:
-        from .live import LiveView, describe
         view = LiveView(1, port=args.foxglove, total=1)
         print(describe(view), flush=True)
         try:

@@ -17,15 +17,13 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from dialfred_sim.bag import RecordingObserver
-from dialfred_sim.episode import EpisodeObserver
+from dialfred_sim.episode import Ask, EpisodeObserver, Failed, Reset
 from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
-from dialfred_sim.protocol import MapPainter
+from dialfred_sim.protocol import MapPainter, episode_seed, image_array
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
 
 from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service
 from .local import state_result
-
-
 
 
 class SimWorker(EpisodeObserver):
@@ -56,7 +54,6 @@ class SimWorker(EpisodeObserver):
     def begin(self, index: int, task) -> None:
         from dialfred_sim.agents import task_view
         from dialfred_sim.episode import play
-        from dialfred_sim.protocol import episode_seed
         self.job = (index, task)
         self.task = task
         self.started_at = time.monotonic()
@@ -83,7 +80,6 @@ class SimWorker(EpisodeObserver):
 
     def advance(self):
         """Hand the finished request's reply to the episode: its next request is sent, or its result returned."""
-        from dialfred_sim.episode import Failed
         reply, self.future = self.future.result(), None
         if reply is None:
             reply = Failed('the service call returned no reply')
@@ -103,7 +99,6 @@ class SimWorker(EpisodeObserver):
         """Send the episode's request to the simulator or the oracle node."""
         from dialfred_msgs.msg import Action
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
-        from dialfred_sim.episode import Ask, Reset
         if isinstance(request, Reset):
             self._send(self.reset_cli, SimReset.Request(task_id=self.task.task_id, with_depth=False,
                                                         with_segmentation=False), 'reset')
@@ -205,7 +200,6 @@ class PerformerWorker:
     def begin(self, index: int, task) -> None:
         from dialfred_msgs.action import RunTask
 
-        from dialfred_sim.protocol import episode_seed
         self.job = (index, task)
         self.task, self.started = task, time.monotonic()
         self.sent_at, self.cancel_future, self.goal_handle = self.started, None, None
@@ -269,8 +263,6 @@ class PerformerWorker:
         dialogue = [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in r.dialogue] if r else []
         return episode_result(self.task, outcome, dialogue, wall_s=time.monotonic() - self.started,
                               **self.run.identity)
-
-
 
 
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor=None) -> None:
@@ -462,7 +454,6 @@ def start_live_view(run, graph: Graph, namespaces: list, total: int):
     from sensor_msgs.msg import Image
 
     from dialfred_msgs.msg import Observation, QAPair
-    from dialfred_sim.protocol import image_array
     from dialfred_bringup.live import LiveView, describe
     view = LiveView(len(namespaces), port=run.options.foxglove, total=total)
     print(describe(view), file=sys.stderr, flush=True)

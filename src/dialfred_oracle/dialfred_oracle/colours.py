@@ -23,7 +23,7 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.world.palette import COLOUR_NAMES, PALETTE
+from dialfred_sim.world.palette import COLOUR_NAMES, PALETTE, rgba
 
 SHADE_MIN, SHADE_MAX = 0.58, 1.0     # measured 0.593-0.993 (see module docstring), with a margin
 _SHADE_STEPS = 43                    # about one shade per 0.01
@@ -105,7 +105,6 @@ def measure_shade_range(size: int = 64) -> tuple[float, float]:
     channel values (channels below 100 are skipped: integer truncation dominates there)."""
     from dialfred_sim.world.bodies import ShapeCache
     from dialfred_sim.world.bullet import bullet_client, pybullet
-    from dialfred_sim.world.palette import rgba
     from dialfred_sim.world.scene import LIGHT_DIRECTION
 
     client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)

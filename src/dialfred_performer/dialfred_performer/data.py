@@ -39,7 +39,7 @@ import torch
 from torch.utils.data import Dataset
 
 from dialfred_sim.protocol import ACTIONS, QA, QUESTION_TYPES, every_question
-from dialfred_sim.tasks.demonstrations import load_demonstrations
+from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
 
 from .nn.heads import pixel_cell
 from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
@@ -329,6 +329,5 @@ class AnnotatingProbe(OracleProbe):
 
 def probed_annotations(demonstrations_dir: Path) -> dict[str, dict]:
     """{task_id: annotator row JSON} that an AnnotatingProbe made while `demonstrations_dir` was built."""
-    from dialfred_sim.tasks.demonstrations import probe_values
     return {tid: v['annotation'] for tid, v in probe_values(demonstrations_dir).items()
             if isinstance(v, dict) and v.get('annotation') is not None}

@@ -11,6 +11,7 @@ The agent (`agent.py`) calls the same `encode_frames` and `decode` one step at a
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import subprocess
 import sys
@@ -248,7 +249,6 @@ REQUIRED_KEYS = ('format', 'config', 'vocab', 'state_dict', 'git_commit', 'comma
 def state_digest(state: dict) -> str:
     """sha256 over a state dict's tensors (name, dtype, shape and bytes, in name order): the same
     weights give the same digest whatever file, command or commit they were saved with."""
-    import hashlib
     h = hashlib.sha256()
     for name in sorted(state):
         t = state[name].detach().contiguous().reshape(-1)

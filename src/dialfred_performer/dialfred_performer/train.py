@@ -59,7 +59,7 @@ from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, glob
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
 from .model import Performer, PerformerConfig, git_commit, load_checkpoint, performer_loss, save_checkpoint
 from .nn import PerceivedFrames
-from .prepare import VOCABULARY_FILE
+from .prepare import VOCABULARY_FILE, oracle_texts
 from .preprocess import Vocabulary
 
 MODULE = 'dialfred_performer.train'
@@ -242,7 +242,6 @@ def load_vocabulary(cfg: TrainConfig) -> Vocabulary:
         return Vocabulary.load(path)
     if cfg.vocabulary:
         raise FileNotFoundError(f'no vocabulary at {path}')
-    from .prepare import oracle_texts
     return Vocabulary.build(vocabulary_texts(Path(cfg.demonstrations)) + oracle_texts())
 
 

@@ -45,8 +45,8 @@ import torch
 
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
-from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, read_state
-from dialfred_performer.model_registry import PERFORMER_MODELS
+from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint, read_state
+from dialfred_performer.model_registry import PERFORMER_MODELS, camera_resolution, load_policy
 
 from dialfred_sim.protocol import MAX_STEPS
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
@@ -54,7 +54,7 @@ from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 from .checkpoint import resume_training, save
 from .model import Questioner
 from .rl import Rewards, actor_critic_loss, discounted_returns, group_baseline
-from .rollout import TIMINGS, Timing
+from .rollout import TIMINGS, Timing, play_rollout
 
 MODULE = 'dialfred_questioner.finetune'
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -156,7 +156,6 @@ _W: dict = {}
 
 def _init_worker(cfg_json: str) -> None:
     from dialfred_oracle.answers import Perturbation
-    from dialfred_performer.model_registry import load_policy
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
 
@@ -175,7 +174,6 @@ def _init_worker(cfg_json: str) -> None:
 
 def _play_chunk(args: tuple[dict, list[tuple[int, int, int, int]]]) -> list[tuple[int, dict]]:
     """Play (episode number, task index, episode seed, sampling seed) with the policy's weights `state`."""
-    from .rollout import play_rollout
     state, jobs = args
     cfg, policy = _W['cfg'], _W['policy']
     policy.model.load_state_dict(state)
@@ -265,12 +263,10 @@ def draw_rl_curves(metrics_path: Path, out_path: Path) -> Path:
 
 
 def finetune(cfg: FinetuneConfig) -> dict:
-    from dialfred_performer.model import load_checkpoint
     from dialfred_sim.tasks import load_split
 
     from .policy import LearnedQuestioner
     if not cfg.resolution:
-        from dialfred_performer.model_registry import camera_resolution
         cfg = dataclasses.replace(cfg, resolution=camera_resolution(cfg.model, Path(cfg.performer)))
     out = Path(cfg.out)
     commit = git_commit()

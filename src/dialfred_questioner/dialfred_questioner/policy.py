@@ -23,6 +23,7 @@ those, or any checkpoint as 'learned:PATH', greedy with its own timing (`retimed
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional, Sequence
@@ -87,7 +88,6 @@ def share_visual(source: Path, target: Path, performer: Path) -> dict:
     performer checkpoint that holds the same weights instead (relative to target's folder; its digest is
     stored and checked on every load). A shipped set of questioners then keeps the encoder once, in the
     performer they were trained with. Raises SharedVisualError if `performer`'s encoder differs."""
-    import os
     state = torch.load(source, map_location='cpu', weights_only=True)
     own = state.get('visual')
     if own is None:

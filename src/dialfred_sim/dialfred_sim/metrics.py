@@ -17,8 +17,12 @@ episode by episode so that an interrupted evaluation loses nothing and can resum
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
+import socket
+import sys
+import time
 import warnings
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -314,10 +318,6 @@ def results_lock(path: Union[str, Path]):
     while the block runs and released when it ends or its process dies; the lock file is removed when
     the block ends. ResultsFileError naming the owner (pid, host, command) when another run holds it:
     two runs never append to one file."""
-    import fcntl
-    import socket
-    import sys
-    import time
     lock = Path(str(path) + '.lock')
     lock.parent.mkdir(parents=True, exist_ok=True)
     while True:

@@ -63,7 +63,7 @@ from typing import Optional
 
 from dialfred_sim.dataclass_cli import parse
 
-from .document import copy_doc, draw_frontier, render, why_lines, write_outputs
+from .document import build_report, copy_doc, draw_frontier, render, why_lines, write_outputs
 from .plan import (EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,
                    SPLITS, STAGES, Plan, ReproduceConfig, Setting, settings, weights_sha256)
 from .stages import Runner
@@ -95,7 +95,6 @@ def main(argv: Optional[list[str]] = None) -> int:
 def redoc(cfg: ReproduceConfig) -> int:
     """`--redoc`: the doc stage's document and plot, written again from the run's results files as they
     are (no stamp is read or written, no stage runs), then copied where --doc says."""
-    from .document import build_report
     plan = Plan(cfg)
     if not any(plan.eval_dir.glob('*.jsonl')):
         print(f'error: no results files in {plan.eval_dir}: --redoc writes the document of a run that has evaluated',

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections import Counter
 from pathlib import Path
 from typing import Optional
 
 
-from dialfred_sim.metrics import has_goto
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.metrics import has_goto, intervals, summarize
+from dialfred_sim.protocol import QUESTION_TYPES, question_text
 
 from ..paths import REPO
 
@@ -23,7 +24,6 @@ from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, W
 def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
     """The numbers of one setting from its results file (n = 0 when it has none)."""
     from dialfred_bringup.evaluation import EvalRun, resumable_results
-    from dialfred_sim.metrics import intervals, summarize
     from dialfred_sim.tasks import load_split
     if not plan.available(s) or not (plan.eval_dir / f'{s.split}_{s.key}.jsonl').exists():
         return {'n': 0}
@@ -81,7 +81,6 @@ def _share(row: dict, t: str) -> str:
 
 
 def most_asked(rows: dict, top: int = 10) -> list[tuple[str, int]]:
-    from collections import Counter
     c = Counter()
     for split in SPLITS:
         for r in rows[(split, 'rl_anytime')].get('results', []):
@@ -408,7 +407,6 @@ def check_line(plan: Plan) -> str:
 def render(plan: Plan, report: dict, plot_name: str) -> str:
     """The results document (Markdown) of `plan`'s run from its `report` (build_report): every cell is
     computed here, the words and layout are the template templates/results.md.j2."""
-    from dialfred_sim.protocol import question_text
     rows, cfg = report['rows'], plan.cfg
     mode = '--quick' if cfg.quick else '--shipped' if cfg.shipped else ''
     through = {'local': 'in local worker processes without ROS (`dialfred_bringup.local`, the graph\'s episodes)',

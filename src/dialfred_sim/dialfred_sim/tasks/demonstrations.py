@@ -31,6 +31,7 @@ finished build.
 from __future__ import annotations
 
 import functools
+import importlib
 import json
 import os
 import sys
@@ -179,7 +180,6 @@ def probe_values(out: Path) -> dict[str, object]:
 
 def load_probe(name: str):
     """The probe class named 'package.module:Class' (see build_demonstrations)."""
-    import importlib
     module, _, attr = name.partition(':')
     if not module or not attr:
         raise ValueError(f"a probe is named 'package.module:Class', got {name!r}")

@@ -7,7 +7,8 @@ the seat of a sofa), +y is the object's left. Lengths are metres, angles radians
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from typing import Literal, Optional
 
 Vec3 = tuple[float, float, float]
@@ -76,7 +77,6 @@ class ShapeSpec:
 
 
 def _rpy_matrix(rpy: Vec3):
-    import math
     r, p, y = rpy
     cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
     return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
@@ -90,7 +90,6 @@ def fit_spec(spec: ShapeSpec, size: Vec3) -> ShapeSpec:
     Used to fit furniture into a room (a counter's cabinets share the counter's depth and height).
     Boxes stretch exactly; cylinders and spheres keep round sections (mean of the stretched axes).
     """
-    from dataclasses import replace
     s = (size[0] / spec.size[0], size[1] / spec.size[1], size[2] / spec.size[2])
 
     def scale_part(part: Part) -> Part:
