@@ -47,6 +47,7 @@ from typing import Optional, Sequence
 import numpy as np
 import torch
 
+from dialfred_sim.progress import progress_bar
 from dialfred_sim.protocol import ACTIONS
 from dialfred_sim.tasks.demonstrations import default_dir
 
@@ -389,167 +390,202 @@ def ignore_interrupts(_worker_id: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+class Training:
+    """One session of a training run: `__init__` sets it up (devices, seeds, data, the model, the optimiser,
+    a resumed state), `run()` trains until the run or the session ends and returns the summary. Every
+    random draw happens in the order of one uninterrupted run, so a resumed run is the same run."""
+
+    def __init__(self, cfg: TrainConfig, ranks: Ranks):
+        self.cfg, self.ranks = cfg, ranks
+        check_batch(cfg.batch_size, ranks)
+        self.out = out = Path(cfg.out)
+        self.commit = git_commit()        # the code this run starts with, recorded in every checkpoint it writes
+        check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
+        if cfg.validation:
+            check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
+        if cfg.resume and not (out / 'last.pt').is_file():
+            raise FileNotFoundError(f'--resume: no {out / "last.pt"} to continue from')
+        self.device = device = rank_device(pick_device(cfg.device), ranks)
+        torch.set_num_threads(cfg.threads or max(1, len(os.sched_getaffinity(0)) // ranks.local_world))
+        seed_everything(cfg.seed, cfg.deterministic, device)
+        init(ranks, device)
+        out.mkdir(parents=True, exist_ok=True)
+
+        self.vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
+        self.data = load_data(cfg, self.vocab)
+        per_epoch = math.ceil(len(epoch_items(self.data, cfg, 0)) / cfg.batch_size)
+        self.total = total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
+        self.model = model = self._model()
+        self.optimizer = make_optimizer(model, cfg)
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(
+            self.optimizer, lambda u: lr_factor(u, cfg.warmup_updates, total, cfg.final_lr_fraction))
+        self.progress = Progress()
+        if cfg.resume:
+            _, self.progress = restore_training(out / 'last.pt', cfg, model, self.optimizer, self.scheduler, ranks)
+        elif ranks.rank:
+            torch.manual_seed(rank_seed(cfg.seed, ranks.rank))     # this rank's dropout stream (after the same init)
+        self.net = model
+        if ranks.distributed:
+            self.net = torch.nn.parallel.DistributedDataParallel(
+                model, device_ids=[device.index] if device.type == 'cuda' else None)
+        self.log = None
+        if ranks.main:       # the only process that writes files
+            self.log = MetricsLog(out / 'metrics.jsonl', self.progress.update if cfg.resume else None)
+            (out / 'config.json').write_text(json.dumps(dataclasses.asdict(cfg), indent=1) + '\n')
+        self.bar = progress_bar(total=total, initial=self.progress.update, unit='update',
+                                disable=not (cfg.progress and ranks.main),
+                                desc=f'epoch {self.progress.epoch + 1}/{cfg.epochs}')
+        self.session_updates, self.frames_seen, self.t_start = 0, 0, time.monotonic()
+        self.t_window, self.last = time.monotonic(), {}
+
+    def _model(self) -> Performer:
+        """The model of the run's config on its device: the perception network's weights, --init's."""
+        cfg = self.cfg
+        model_cfg, perception_weights = model_config(cfg)
+        model = Performer(model_cfg, len(self.vocab))
+        if perception_weights is not None:
+            model.visual.net.load_state_dict(perception_weights)
+        if cfg.init and not cfg.resume:
+            warm_start(model, self.vocab, Path(cfg.init))
+        if isinstance(model.visual, PerceivedFrames):
+            model.visual.precision = cfg.perception_precision
+        return model.to(self.device)
+
+    def checkpoint(self, name: str = 'last.pt', full: bool = True) -> None:
+        """Rank 0 writes; with several processes every rank must call it (a full one gathers their RNGs)."""
+        ranks = self.ranks
+        rank_rng = gather_rng(ranks) if full and ranks.distributed else None
+        if ranks.main:
+            save_training(self.out / name, self.model, self.vocab, self.cfg, self.optimizer, self.scheduler,
+                          self.progress, full, self.commit, rank_rng)
+
+    def validate_and_draw(self) -> None:
+        data, ranks, cfg = self.data, self.ranks, self.cfg
+        if data.val is not None and data.val_items:
+            mine = data.val_items[ranks.rank::ranks.world]          # each process a share; the sums all-reduced
+            val = evaluate(self.model, data.val, mine, Data.item_lengths(data.val, mine), cfg.batch_size,
+                           cfg.pointer_weight, self.device,
+                           reduce=(lambda totals: reduce_stats(totals, self.device)) if ranks.distributed else None)
+            if self.log is not None:
+                self.log.write({'kind': 'val', 'update': self.progress.update, 'epoch': self.progress.epoch, **val})
+            self.last['val'] = val
+            if val['loss'] < self.progress.best_val_loss:
+                self.progress.best_val_loss = val['loss']
+                self.checkpoint('best.pt', full=False)
+        if ranks.main:
+            draw_curves(self.out / 'metrics.jsonl', self.out / 'curves.png')
+
+    def update(self, batch, stand_in: bool) -> None:
+        """One optimiser step on this process's share of a global batch, counted, logged and checkpointed."""
+        cfg, ranks, progress, device = self.cfg, self.ranks, self.progress, self.device
+        batch = to_device(batch, device)
+        if ranks.distributed:
+            steps, targets = global_counts(batch, stand_in, device)
+            outputs = self.net(batch)
+            loss = sharded_loss(outputs, batch, cfg.pointer_weight, steps, targets, ranks.world,
+                                weight=0.0 if stand_in else 1.0)
+        else:
+            outputs = self.model(batch)
+            loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        if cfg.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip)
+        self.optimizer.step()
+        self.scheduler.step()
+        progress.update += 1
+        progress.batch_in_epoch += 1
+        self.session_updates += 1
+        stats = zero_stats() if stand_in else batch_stats(outputs, batch)
+        stats = reduce_stats(stats, device) if ranks.distributed else stats     # the global batch's
+        for k, v in stats.items():
+            progress.window[k] += v
+        self.frames_seen += stats['steps']
+        self.bar.update(1)
+        if progress.update % cfg.log_every == 0 and self.log is not None:
+            now = time.monotonic()
+            row = summarize(progress.window, cfg.pointer_weight)
+            row.update(frames_per_s=round(row['steps'] / max(now - self.t_window, 1e-9), 2),
+                       lr=self.scheduler.get_last_lr()[0])
+            self.log.write({'kind': 'train', 'update': progress.update, 'epoch': progress.epoch, **row})
+            self.bar.set_postfix(loss=f'{row["loss"]:.3f}', act=f'{row["action_accuracy"]:.3f}',
+                                 fps=f'{row["frames_per_s"]:.0f}')
+            self.last['train'] = row
+        if progress.update % cfg.log_every == 0:
+            progress.window, self.t_window = dict.fromkeys(STAT_KEYS, 0), time.monotonic()
+        if progress.update % cfg.checkpoint_every == 0:
+            self.checkpoint()
+
+    def epoch(self, stop_request: StopRequest) -> bool:
+        """The rest of the current epoch (ended at --stop-after, Ctrl-C or the last update); whether the
+        session must halt."""
+        cfg, ranks, progress, data = self.cfg, self.ranks, self.progress, self.data
+        items = epoch_items(data, cfg, progress.epoch)
+        batches = epoch_batches(Data.item_lengths(data.train, items), cfg.batch_size, cfg.seed, progress.epoch,
+                                cfg.bucket)
+        todo = [[items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
+        # this process's share of each global batch (all of it for one process); a stand-in weighs 0
+        shares = [rank_share(b, ranks) for b in todo] if ranks.distributed else [(b, False) for b in todo]
+        # Its own generator: a DataLoader iterator draws a seed, which must not come from torch's global
+        # RNG (dropout's), or a resumed run (one more iterator) would draw different dropout masks.
+        loader = torch.utils.data.DataLoader(data.train, batch_sampler=[b for b, _ in shares], collate_fn=collate,
+                                             num_workers=cfg.loader_workers,
+                                             generator=torch.Generator().manual_seed(cfg.seed),
+                                             worker_init_fn=ignore_interrupts if cfg.loader_workers else None)
+        halt = False
+        for batch, (_, stand_in) in zip(loader, shares):
+            self.update(batch, stand_in)
+            halt = (bool(cfg.stop_after) and self.session_updates >= cfg.stop_after) or stop_request.asked
+            if ranks.distributed:
+                halt = any_rank(halt, self.device)        # a Ctrl-C seen by one process stops all at this update
+            if halt or progress.update >= self.total:
+                break
+        if progress.batch_in_epoch == len(batches):          # the epoch is complete
+            self.validate_and_draw()
+            progress.epoch += 1
+            progress.batch_in_epoch = 0
+            self.checkpoint(f'epoch-{progress.epoch:03d}.pt', full=False)
+            self.checkpoint()
+            self.bar.set_description(f'epoch {min(progress.epoch + 1, cfg.epochs)}/{cfg.epochs}')
+            self.t_window = time.monotonic()                      # frames/s of training only
+        return halt
+
+    def run(self) -> dict:
+        """Train until the run ends, --stop-after or Ctrl-C; write last.pt; the session's summary."""
+        cfg, progress = self.cfg, self.progress
+        stop_request = StopRequest()
+        try:
+            self.model.train()
+            halt = False                      # --stop-after reached or Ctrl-C: this session ends
+            while progress.epoch < cfg.epochs and progress.update < self.total and not halt:
+                halt = self.epoch(stop_request)
+            finished = progress.update >= self.total or progress.epoch >= cfg.epochs
+            if finished and progress.batch_in_epoch and self.session_updates:   # max_updates ended it in an epoch
+                self.validate_and_draw()
+            self.checkpoint()
+            if not finished and self.ranks.main:
+                draw_curves(self.out / 'metrics.jsonl', self.out / 'curves.png')
+            self.bar.close()
+        finally:
+            stop_request.release()
+        return self.summary(finished)
+
+    def summary(self, finished: bool) -> dict:
+        seconds = time.monotonic() - self.t_start
+        progress, data = self.progress, self.data
+        return {'finished': finished, 'updates': progress.update, 'epoch': progress.epoch, 'total_updates': self.total,
+                'session_updates': self.session_updates, 'session_seconds': round(seconds, 2),
+                'frames_per_s': round(self.frames_seen / max(seconds, 1e-9), 2), 'device': str(self.device),
+                'threads': torch.get_num_threads(), 'processes': self.ranks.world,
+                'malloc_settings': all(k in os.environ for k in MALLOC_SETTINGS),
+                'train_episodes': len(data.train_items),
+                'val_episodes': len(data.val_items), 'val': self.last.get('val'), 'out': str(self.out)}
+
+
 def train(cfg: TrainConfig, ranks: Optional[Ranks] = None) -> dict:
     """Train (or continue) the run of `cfg` as process `ranks` of a distributed run (default: torchrun's
     environment; one process without it); the final summary (also the last line printed by main)."""
-    ranks = ranks or Ranks.from_env()
-    check_batch(cfg.batch_size, ranks)
-    out = Path(cfg.out)
-    commit = git_commit()        # the code this run starts with, recorded in every checkpoint it writes
-    check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
-    if cfg.validation:
-        check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
-    if cfg.resume and not (out / 'last.pt').is_file():
-        raise FileNotFoundError(f'--resume: no {out / "last.pt"} to continue from')
-    device = rank_device(pick_device(cfg.device), ranks)
-    torch.set_num_threads(cfg.threads or max(1, len(os.sched_getaffinity(0)) // ranks.local_world))
-    seed_everything(cfg.seed, cfg.deterministic, device)
-    init(ranks, device)
-    out.mkdir(parents=True, exist_ok=True)
-
-    vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
-    data = load_data(cfg, vocab)
-    per_epoch = math.ceil(len(epoch_items(data, cfg, 0)) / cfg.batch_size)
-    total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
-    model_cfg, perception_weights = model_config(cfg)
-    model = Performer(model_cfg, len(vocab))
-    if perception_weights is not None:
-        model.visual.net.load_state_dict(perception_weights)
-    if cfg.init and not cfg.resume:
-        warm_start(model, vocab, Path(cfg.init))
-    if isinstance(model.visual, PerceivedFrames):
-        model.visual.precision = cfg.perception_precision
-    model = model.to(device)
-    optimizer = make_optimizer(model, cfg)
-    scheduler = torch.optim.lr_scheduler.LambdaLR(
-        optimizer, lambda u: lr_factor(u, cfg.warmup_updates, total, cfg.final_lr_fraction))
-    progress = Progress()
-    if cfg.resume:
-        _, progress = restore_training(out / 'last.pt', cfg, model, optimizer, scheduler, ranks)
-    elif ranks.rank:
-        torch.manual_seed(rank_seed(cfg.seed, ranks.rank))     # this rank's dropout stream (after the same init)
-    net = model
-    if ranks.distributed:
-        net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == 'cuda'
-                                                        else None)
-    log = None
-    if ranks.main:       # the only process that writes files
-        log = MetricsLog(out / 'metrics.jsonl', progress.update if cfg.resume else None)
-        (out / 'config.json').write_text(json.dumps(dataclasses.asdict(cfg), indent=1) + '\n')
-
-    from dialfred_sim.progress import progress_bar
-    bar = progress_bar(total=total, initial=progress.update, unit='update',
-               disable=not (cfg.progress and ranks.main),
-               desc=f'epoch {progress.epoch + 1}/{cfg.epochs}')
-    session_updates, frames_seen, t_start = 0, 0, time.monotonic()
-    t_window, last = time.monotonic(), {}
-
-    def checkpoint(name: str = 'last.pt', full: bool = True) -> None:
-        """Rank 0 writes; with several processes every rank must call it (a full one gathers their RNGs)."""
-        rank_rng = gather_rng(ranks) if full and ranks.distributed else None
-        if ranks.main:
-            save_training(out / name, model, vocab, cfg, optimizer, scheduler, progress, full, commit, rank_rng)
-
-    def validate_and_draw() -> None:
-        if data.val is not None and data.val_items:
-            mine = data.val_items[ranks.rank::ranks.world]          # each process a share; the sums all-reduced
-            val = evaluate(model, data.val, mine, Data.item_lengths(data.val, mine), cfg.batch_size,
-                           cfg.pointer_weight, device,
-                           reduce=(lambda totals: reduce_stats(totals, device)) if ranks.distributed else None)
-            if log is not None:
-                log.write({'kind': 'val', 'update': progress.update, 'epoch': progress.epoch, **val})
-            last['val'] = val
-            if val['loss'] < progress.best_val_loss:
-                progress.best_val_loss = val['loss']
-                checkpoint('best.pt', full=False)
-        if ranks.main:
-            draw_curves(out / 'metrics.jsonl', out / 'curves.png')
-
-    stop_request = StopRequest()
-    try:
-        model.train()
-        halt = False                      # --stop-after reached or Ctrl-C: this session ends
-        while progress.epoch < cfg.epochs and progress.update < total and not halt:
-            items = epoch_items(data, cfg, progress.epoch)
-            batches = epoch_batches(Data.item_lengths(data.train, items), cfg.batch_size, cfg.seed, progress.epoch,
-                                    cfg.bucket)
-            todo = [[items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
-            # this process's share of each global batch (all of it for one process); a stand-in weighs 0
-            shares = [rank_share(b, ranks) for b in todo] if ranks.distributed else [(b, False) for b in todo]
-            # Its own generator: a DataLoader iterator draws a seed, which must not come from torch's global
-            # RNG (dropout's), or a resumed run (one more iterator) would draw different dropout masks.
-            loader = torch.utils.data.DataLoader(data.train, batch_sampler=[b for b, _ in shares], collate_fn=collate,
-                                                 num_workers=cfg.loader_workers,
-                                                 generator=torch.Generator().manual_seed(cfg.seed),
-                                                 worker_init_fn=ignore_interrupts if cfg.loader_workers else None)
-            for batch, (_, stand_in) in zip(loader, shares):
-                batch = to_device(batch, device)
-                if ranks.distributed:
-                    steps, targets = global_counts(batch, stand_in, device)
-                    outputs = net(batch)
-                    loss = sharded_loss(outputs, batch, cfg.pointer_weight, steps, targets, ranks.world,
-                                        weight=0.0 if stand_in else 1.0)
-                else:
-                    outputs = model(batch)
-                    loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
-                optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                if cfg.grad_clip > 0:
-                    torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
-                optimizer.step()
-                scheduler.step()
-                progress.update += 1
-                progress.batch_in_epoch += 1
-                session_updates += 1
-                stats = zero_stats() if stand_in else batch_stats(outputs, batch)
-                stats = reduce_stats(stats, device) if ranks.distributed else stats     # the global batch's
-                for k, v in stats.items():
-                    progress.window[k] += v
-                frames_seen += stats['steps']
-                bar.update(1)
-                if progress.update % cfg.log_every == 0 and log is not None:
-                    now = time.monotonic()
-                    row = summarize(progress.window, cfg.pointer_weight)
-                    row.update(frames_per_s=round(row['steps'] / max(now - t_window, 1e-9), 2),
-                               lr=scheduler.get_last_lr()[0])
-                    log.write({'kind': 'train', 'update': progress.update, 'epoch': progress.epoch, **row})
-                    bar.set_postfix(loss=f'{row["loss"]:.3f}', act=f'{row["action_accuracy"]:.3f}',
-                                    fps=f'{row["frames_per_s"]:.0f}')
-                    last['train'] = row
-                if progress.update % cfg.log_every == 0:
-                    progress.window, t_window = dict.fromkeys(STAT_KEYS, 0), time.monotonic()
-                if progress.update % cfg.checkpoint_every == 0:
-                    checkpoint()
-                halt = (bool(cfg.stop_after) and session_updates >= cfg.stop_after) or stop_request.asked
-                if ranks.distributed:
-                    halt = any_rank(halt, device)        # a Ctrl-C seen by one process stops all at this update
-                if halt or progress.update >= total:
-                    break
-            if progress.batch_in_epoch == len(batches):          # the epoch is complete
-                validate_and_draw()
-                progress.epoch += 1
-                progress.batch_in_epoch = 0
-                checkpoint(f'epoch-{progress.epoch:03d}.pt', full=False)
-                checkpoint()
-                bar.set_description(f'epoch {min(progress.epoch + 1, cfg.epochs)}/{cfg.epochs}')
-                t_window = time.monotonic()                      # frames/s of training only
-        finished = progress.update >= total or progress.epoch >= cfg.epochs
-        if finished and progress.batch_in_epoch and session_updates:   # max_updates ended it inside an epoch
-            validate_and_draw()
-        checkpoint()
-        if not finished and ranks.main:
-            draw_curves(out / 'metrics.jsonl', out / 'curves.png')
-        bar.close()
-    finally:
-        stop_request.release()
-    seconds = time.monotonic() - t_start
-    return {'finished': finished, 'updates': progress.update, 'epoch': progress.epoch, 'total_updates': total,
-            'session_updates': session_updates, 'session_seconds': round(seconds, 2),
-            'frames_per_s': round(frames_seen / max(seconds, 1e-9), 2), 'device': str(device),
-            'threads': torch.get_num_threads(), 'processes': ranks.world,
-            'malloc_settings': all(k in os.environ for k in MALLOC_SETTINGS),
-            'train_episodes': len(data.train_items),
-            'val_episodes': len(data.val_items), 'val': last.get('val'), 'out': str(out)}
+    return Training(cfg, ranks or Ranks.from_env()).run()
 
 
 def main(argv: Optional[list[str]] = None) -> int:
