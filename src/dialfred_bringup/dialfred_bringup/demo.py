@@ -22,15 +22,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.dataclass_cli import arg
 from dialfred_performer.model_registry import PERFORMER_MODELS
+from dialfred_sim.dataclass_cli import arg
+from dialfred_sim.protocol import image_array
+from dialfred_sim.tasks import load_split
 
 from .baseline_runs import BASELINES
 from .eval_config import EvalConfig, checkpoint_path, foxglove_field, record_field, record_format_field
 from .eval_run import EvalRun
+from .film import save_captioned_gif, save_contact_sheet
+from .graph import Graph
 from .paths import REPO
 from .workers import LiveHook, PerformerWorker, play_episodes, start_live_view, worker_nodes
-from .graph import Graph
 
 QA_SECONDS, ACTION_SECONDS = 2.0, 0.4     # how long a GIF frame stays up: an answer is read, an action seen
 
@@ -163,16 +166,9 @@ class DemoConfig:
                           foxglove=self.foxglove, record=self.record, record_format=self.record_format)
 
 
-def run_demo(demo: DemoConfig) -> int:
-    """Start sim, oracle, questioner and performer nodes; play --tasks tasks as RunTask goals; print
-    the dialogue, the actions and the outcomes; save a captioned GIF per task and a contact sheet."""
-    from dialfred_msgs.msg import Observation, QAPair
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-    from dialfred_bringup.film import save_captioned_gif, save_contact_sheet
-    from dialfred_sim.protocol import image_array
-    from dialfred_sim.tasks import load_split
-
+def checked_demo(demo: DemoConfig):
+    """(the run, the chosen (index, task) pairs) of `demo`, or the exit status 2 after saying on stderr
+    what is wrong (a missing or corrupt checkpoint, an unknown questioner, bad --tasks / --first)."""
     if not checkpoint_path(demo.eval_config()).is_file():
         print(f'error: no performer checkpoint at {checkpoint_path(demo.eval_config())}; train one with '
               './dialfred prepare-performer && ./dialfred train-performer --out out/performer (see the README), '
@@ -186,12 +182,83 @@ def run_demo(demo: DemoConfig) -> int:
     if demo.tasks < 1 or (demo.first is not None and demo.first < 0):
         print('error: --tasks must be at least 1 and --first at least 0', file=sys.stderr)
         return 2
-    config = run.options
-    chosen = demo_tasks(load_split(config.split), demo.tasks, demo.first)
+    chosen = demo_tasks(load_split(run.options.split), demo.tasks, demo.first)
     if not chosen:
-        print(f'error: no tasks from index {demo.first} of {config.split}', file=sys.stderr)
+        print(f'error: no tasks from index {demo.first} of {run.options.split}', file=sys.stderr)
         return 2
-    tasks = [t for _, t in chosen]
+    return run, chosen
+
+
+class DemoWatcher:
+    """What the demo shows of the episode being played: the QAs (dialogue/qa) and the actions (the goal's
+    feedback) as they come, and the frames (sim/observation) for its GIF."""
+
+    def __init__(self, graph: Graph):
+        from dialfred_msgs.msg import Observation, QAPair
+        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+        self.graph, self.record = graph, None
+        node = graph.client_node
+        self.qa_sub = node.create_subscription(QAPair, 'dialogue/qa', self.heard, 100)
+        frames_qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
+        self.obs_sub = node.create_subscription(Observation, 'sim/observation', self.seen, frames_qos)
+
+    def heard(self, qa) -> None:
+        if self.record is not None:
+            self.record.dialogue.append(qa)
+            print(f'  Q: {qa_question(qa)}\n  A: {qa_answer(qa)}', flush=True)
+
+    def seen(self, obs) -> None:
+        if self.record is not None:
+            self.record.frames[int(obs.step_count)] = image_array(obs.rgb)
+
+    def stepped(self, task, feedback) -> None:
+        if self.record is not None and task is self.record.task:
+            self.record.feedback.append(feedback)
+            print(f'  step {feedback.step:>3}  {action_text(feedback)}', flush=True)
+
+    def wait_for_topics(self, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while self.qa_sub.get_publisher_count() == 0 or self.obs_sub.get_publisher_count() == 0:
+            self.graph.spin_until_any([], 0.1)
+            if time.monotonic() > deadline:
+                raise TimeoutError('the performer\'s dialogue/qa or the simulator\'s sim/observation topic did '
+                                   f'not appear in {timeout:g} s')
+        self.graph.spin_until_any([], 0.3)     # the publishers see this subscriber a moment later
+
+
+def play_demo_task(graph: Graph, worker, watcher: DemoWatcher, index: int, task, out: Path, sheet: list) -> bool:
+    """Play one task as a RunTask goal, printing its dialogue, actions and outcome; save its GIF (and add its
+    frames to `sheet`). Whether it succeeded."""
+    print(f'\n{task.task_id} ({task.task_type}) in {task.scene}: "{task.instruction}"', flush=True)
+    record = watcher.record = EpisodeRecord(task)
+    results = []
+    play_episodes(graph, [worker], [(index, task)], results.append)
+    result = results[0]
+    deadline = time.monotonic() + 2.0    # the last frame and feedback may come after the result
+    while not record.complete(result) and time.monotonic() < deadline:
+        graph.spin_until_any([], 0.1)
+    outcome = outcome_text(result)
+    print(f'  -> {outcome}')
+    if record.frames:
+        film, durations = record.film(outcome)
+        gif = out / f'{task.task_id.replace("/", "_")}.gif'
+        save_captioned_gif(film, gif, durations_ms=durations)
+        print(f'  saved {gif} ({len(film)} frames)')
+        sheet.append((f'{task.task_id} {outcome}', [record.frames[s] for s in sorted(record.frames)]))
+    else:
+        print('  (no frames were received from sim/observation)', file=sys.stderr)
+    watcher.record = None
+    return bool(result.success)
+
+
+def run_demo(demo: DemoConfig) -> int:
+    """Start sim, oracle, questioner and performer nodes; play --tasks tasks as RunTask goals; print
+    the dialogue, the actions and the outcomes; save a captioned GIF per task and a contact sheet."""
+    checked = checked_demo(demo)
+    if checked == 2:
+        return 2
+    run, chosen = checked
+    config = run.options
     out = Path(demo.out)
     out.mkdir(parents=True, exist_ok=True)
     print(f'checkpoint {run.checkpoint_path}, questioner {config.questioner or "none"}, {config.resolution} px, '
@@ -199,60 +266,16 @@ def run_demo(demo: DemoConfig) -> int:
     t0 = time.monotonic()
     nodes = worker_nodes(run, '', publish_observations=True, max_steps=demo.max_steps)
     with Graph(nodes) as graph:
-        record = None
-
-        def heard(qa) -> None:
-            if record is not None:
-                record.dialogue.append(qa)
-                print(f'  Q: {qa_question(qa)}\n  A: {qa_answer(qa)}', flush=True)
-
-        def seen(obs) -> None:
-            if record is not None:
-                record.frames[int(obs.step_count)] = image_array(obs.rgb)
-
-        def stepped(task, feedback) -> None:
-            if record is not None and task is record.task:
-                record.feedback.append(feedback)
-                print(f'  step {feedback.step:>3}  {action_text(feedback)}', flush=True)
-
-        node = graph.client_node
-        qa_sub = node.create_subscription(QAPair, 'dialogue/qa', heard, 100)
-        frames_qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
-        obs_sub = node.create_subscription(Observation, 'sim/observation', seen, frames_qos)
-        worker = PerformerWorker(graph, '', run, on_feedback=stepped)
+        watcher = DemoWatcher(graph)
+        worker = PerformerWorker(graph, '', run, on_feedback=watcher.stepped)
         if config.foxglove is not None:
-            view = start_live_view(run, graph, [''], len(tasks))
+            view = start_live_view(run, graph, [''], len(chosen))
             worker.live = LiveHook(view, 'w0')
-        deadline = time.monotonic() + 30.0
-        while qa_sub.get_publisher_count() == 0 or obs_sub.get_publisher_count() == 0:
-            graph.spin_until_any([], 0.1)
-            if time.monotonic() > deadline:
-                raise TimeoutError('the performer\'s dialogue/qa or the simulator\'s sim/observation topic did '
-                                   'not appear in 30 s')
-        graph.spin_until_any([], 0.3)     # the publishers see this subscriber a moment later
+        watcher.wait_for_topics()
         print(f'graph ready in {time.monotonic() - t0:.1f} s (sim, oracle, questioner, performer nodes)')
         sheet, successes = [], 0
         for index, task in chosen:
-            print(f'\n{task.task_id} ({task.task_type}) in {task.scene}: "{task.instruction}"', flush=True)
-            record = EpisodeRecord(task)
-            results = []
-            play_episodes(graph, [worker], [(index, task)], results.append)
-            result = results[0]
-            deadline = time.monotonic() + 2.0    # the last frame and feedback may come after the result
-            while not record.complete(result) and time.monotonic() < deadline:
-                graph.spin_until_any([], 0.1)
-            outcome = outcome_text(result)
-            successes += bool(result.success)
-            print(f'  -> {outcome}')
-            if record.frames:
-                film, durations = record.film(outcome)
-                gif = out / f'{task.task_id.replace("/", "_")}.gif'
-                save_captioned_gif(film, gif, durations_ms=durations)
-                print(f'  saved {gif} ({len(film)} frames)')
-                sheet.append((f'{task.task_id} {outcome}', [record.frames[s] for s in sorted(record.frames)]))
-            else:
-                print('  (no frames were received from sim/observation)', file=sys.stderr)
-            record = None
+            successes += play_demo_task(graph, worker, watcher, index, task, out, sheet)
         if config.foxglove is not None:
             view.close()
     if sheet:
