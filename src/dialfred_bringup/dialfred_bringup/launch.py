@@ -177,95 +177,116 @@ def run_nodes(args: NodesConfig) -> int:
             time.sleep(0.5)
 
 
+class DialogueRun:
+    """The scripted dialogue run's calls on a graph of a simulator and an oracle node: the questions of a
+    task at its start and before the expert's last action, the expert's actions, the film and the bag."""
+
+    def __init__(self, args: DialogueConfig, graph: Graph):
+        from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
+        self.args, self.graph = args, graph
+        self.reset_cli = graph.client(SimReset, '/sim/reset')
+        self.step_cli = graph.client(SimStep, '/sim/step')
+        self.ask_cli = graph.client(OracleAnswer, '/oracle/answer')
+        self.film = []         # (frame, caption lines) for --gif
+        self.episode = {}      # the task's recorder and counts, with --record
+
+    def ask(self, qtype: str, noun: str, frame, title: str) -> None:
+        from dialfred_msgs.srv import OracleAnswer
+        args, episode = self.args, self.episode
+        request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
+        reply = self.graph.call(self.ask_cli, request, timeout=3600.0 if args.human else 30.0,   # a person takes time
+                                retry_after=None if args.human else RESEND_AFTER_S)
+        said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
+        print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
+        episode['questions'] += 1
+        episode['invalid'] += not reply.valid
+        if episode.get('recorder'):
+            episode['recorder'].question(episode['steps'], qtype, noun, Question(qtype, noun).text,
+                                         reply.answer, reply.valid)
+        self.film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
+
+    def expert_step(self, task, k: int, title: str):
+        """The expert's action k (its pixel scaled from the task's frames to this node's)."""
+        from dialfred_msgs.msg import Action
+        from dialfred_msgs.srv import SimStep
+        episode = self.episode
+        a = task.expert_actions[k]
+        x, y = scale_pixel(a.x, a.y, task.resolution, self.args.resolution)
+        step = self.graph.call(self.step_cli, SimStep.Request(action=Action(action=a.action, x=x, y=y),
+                                                              with_depth=False, with_segmentation=False))
+        target = f' at ({x}, {y})' if x >= 0 else ''
+        episode['steps'] = int(step.observation.step_count)
+        if episode['recorder']:
+            episode['recorder'].action(episode['steps'], a.action, x, y, step.observation.last_action_success,
+                                       episode['questions'])
+            episode['recorder'].observation_msg(step.observation)
+        self.film.append((image_array(step.observation.rgb), [title, f'expert action {k + 1}: {a.action}{target}']))
+        return step
+
+    def play(self, task) -> bool:
+        """One task: the questions at its start, the expert's path, directions before its last action.
+        False if the simulator refused the reset."""
+        from dialfred_msgs.srv import SimReset
+
+        from dialfred_sim.bag import EpisodeRecorder
+        args, episode = self.args, self.episode
+        reply = self.graph.call(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
+                                                                 with_segmentation=False), retry_after=RESEND_AFTER_S)
+        if not reply.ok:
+            print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
+            return False
+        t = reply.task     # the public view; this job, like the checker, knows the type from its split
+        episode.update(steps=0, questions=0, invalid=0, recorder=None)
+        if args.record:
+            episode['recorder'] = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
+                                                  image_format=args.record_format)
+            episode['recorder'].observation_msg(reply.observation)
+        frame = image_array(reply.observation.rgb)
+        title = f'{t.task_id} ({task.task_type}): "{t.instruction}"'
+        print(f'\n{t.task_id} ({task.task_type}) in {t.scene}: "{t.instruction}"')
+        self.film.append((frame, [title, 'start']))
+        # Ask about what the instruction names (the goto landmark comes first in object_nouns).
+        named = [n for n in t.object_nouns if n in t.instruction.lower()]
+        noun = (named or list(t.object_nouns) or [''])[0]
+        for qtype in QUESTION_TYPES:
+            self.ask(qtype, noun, frame, title)
+        self.ask('location', 'unicorn', frame, title)          # not in the scene: the oracle says why
+        self.ask('colour', noun, frame, title)                 # not a question type
+        # Walk the expert's path but the last action, and ask for directions again.
+        n = len(task.expert_actions)
+        for k in range(n - 1):
+            if self.expert_step(task, k, title).terminated:
+                break
+        print(f'  ... after {n - 1} of the expert\'s {n} actions:')
+        self.ask('direction', '', self.film[-1][0], title)
+        last = self.expert_step(task, n - 1, title)
+        outcome = 'goal reached' if last.success else 'goal NOT reached'
+        print(f'  ... the expert\'s last action, {task.expert_actions[-1].action}: {outcome}')
+        self.film[-1][1].append(outcome)
+        if episode['recorder']:
+            episode['recorder'].result(
+                success=bool(last.success), steps=episode['steps'], goal_conditions_met=int(last.goal_conditions_met),
+                goal_conditions_total=int(last.goal_conditions_total),
+                failed_actions=int(last.observation.failed_actions), questions=episode['questions'],
+                invalid_questions=episode['invalid'], end_reason='success' if last.success else 'stop',
+                last_action=task.expert_actions[-1].action)
+            print(f'  bag: {episode["recorder"].save(Path(args.record))}')
+        return True
+
+
 def run_dialogue(args: DialogueConfig) -> int:
     """Scripted integration run: on a few tasks, ask the oracle each question type and print the
     dialogue; with `--gif`, also save it as captioned frames (what the agent saw when it asked)."""
-    from dialfred_msgs.msg import Action
-    from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
-
-    from dialfred_sim.bag import EpisodeRecorder
     from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]
-    film = []   # (frame, caption lines) for --gif
-    episode = {}   # the task's recorder and counts, with --record
     with Graph([sim_node(args.resolution), oracle_node(human=args.human)]) as graph:
-        reset_cli = graph.client(SimReset, '/sim/reset')
-        step_cli = graph.client(SimStep, '/sim/step')
-        ask_cli = graph.client(OracleAnswer, '/oracle/answer')
-
-        def ask(qtype: str, noun: str, frame, title: str) -> None:
-            request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
-            reply = graph.call(ask_cli, request, timeout=3600.0 if args.human else 30.0,   # a person takes time
-                              retry_after=None if args.human else RESEND_AFTER_S)
-            said = reply.answer if reply.valid else f'(invalid: {reply.reason})'
-            print(f'  agent  [{qtype:<10}] {noun or "-":<14} -> oracle: {said}')
-            episode['questions'] += 1
-            episode['invalid'] += not reply.valid
-            if episode.get('recorder'):
-                episode['recorder'].question(episode['steps'], qtype, noun, Question(qtype, noun).text,
-                                             reply.answer, reply.valid)
-            film.append((frame, [title, f'Q [{qtype}{": " + noun if noun else ""}]', f'A: {said}']))
-
+        run = DialogueRun(args, graph)
         for task in tasks:
-            reply = graph.call(reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
-                                                           with_segmentation=False), retry_after=RESEND_AFTER_S)
-            if not reply.ok:
-                print(f'{task.task_id}: reset failed: {reply.error}', file=sys.stderr)
+            if not run.play(task):
                 return 1
-            t = reply.task     # the public view; this job, like the checker, knows the type from its split
-            episode.update(steps=0, questions=0, invalid=0, recorder=None)
-            if args.record:
-                episode['recorder'] = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
-                                                      image_format=args.record_format)
-                episode['recorder'].observation_msg(reply.observation)
-            frame = image_array(reply.observation.rgb)
-            title = f'{t.task_id} ({task.task_type}): "{t.instruction}"'
-            print(f'\n{t.task_id} ({task.task_type}) in {t.scene}: "{t.instruction}"')
-            film.append((frame, [title, 'start']))
-            # Ask about what the instruction names (the goto landmark comes first in object_nouns).
-            named = [n for n in t.object_nouns if n in t.instruction.lower()]
-            noun = (named or list(t.object_nouns) or [''])[0]
-            for qtype in QUESTION_TYPES:
-                ask(qtype, noun, frame, title)
-            ask('location', 'unicorn', frame, title)          # not in the scene: the oracle says why
-            ask('colour', noun, frame, title)                 # not a question type
-            # Walk the expert's path but the last action, and ask for directions again.
-            def expert_step(k: int, task=task, title=title):
-                """The expert's action k (its pixel scaled from the task's frames to this node's)."""
-                a = task.expert_actions[k]
-                x, y = scale_pixel(a.x, a.y, task.resolution, args.resolution)
-                step = graph.call(step_cli, SimStep.Request(action=Action(action=a.action, x=x, y=y),
-                                                            with_depth=False, with_segmentation=False))
-                target = f' at ({x}, {y})' if x >= 0 else ''
-                episode['steps'] = int(step.observation.step_count)
-                if episode['recorder']:
-                    episode['recorder'].action(episode['steps'], a.action, x, y, step.observation.last_action_success,
-                                               episode['questions'])
-                    episode['recorder'].observation_msg(step.observation)
-                film.append((image_array(step.observation.rgb), [title, f'expert action {k + 1}: {a.action}{target}']))
-                return step
-
-            n = len(task.expert_actions)
-            for k in range(n - 1):
-                if expert_step(k).terminated:
-                    break
-            print(f'  ... after {n - 1} of the expert\'s {n} actions:')
-            ask('direction', '', film[-1][0], title)
-            last = expert_step(n - 1)
-            outcome = 'goal reached' if last.success else 'goal NOT reached'
-            print(f'  ... the expert\'s last action, {task.expert_actions[-1].action}: {outcome}')
-            film[-1][1].append(outcome)
-            if episode['recorder']:
-                episode['recorder'].result(
-                    success=bool(last.success), steps=episode['steps'], goal_conditions_met=int(last.goal_conditions_met),
-                    goal_conditions_total=int(last.goal_conditions_total),
-                    failed_actions=int(last.observation.failed_actions), questions=episode['questions'],
-                    invalid_questions=episode['invalid'], end_reason='success' if last.success else 'stop',
-                    last_action=task.expert_actions[-1].action)
-                print(f'  bag: {episode["recorder"].save(Path(args.record))}')
     if args.gif:
-        save_captioned_gif(film, Path(args.gif))
-        print(f'saved {len(film)} captioned frames to {args.gif}')
+        save_captioned_gif(run.film, Path(args.gif))
+        print(f'saved {len(run.film)} captioned frames to {args.gif}')
     return 0
 
 
