@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.ros_util import SERVICE_QOS, SETTLE_S, make_executor
+from dialfred_sim import ros_util
+from dialfred_sim.ros_util import SERVICE_QOS, SETTLE_S
 
 from .paths import REPO
 
@@ -225,7 +226,7 @@ class Graph:
             if threading.current_thread() is threading.main_thread():
                 self._previous_sigint = signal.signal(signal.SIGINT, lambda *_: self._interrupted.set())
         self.client_node = rclpy.create_node('dialfred_launcher')
-        self.executor = make_executor()
+        self.executor = ros_util.make_executor()      # looked up when called (a test replaces it)
         self.executor.add_node(self.client_node)
 
     def __exit__(self, *exc) -> None:
