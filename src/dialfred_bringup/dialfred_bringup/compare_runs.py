@@ -133,7 +133,7 @@ def checkpoints(run: Path) -> dict:
 
 
 def same_value(x, y) -> bool:
-    import torch
+    import torch  # lazy: torch, which the rest of this module does without
     if isinstance(x, torch.Tensor) or isinstance(y, torch.Tensor):
         return isinstance(x, torch.Tensor) and isinstance(y, torch.Tensor) and x.dtype == y.dtype \
             and x.shape == y.shape and torch.equal(x, y)
@@ -148,7 +148,7 @@ MODEL_KEYS = ('format', 'config', 'vocab', 'nouns', 'state_dict', 'visual', 'vis
 
 
 def compare_weights(a: Path, b: Path, show: int) -> dict:
-    from dialfred_performer.model import read_state
+    from dialfred_performer.model import read_state  # lazy: pybullet, torch, which the rest of this module does without
     ca, cb = checkpoints(a), checkpoints(b)
     models, only = {}, sorted(set(ca) ^ set(cb))
     for name in sorted(set(ca) & set(cb)):

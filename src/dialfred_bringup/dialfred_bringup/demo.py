@@ -194,6 +194,7 @@ class DemoWatcher:
     feedback) as they come, and the frames (sim/observation) for its GIF."""
 
     def __init__(self, graph: Graph):
+        # lazy: the ROS messages, which the rest of this module does without
         from dialfred_msgs.msg import Observation, QAPair
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
         self.graph, self.record = graph, None

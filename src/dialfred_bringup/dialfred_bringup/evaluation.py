@@ -195,7 +195,7 @@ def _read_tasks_record(path: Path) -> Optional[dict]:
 
 
 def progress_bar(total: int, done: int, enabled: bool):
-    from dialfred_sim.progress import progress_bar as _bar
+    from dialfred_sim.progress import progress_bar as _bar  # lazy: tqdm, which the rest of this module does without
     return _bar(total=total, initial=done, unit='ep', disable=not enabled,
                 smoothing=0.05)
 

@@ -15,7 +15,7 @@ def save_captioned_gif(film, path: Path, width: int = 320, seconds_per_frame: fl
     """A GIF of (RGB frame, caption lines) pairs: each frame scaled to `width` with its lines under it.
     `durations_ms`: how long each frame stays up; default: frames with more than two lines (an answer
     to read) twice `seconds_per_frame`, the others (actions) 0.6 of it."""
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw, ImageFont  # lazy: PIL, which the rest of this module does without
     font = ImageFont.load_default(size=12)
     line_h, chars = 15, width // 6
     wrapped = [[w for line in lines for w in textwrap.wrap(line, chars)] for _, lines in film]
@@ -40,7 +40,7 @@ def save_contact_sheet(rows, path: Path, per_row: int = 8, size: int = 128) -> N
     """One PNG with a row per episode: its label (a line of text) over `per_row` of its frames, evenly
     spaced from the first to the last. `rows`: (label, [frames]) pairs."""
     import numpy as np
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw, ImageFont  # lazy: PIL, which the rest of this module does without
     font = ImageFont.load_default(size=12)
     label_h = 18
     sheet = Image.new('RGB', (per_row * size, len(rows) * (label_h + size)), (255, 255, 255))

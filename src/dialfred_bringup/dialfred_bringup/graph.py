@@ -95,6 +95,7 @@ def use_private_ros_domain() -> int:
 
 def resolve_executable(package: str, executable: str = 'node') -> Path:
     """<prefix>/lib/<package>/<executable> of an installed package, as `ros2 run` finds it."""
+    # lazy: ament, which the rest of this module does without
     from ament_index_python.packages import PackageNotFoundError, get_package_prefix
     try:
         prefix = get_package_prefix(package)

@@ -90,7 +90,8 @@ class DialogueConfig:
 
 def run_explore(args: ExploreConfig) -> int:
     """Start the simulator node, play a scripted exploring episode through ROS, save its frames."""
-    from dialfred_msgs.msg import Action
+    from dialfred_msgs.msg import Action  # lazy: the ROS messages, which the rest of this module does without
+    # lazy: the ROS messages, which the rest of this module does without
     from dialfred_msgs.srv import SimReset, SimStep
 
     from dialfred_sim.scripted import ExplorerPolicy
@@ -135,7 +136,7 @@ def run_explore(args: ExploreConfig) -> int:
 
 
 def save_frames(frames, out: Path) -> dict:
-    from PIL import Image
+    from PIL import Image  # lazy: PIL, which the rest of this module does without
     for k, f in enumerate(frames):
         Image.fromarray(f).save(out / f'frame_{k:03d}.png')
     imgs = [Image.fromarray(f).resize((256, 256), Image.NEAREST) for f in frames]
@@ -162,6 +163,7 @@ def nodes_resolution(resolution: Optional[int]) -> int:
 
 def run_nodes(args: NodesConfig) -> int:
     """Start the graph and keep it up until Ctrl-C, reporting any node that dies."""
+    # lazy: the ROS messages, which the rest of this module does without
     from dialfred_msgs.srv import OracleAnswer, SimReset
     args.resolution = nodes_resolution(args.resolution)
     if not 16 <= args.resolution <= 1024:
@@ -182,6 +184,7 @@ class DialogueRun:
     task at its start and before the expert's last action, the expert's actions, the film and the bag."""
 
     def __init__(self, args: DialogueConfig, graph: Graph):
+        # lazy: the ROS messages, which the rest of this module does without
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
         self.args, self.graph = args, graph
         self.reset_cli = graph.client(SimReset, '/sim/reset')
@@ -191,7 +194,7 @@ class DialogueRun:
         self.episode = {}      # the task's recorder and counts, with --record
 
     def ask(self, qtype: str, noun: str, frame, title: str) -> None:
-        from dialfred_msgs.srv import OracleAnswer
+        from dialfred_msgs.srv import OracleAnswer  # lazy: the ROS messages, which the rest of this module does without
         args, episode = self.args, self.episode
         request = OracleAnswer.Request(question_type=qtype, object_noun=noun)
         reply = self.graph.call(self.ask_cli, request, timeout=3600.0 if args.human else 30.0,   # a person takes time
@@ -207,8 +210,8 @@ class DialogueRun:
 
     def expert_step(self, task, k: int, title: str):
         """The expert's action k (its pixel scaled from the task's frames to this node's)."""
-        from dialfred_msgs.msg import Action
-        from dialfred_msgs.srv import SimStep
+        from dialfred_msgs.msg import Action  # lazy: the ROS messages, which the rest of this module does without
+        from dialfred_msgs.srv import SimStep  # lazy: the ROS messages, which the rest of this module does without
         episode = self.episode
         a = task.expert_actions[k]
         x, y = scale_pixel(a.x, a.y, task.resolution, self.args.resolution)
@@ -226,7 +229,7 @@ class DialogueRun:
     def play(self, task) -> bool:
         """One task: the questions at its start, the expert's path, directions before its last action.
         False if the simulator refused the reset."""
-        from dialfred_msgs.srv import SimReset
+        from dialfred_msgs.srv import SimReset  # lazy: the ROS messages, which the rest of this module does without
 
         from dialfred_sim.bag import EpisodeRecorder
         args, episode = self.args, self.episode

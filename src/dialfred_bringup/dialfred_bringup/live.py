@@ -34,7 +34,7 @@ MAP_MARGIN = 12
 
 
 def _timestamp(ns: Optional[int] = None):
-    from foxglove.messages import Timestamp
+    from foxglove.messages import Timestamp  # lazy: foxglove, which the rest of this module does without
     ns = time.time_ns() if ns is None else ns
     return Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
 
@@ -44,7 +44,7 @@ class RoomMap:
 
     def __init__(self, scene: str):
         from dialfred_sim.world.rooms import footprint, room_layout
-        from PIL import Image, ImageDraw
+        from PIL import Image, ImageDraw  # lazy: PIL, which the rest of this module does without
         layout = room_layout(scene)
         self.width, self.depth = layout.width, layout.depth
         w, h = self.to_px(layout.width, 0.0)[0] + MAP_MARGIN, self.to_px(0.0, 0.0)[1] + MAP_MARGIN
@@ -64,7 +64,7 @@ class RoomMap:
         return MAP_MARGIN + x * MAP_PX_PER_M, MAP_MARGIN + (self.depth - y) * MAP_PX_PER_M
 
     def draw(self, x: float, y: float, rotation_deg: float) -> np.ndarray:
-        from PIL import ImageDraw
+        from PIL import ImageDraw  # lazy: PIL, which the rest of this module does without
         self.trail.append((x, y))
         img = self.base.copy()
         draw = ImageDraw.Draw(img)
@@ -83,7 +83,8 @@ class LiveView:
     """The Foxglove server and its channels; `task`, `frame`, `qa`, `action`, `result` feed it."""
 
     def __init__(self, workers: int, port: int = FOXGLOVE_PORT, host: str = '127.0.0.1', total: int = 0):
-        import foxglove
+        import foxglove  # lazy: foxglove, which the rest of this module does without
+        # lazy: foxglove, which the rest of this module does without
         from foxglove.channels import LogChannel, PoseInFrameChannel, RawImageChannel
         self.context = foxglove.Context()
         self.workers = workers
@@ -122,6 +123,7 @@ class LiveView:
         self._progress(worker)
 
     def frame(self, worker: str, rgb: np.ndarray, pose: Sequence[float], camera_height: float, step: int) -> None:
+        # lazy: foxglove, which the rest of this module does without
         from foxglove.messages import Pose, PoseInFrame, Quaternion, RawImage, Vector3
         ch = self.channels[worker]
         stamp = _timestamp()
@@ -147,7 +149,7 @@ class LiveView:
 
     def belief(self, worker: str, picture: np.ndarray) -> None:
         """A picture of the performer's belief map (rgb8), shown on /w<k>/belief."""
-        from foxglove.messages import RawImage
+        from foxglove.messages import RawImage  # lazy: foxglove, which the rest of this module does without
         picture = np.ascontiguousarray(picture, dtype=np.uint8)
         h, w = picture.shape[:2]
         self.channels[worker]['belief'].log(RawImage(timestamp=_timestamp(), frame_id='belief', width=w, height=h,
@@ -168,7 +170,7 @@ class LiveView:
         self._progress(worker)
 
     def result(self, worker: str, task_id: str, success: bool, end_reason: str, steps: int, questions: int) -> None:
-        from foxglove.messages import LogLevel
+        from foxglove.messages import LogLevel  # lazy: foxglove, which the rest of this module does without
         with self.lock:
             self.finished += 1
             self.successes += bool(success)
@@ -186,7 +188,7 @@ class LiveView:
     # ------------------------------------------------------------------ helpers
 
     def _log(self, worker: str, text: str, level=None) -> None:
-        from foxglove.messages import Log, LogLevel
+        from foxglove.messages import Log, LogLevel  # lazy: foxglove, which the rest of this module does without
         self.dialogue.log(Log(timestamp=_timestamp(), level=level or LogLevel.Info, message=text, name=worker))
 
     def _progress(self, worker: str) -> None:

@@ -41,7 +41,7 @@ def transcript(ep: RecordedEpisode) -> list[str]:
 def beside(frame, picture):
     """The frame with `picture` (a performer's map) fitted into a square of the frame's height on its right."""
     import numpy as np
-    from PIL import Image
+    from PIL import Image  # lazy: PIL, which the rest of this module does without
     h = frame.shape[0]
     scale = h / max(picture.shape[:2])
     size = (max(1, round(picture.shape[1] * scale)), max(1, round(picture.shape[0] * scale)))

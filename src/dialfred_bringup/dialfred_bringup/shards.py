@@ -188,6 +188,7 @@ def split_tasks(settings: dict, run: dict, tasks_path: Optional[Path] = None) ->
     if settings['tasks_file'] is None:
         tasks = load_split(settings['split'])
     else:
+        # lazy: pybullet, which the rest of this module does without
         from dialfred_sim.tasks.splits import read_tasks_file
         path = Path(tasks_path) if tasks_path else Path(run['tasks_file']['path'])
         try:

@@ -34,6 +34,7 @@ class SimWorker(EpisodeObserver):
     the oracle node of the same namespace before it acts."""
 
     def __init__(self, graph: Graph, namespace: str, agent, run, oracle: bool = False):
+        # lazy: the ROS messages, which the rest of this module does without
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
         self.reset_cli = graph.client(SimReset, sim_service(namespace, 'reset'))
         self.step_cli = graph.client(SimStep, sim_service(namespace, 'step'))
@@ -84,9 +85,11 @@ class SimWorker(EpisodeObserver):
         if reply is None:
             reply = Failed('the service call returned no reply')
         elif self.pending == 'question':
+            # lazy: the ROS messages, which the rest of this module does without
             from dialfred_sim.messages import qa_from_answer
             reply = qa_from_answer(self.asking, reply, self.task.task_id)
         else:
+            # lazy: the ROS messages, which the rest of this module does without
             from dialfred_sim.messages import sim_reply
             reply = sim_reply(reply)
         try:
@@ -97,7 +100,8 @@ class SimWorker(EpisodeObserver):
 
     def _request(self, request) -> None:
         """Send the episode's request to the simulator or the oracle node."""
-        from dialfred_msgs.msg import Action
+        from dialfred_msgs.msg import Action  # lazy: the ROS messages, which the rest of this module does without
+        # lazy: the ROS messages, which the rest of this module does without
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
         if isinstance(request, Reset):
             self._send(self.reset_cli, SimReset.Request(task_id=self.task.task_id, with_depth=False,
@@ -156,7 +160,7 @@ class PerformerWorker:
     def __init__(self, graph: Graph, namespace: str, run, on_feedback=None):
         from rclpy.action import ActionClient
 
-        from dialfred_msgs.action import RunTask
+        from dialfred_msgs.action import RunTask  # lazy: the ROS messages, which the rest of this module does without
         self.name = f'{namespace.rstrip("/")}/performer/run_task'
         self.client = ActionClient(graph.client_node, RunTask, self.name)
         deadline = time.monotonic() + 60.0
@@ -179,7 +183,7 @@ class PerformerWorker:
         is lost: a goal then waits for its acceptance until request_timeout (the hang once seen in an
         evaluation, and after every node restart under load). So: a goal the node refuses to play (a
         negative seed: aborted before it touches the simulator) is sent until its result comes back."""
-        from dialfred_msgs.action import RunTask
+        from dialfred_msgs.action import RunTask  # lazy: the ROS messages, which the rest of this module does without
         while True:
             if time.monotonic() > deadline:
                 raise TimeoutError(f'action server {self.name} gave no reply to a probe goal in 60 s')
@@ -198,7 +202,7 @@ class PerformerWorker:
         return self.future is not None
 
     def begin(self, index: int, task) -> None:
-        from dialfred_msgs.action import RunTask
+        from dialfred_msgs.action import RunTask  # lazy: the ROS messages, which the rest of this module does without
 
         self.job = (index, task)
         self.task, self.started = task, time.monotonic()
@@ -229,7 +233,7 @@ class PerformerWorker:
             self.goal_handle, self.pending = reply, 'result'
             self.future = reply.get_result_async()
             return None
-        from action_msgs.msg import GoalStatus
+        from action_msgs.msg import GoalStatus  # lazy: the ROS messages, which the rest of this module does without
         result = reply.result
         if reply.status == GoalStatus.STATUS_CANCELED:
             return self._result(result, error=f'cancelled after {self.run.options.episode_timeout:g} s (episode_timeout)')
@@ -451,8 +455,9 @@ def start_live_view(run, graph: Graph, namespaces: list, total: int):
     for performer nodes, dialogue/qa and performer/map; the workers' LiveHooks tell it the rest."""
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    from sensor_msgs.msg import Image
+    from sensor_msgs.msg import Image  # lazy: the ROS messages, which the rest of this module does without
 
+    # lazy: the ROS messages, which the rest of this module does without
     from dialfred_msgs.msg import Observation, QAPair
     from dialfred_bringup.live import LiveView, describe
     view = LiveView(len(namespaces), port=run.options.foxglove, total=total)

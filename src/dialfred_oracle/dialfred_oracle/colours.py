@@ -103,9 +103,10 @@ def measure_shade_range(size: int = 64) -> tuple[float, float]:
     """Render a sphere and a box of every palette colour under the world's light from several
     viewpoints in a private pybullet client; return the (min, max) ratio of rendered to palette
     channel values (channels below 100 are skipped: integer truncation dominates there)."""
-    from dialfred_sim.world.bodies import ShapeCache
+    from dialfred_sim.world.bodies import ShapeCache  # lazy: pybullet, which the rest of this module does without
+    # lazy: pybullet, which the rest of this module does without
     from dialfred_sim.world.bullet import bullet_client, pybullet
-    from dialfred_sim.world.scene import LIGHT_DIRECTION
+    from dialfred_sim.world.scene import LIGHT_DIRECTION  # lazy: pybullet, which the rest of this module does without
 
     client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
     try:

@@ -251,7 +251,7 @@ def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, ou
     """Write dialogues.jsonl for (the first `limit` tasks of) a demonstrations folder: the oracle's
     answers at step 0 and at the middle of each expert episode, replaying the recorded actions in
     DialfredEnv at the demonstrations' resolution. Returns the file's path."""
-    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     demonstrations_dir = Path(demonstrations_dir)
     demo = load_demonstrations(demonstrations_dir)
     env = DialfredEnv(resolution=demo.meta['resolution'])

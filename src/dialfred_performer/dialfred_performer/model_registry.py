@@ -74,19 +74,19 @@ def camera_resolution(model: str, path: Path) -> int:
 # import (and pay the start-up of) the other.
 
 def _load_et(path: Path):
-    from .agent import PerformerAgent
+    from .agent import PerformerAgent  # lazy: pybullet, torch, which the rest of this module does without
     return PerformerAgent.from_checkpoint(path)
 
 
 def _et_camera(path: Path) -> int:
     """The et performer's training resolution, read from its checkpoint (a frame of another size would be
     area-averaged, not the rendering it learned from)."""
-    from .model import load_checkpoint
+    from .model import load_checkpoint  # lazy: pybullet, torch, which the rest of this module does without
     return int(load_checkpoint(path)[0].config.resolution)
 
 
 def _load_map(path: Path):
-    from .mapper.agent import MapAgent
+    from .mapper.agent import MapAgent  # lazy: pybullet, torch, which the rest of this module does without
     return MapAgent.from_checkpoint(path)
 
 

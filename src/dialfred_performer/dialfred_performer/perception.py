@@ -298,7 +298,7 @@ def validate(net: Perception, demo, rows: np.ndarray, cfg: PerceptionConfig) -> 
 
 
 def train_perception(cfg: PerceptionConfig) -> dict:
-    from dialfred_sim.progress import progress_bar
+    from dialfred_sim.progress import progress_bar  # lazy: tqdm, which the rest of this module does without
     torch.set_num_threads(cfg.threads)
     demo = load_demonstrations(Path(cfg.demonstrations).expanduser())
     if demo.labels is None:

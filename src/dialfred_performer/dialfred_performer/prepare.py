@@ -111,7 +111,7 @@ def _finished_lines(folder: Path) -> dict[str, str]:
 
 
 def _dialogue_worker(folder: str, shard: int, shards: int) -> None:
-    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     folder = Path(folder)
     demo = load_demonstrations(folder)
     done = _finished_lines(folder)
@@ -135,7 +135,7 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     """dialogues.jsonl for every task of the demonstrations `folder` (resumable; see the module doc).
     The QAs the build's OracleProbe asked while rendering are taken as they are; only the other
     tasks are replayed."""
-    from dialfred_sim.progress import progress_bar
+    from dialfred_sim.progress import progress_bar  # lazy: tqdm, which the rest of this module does without
     folder = Path(folder)
     demo = load_demonstrations(folder)
     out = folder / DIALOGUES_FILE

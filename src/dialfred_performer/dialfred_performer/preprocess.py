@@ -162,8 +162,8 @@ def frame_tensor(rgb: np.ndarray, resolution: int):
     """An HxWx3 uint8 RGB frame (or a stack TxHxWx3) as a float tensor [3, R, R] (or [T, 3, R, R])
     in [0, 1] at R = `resolution`, resized by area averaging: the same for the frames of training
     and the frames the agent sees."""
-    import torch
-    import torch.nn.functional as F
+    import torch  # lazy: torch, which the rest of this module does without
+    import torch.nn.functional as F  # lazy: torch, which the rest of this module does without
     rgb = np.asarray(rgb)
     if rgb.ndim not in (3, 4) or rgb.shape[-1] != 3 or rgb.dtype != np.uint8:
         raise ValueError(f'expected HxWx3 uint8 RGB frames, got {rgb.dtype} {rgb.shape}')

@@ -156,7 +156,7 @@ _W: dict = {}
 
 def _init_worker(cfg_json: str) -> None:
     from dialfred_oracle.answers import Perturbation
-    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     from dialfred_sim.tasks import load_split
 
     from .policy import LearnedQuestioner
@@ -257,6 +257,7 @@ RL_PANELS = (
 
 def draw_rl_curves(metrics_path: Path, out_path: Path) -> Path:
     """The fine-tuning curves (return, SR, NQ, question-type mix, critic loss per update) as a PNG."""
+    # lazy: PIL, which the rest of this module does without
     from dialfred_performer.curves import draw_series, read_metrics
     rows = [{**r, **{f'mix.{k}': v for k, v in r.get('mix', {}).items()}} for r in read_metrics(metrics_path)]
     return draw_series(rows, RL_PANELS, out_path, x_key='update', x_label='x: actor-critic updates')

@@ -46,7 +46,7 @@ _ENV = None
 
 def _render_chunk(args: tuple[str, int, int, int]) -> np.ndarray:
     global _ENV
-    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, pybullet, which the rest of this module does without
     from dialfred_sim.tasks import load_split
     split, resolution, start, stop = args
     if _ENV is None or _ENV.resolution != resolution:
@@ -57,6 +57,7 @@ def _render_chunk(args: tuple[str, int, int, int]) -> np.ndarray:
 
 def frames_from_demonstrations(folder: Path, task_ids: list[str], resolution: int) -> np.ndarray:
     """The first frames of `task_ids` out of a finished demonstrations build (ValueError if it cannot serve)."""
+    # lazy: pybullet, which the rest of this module does without
     from dialfred_sim.tasks.demonstrations import load_demonstrations
     demos = load_demonstrations(Path(folder))
     if int(demos.meta['resolution']) != resolution:

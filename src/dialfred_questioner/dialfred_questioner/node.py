@@ -108,7 +108,7 @@ class QuestionerNode(Node):
             return
         import torch     # a learned questioner only: the baselines' node starts without torch's import time
 
-        from .policy import retimed
+        from .policy import retimed  # lazy: pybullet, torch, which the rest of this module does without
         if is_learned(self.questioner):
             torch.set_num_threads(max(1, int(self.get_parameter('torch_threads').value)))
             self.questioner.timing = retimed(self.questioner.timing, mode, gap, epsilon)

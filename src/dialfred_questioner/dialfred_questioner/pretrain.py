@@ -101,7 +101,7 @@ def score(model: Questioner, examples: list[Example], vocab, features, batch_siz
 
 
 def pretrain(cfg: PretrainConfig) -> dict:
-    from dialfred_sim.progress import progress_bar
+    from dialfred_sim.progress import progress_bar  # lazy: tqdm, which the rest of this module does without
 
     from dialfred_oracle.annotator import load_dialogues
     from .frames import FirstFrames, default_path

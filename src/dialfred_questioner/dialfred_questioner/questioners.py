@@ -25,6 +25,7 @@ def make_questioner(name: str) -> Questioner:
     module's doc). ValueError for an unknown name, a missing or damaged checkpoint, a bad class."""
     if name in baselines.QUESTIONERS:
         return baselines.QUESTIONERS[name]()
+    # lazy: pybullet, torch, which the rest of this module does without
     from .policy import SHIPPED_LEARNED, learned_checkpoint, learned_questioner
     if learned_checkpoint(name) is not None:
         return learned_questioner(name)

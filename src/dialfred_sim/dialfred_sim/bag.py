@@ -80,6 +80,7 @@ class BagError(ValueError):
 def _interface_dir() -> Path:
     """dialfred_msgs' interface files: the installed share folder, else the source tree beside this package."""
     try:
+        # lazy: ament, which the rest of this module does without
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory('dialfred_msgs'))
     except Exception:  # noqa: BLE001 - no ament index (a bare checkout): the source tree has the same files
@@ -89,6 +90,7 @@ def _interface_dir() -> Path:
 @functools.lru_cache(maxsize=1)
 def typestore():
     """ROS 2 Jazzy's standard types and dialfred_msgs' (from their .msg / .action files)."""
+    # lazy: rosbags, which the rest of this module does without
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
     store = get_typestore(Stores.ROS2_JAZZY)
     folder = _interface_dir()
@@ -225,7 +227,7 @@ class EpisodeRecorder:
 
 
 def encode_image(rgb: np.ndarray, fmt: str) -> bytes:
-    from PIL import Image
+    from PIL import Image  # lazy: PIL, which the rest of this module does without
     buf = io.BytesIO()
     if fmt == 'png':
         Image.fromarray(rgb).save(buf, format='PNG', compress_level=6)
@@ -238,7 +240,7 @@ def write_bag(path: Path, messages: list, store=None) -> Path:
     """Write (time, topic, sequence, message) tuples as the rosbag2/MCAP bag `path`, in time order
     (ties: the topic order of TOPICS, then the order they were added). Atomic: a temporary folder
     beside it is renamed into place."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer  # lazy: rosbags, which the rest of this module does without
     store = store or typestore()
     path = Path(path)
     staging = path.parent / f'.{path.name}.{os.getpid()}.part'
@@ -290,7 +292,7 @@ class RecordedEpisode:
 
 def decode_image(msg, compressed: bool) -> np.ndarray:
     if compressed:
-        from PIL import Image
+        from PIL import Image  # lazy: PIL, which the rest of this module does without
         return np.asarray(Image.open(io.BytesIO(bytes(msg.data))).convert('RGB'))
     if msg.encoding != 'rgb8':
         raise BagError(f'camera image encoding {msg.encoding!r}, expected rgb8')
@@ -299,7 +301,7 @@ def decode_image(msg, compressed: bool) -> np.ndarray:
 
 def read_episode(path: Path) -> RecordedEpisode:
     """Read an episode bag (a folder written by `write_bag`, or its .mcap file); BagError if it is not one."""
-    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2 import Reader  # lazy: rosbags, which the rest of this module does without
     path = Path(path)
     folder = path.parent if path.suffix == '.mcap' else path
     if not (folder / 'metadata.yaml').is_file():

@@ -27,7 +27,8 @@ SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=Reliability
 def refused_request(srv_type):
     """A request of `srv_type` that its dialfred server refuses without changing anything (an empty
     action, an unknown scene or object id), or None for other types."""
-    from dialfred_msgs.msg import Action
+    from dialfred_msgs.msg import Action  # lazy: the ROS messages, which the rest of this module does without
+    # lazy: the ROS messages, which the rest of this module does without
     from dialfred_msgs.srv import GroundTruth, SimReset, SimStep
     probes = {SimStep: lambda: SimStep.Request(action=Action(action=''), with_depth=False, with_segmentation=False),
               SimReset: lambda: SimReset.Request(scene='-', with_depth=False, with_segmentation=False),
@@ -142,6 +143,7 @@ class Param:
         return None
 
     def descriptor(self):
+        # lazy: the ROS messages, which the rest of this module does without
         from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
         text = self.description + ('' if self.dynamic else ' (read only: set when the node starts)')
         d = ParameterDescriptor(description=text, read_only=not self.dynamic)
@@ -157,6 +159,7 @@ def declare_parameters(node, params) -> None:
     node was started with (ValueError naming the parameter: the node does not start), and refuse a
     later change that breaks a Param's rules with the reason (NaN and infinity included, which
     ROS's own range check lets through)."""
+    # lazy: the ROS messages, which the rest of this module does without
     from rcl_interfaces.msg import SetParametersResult
     from rclpy.exceptions import InvalidParameterValueException
     by_name = {p.name: p for p in params}

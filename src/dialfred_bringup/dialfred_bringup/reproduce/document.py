@@ -319,9 +319,9 @@ def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0, valu
 
 def draw_frontier(points: list[tuple[str, float, float]], out_path: Path) -> Path:
     """SR against NQ, one labelled dot per setting (Pillow; the style of dialfred_performer.curves)."""
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw, ImageFont  # lazy: PIL, which the rest of this module does without
 
-    from dialfred_performer.curves import _ticks
+    from dialfred_performer.curves import _ticks  # lazy: PIL, which the rest of this module does without
     font = ImageFont.load_default()
     legend = [f'{label} ({sr:.1f}, {nq:.2f})' for label, sr, nq in points]
     probe = ImageDraw.Draw(Image.new('RGB', (1, 1)))

@@ -297,6 +297,7 @@ class Runner:
 
     def performer(self, resume: bool) -> dict:
         from dialfred_performer.model import PerformerConfig
+        # lazy: PIL, tqdm, which the rest of this module does without
         from dialfred_performer.train import TrainConfig, train
         c = dict(self.plan.performer_config())
         if 'model' in c:

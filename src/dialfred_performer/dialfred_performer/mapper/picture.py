@@ -72,7 +72,7 @@ def belief_picture(agent) -> np.ndarray:
         c = (hi_y - 1 - cell[1] + 0.5) * PX_PER_CELL
         return c, r
 
-    from PIL import Image, ImageDraw
+    from PIL import Image, ImageDraw  # lazy: PIL, which the rest of this module does without
     pic = Image.fromarray(np.ascontiguousarray(img))
     draw = ImageDraw.Draw(pic)
     for cell in visited:

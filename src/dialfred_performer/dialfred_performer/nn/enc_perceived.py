@@ -24,7 +24,7 @@ POOLED = 4          # the coarse map is pooled to POOLED x POOLED cells for the 
 def pixel_ray_lengths(size: int) -> torch.Tensor:
     """[size, size]: the length of each pixel's ray per metre of view-axis depth (the camera's rays:
     mapper.geometry.pixel_rays)."""
-    from ..mapper.geometry import pixel_rays
+    from ..mapper.geometry import pixel_rays  # lazy: pybullet, which the rest of this module does without
     u, v = pixel_rays(size)
     return torch.from_numpy(np.sqrt(1 + u ** 2 + v ** 2)).float()
 

@@ -188,7 +188,7 @@ def load_probe(name: str):
 
 def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int,
             probe: str = '', labels: bool = False) -> None:
-    from ..env import DialfredEnv
+    from ..env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     out = Path(out)
     tasks = load_split(split)[:limit]
     offsets = frame_offsets(tasks)
@@ -298,7 +298,7 @@ def _count_done(out: Path) -> int:
 
 
 def _run_with_progress(pool, args, out: Path, total: int, progress: bool) -> None:
-    from ..progress import progress_bar
+    from ..progress import progress_bar  # lazy: tqdm, which the rest of this module does without
     with progress_bar(total=total, initial=_count_done(out), unit='task',
               disable=not progress) as bar:
         if pool is None:

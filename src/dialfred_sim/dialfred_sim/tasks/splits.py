@@ -74,7 +74,7 @@ def generate_split(split: str, size: Optional[int] = None, progress: bool = True
 
     With workers > 1, that many processes play the episodes ahead and this one takes their rows in
     episode order: the same rows as one process gives. `progress` shows a bar of tasks on stderr."""
-    from ..progress import progress_bar
+    from ..progress import progress_bar  # lazy: tqdm, which the rest of this module does without
     size = SPLIT_SIZES[split] if size is None else size
     check_split_seed(split, split_seed)
     if isinstance(size, bool) or not isinstance(size, int) or size < 1:
@@ -104,7 +104,7 @@ def generate_split(split: str, size: Optional[int] = None, progress: bool = True
 
 def _played_in_process(split: str, split_seed: Optional[int]) -> Iterator[tuple[int, Optional[dict]]]:
     """(index, row) of episodes 0, 1, 2, ... of `split`, played by this process."""
-    from ..env import DialfredEnv
+    from ..env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     env, scenes = DialfredEnv(), split_scenes(split)
     try:
         index = 0
@@ -122,7 +122,7 @@ _WORKER_ENV = None
 def _worker_play(split: str, split_seed: Optional[int], index: int) -> Optional[dict]:
     global _WORKER_ENV
     if _WORKER_ENV is None:
-        from ..env import DialfredEnv
+        from ..env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
         _WORKER_ENV = DialfredEnv()
     return play_episode(_WORKER_ENV, split, index, 0, 10 ** 9, split_scenes(split), split_seed)
 
