@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from dialfred_oracle.answers import (DIRECTION_BINS, MAX_NOUN_CHARS, QUESTION_TYPES, STAY, TURN_AROUND, TURN_LEFT,
-                                     TURN_RIGHT, GO_STRAIGHT, Answer, Perturbation, answer, check_answer,
-                                     direction_bin, question_text, situation_key)
+                                     TURN_RIGHT, GO_STRAIGHT, Answer, Perturbation, answer, answer_now,
+                                     check_answer, direction_bin, question_text, refusal_on_its_face,
+                                     situation_key)
 from dialfred_oracle.colours import (SHADE_MAX, SHADE_MIN, _nearest_shaded_colour, colour_name, measure_shade_range,
                                      pixel_labels)
 from dialfred_sim.ground_truth import (Appearance, ObjectFact, Snapshot, appearance, snapshot,
@@ -190,6 +191,35 @@ def test_an_appearance_answer_gives_colour_and_material(env):
     dark = scene(fact('Apple_0', 'apple'), appearances={'Apple_0': Appearance('Apple_0', np.zeros((0, 3), np.uint8),
                                                                               False)})
     assert not answer(dark, 'appearance', 'apple').colour_from_pixels
+
+
+def test_the_one_rule_asks_for_looks_only_for_a_type_that_reads_them():
+    """answer_now (the node's and the in-process oracle's rule) fetches the looks of the object the
+    noun resolved to for an appearance question, and of nothing for the others."""
+    apple = fact('Apple_0', 'apple')
+    red = Appearance('Apple_0', np.full((40, 3), (200, 20, 20), np.uint8), True)
+    fetched = []
+
+    def with_looks(object_id):
+        fetched.append(object_id)
+        return scene(apple, appearances={object_id: red})
+
+    now = scene(apple, expert_end=(1.0, 0.0, 0.0, 30.0))
+    a = answer_now(now, 'app', 'the apples', with_looks)
+    assert fetched == ['Apple_0'] and a.colour_from_pixels and a.text == answer(with_looks('Apple_0'), 'app', 'apple').text
+    fetched.clear()
+    for qtype, noun in (('location', 'apple'), ('direction', ''), ('appearance', 'banana')):
+        assert answer_now(now, qtype, noun, with_looks) == answer(now, qtype, noun)
+    assert fetched == []      # a location, a direction and an unresolved noun need no pixels
+
+
+def test_a_question_malformed_on_its_face_is_refused_before_the_world_is_read():
+    assert refusal_on_its_face('Location', 'apple') == ('location', None)
+    qtype, refusal = refusal_on_its_face('smell', 'apple')
+    assert qtype is None and not refusal.valid and 'unknown question type' in refusal.reason
+    qtype, refusal = refusal_on_its_face('appearance', 'x' * (MAX_NOUN_CHARS + 1))
+    assert qtype is None and not refusal.valid and 'longer than' in refusal.reason
+    assert refusal_on_its_face('direction', 'x' * (MAX_NOUN_CHARS + 1)) == ('direction', None)   # names no object
 
 
 # ---------------------------------------------------------------------- directions

@@ -241,6 +241,32 @@ def appearance_answer(snapshot: Snapshot, object_id: str) -> Answer:
 # type that names none) -> Answer. A type of protocol.QUESTION_KINDS without a rule here is refused.
 RULES: dict[str, Callable[[Snapshot, str], Answer]] = {
     'location': location_answer, 'appearance': appearance_answer, 'direction': direction_answer}
+# The types whose rule reads the rendered looks of the object it names (Snapshot.appearances): their
+# answer is given from a snapshot that carries that object's pixels (`answer_now`).
+READS_LOOKS: set[str] = {'appearance'}
+
+
+def refusal_on_its_face(question_type, object_noun: str = '') -> tuple[Optional[str], Optional[Answer]]:
+    """(the question type, None) for a question fit to put to the world; (None, the refusal) for one
+    malformed on its face (an unknown type, an overlong noun), which never needs the simulator."""
+    qtype = parse_question_type(question_type)
+    if qtype is None:
+        return None, answer(None, question_type, object_noun)
+    if names_object(qtype) and len(object_noun) > MAX_NOUN_CHARS:
+        return None, Answer(False, reason=f'the object noun is longer than {MAX_NOUN_CHARS} characters',
+                            question_type=qtype)
+    return qtype, None
+
+
+def answer_now(snapshot_now: Snapshot, question_type: str, object_noun: str,
+               with_looks: Callable[[str], Snapshot]) -> Answer:
+    """The oracle's answer in the world's state `snapshot_now`, the one rule of both the node and the
+    in-process oracle. A type of READS_LOOKS is answered again from `with_looks(object_id)`: the state
+    with the rendered looks of the object the first answer resolved the noun to."""
+    result = answer(snapshot_now, question_type, object_noun)
+    if result.valid and parse_question_type(question_type) in READS_LOOKS and result.object_id:
+        result = answer(with_looks(result.object_id), question_type, object_noun)
+    return result
 
 
 # ---------------------------------------------------------------------- checking answers

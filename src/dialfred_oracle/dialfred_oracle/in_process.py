@@ -1,11 +1,11 @@
 """The oracle in the same process as a `DialfredEnv` (no ROS): what `/oracle/answer` would say now, and
 `EnvServer`, which serves an episode's requests (dialfred_sim.episode) from both.
 
-For loops that play many episodes in one process (the questioner's RL rollouts): the same rules
-as the node (`node.OracleNode.answer`): the world's ground truth now, an appearance answer
-recomputed with the looks of the object it is about, and the paper's perturbation (withholding one
-type's answers) keyed on the same situation, so an answer here is the node's answer in the same
-state.
+For loops that play many episodes in one process (the questioner's RL rollouts): the node's rule
+(`answers.answer_now`, which `node.OracleNode.answer` calls too): the world's ground truth now, an
+answer that reads an object's looks given again with that object's rendered pixels, and the paper's
+perturbation (withholding one type's answers) keyed on the same situation, so an answer here is the
+node's answer in the same state.
 """
 
 from __future__ import annotations
@@ -15,22 +15,19 @@ from typing import Optional
 
 from dialfred_sim.episode import Ask, Reply, Request, Reset, SimReply
 from dialfred_sim.ground_truth import snapshot
-from dialfred_sim.protocol import QA, env_observation, names_object
+from dialfred_sim.protocol import QA, env_observation
 
-from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, situation_key
+from . import answers
+from .answers import Answer, Perturbation, refusal_on_its_face, situation_key
 
 
 def answer_now(env, question_type: str, object_noun: str = '', perturbation: Optional[Perturbation] = None) -> Answer:
     """The oracle's answer to a question about `env` (a DialfredEnv after reset) in its state now."""
-    qtype = parse_question_type(question_type)
-    if qtype is None:
-        return answer(None, question_type, object_noun)
-    if names_object(qtype) and len(object_noun) > MAX_NOUN_CHARS:
-        return Answer(False, reason=f'the object noun is longer than {MAX_NOUN_CHARS} characters', question_type=qtype)
+    qtype, refusal = refusal_on_its_face(question_type, object_noun)
+    if refusal is not None:
+        return refusal
     snap = snapshot(env)
-    result = answer(snap, qtype, object_noun)
-    if result.valid and qtype == 'appearance' and result.object_id:
-        result = answer(snapshot(env, [result.object_id]), qtype, object_noun)
+    result = answers.answer_now(snap, qtype, object_noun, lambda object_id: snapshot(env, [object_id]))
     if perturbation is not None:
         result = perturbation.apply(result, situation_key(snap, qtype, object_noun))
     return result

@@ -39,12 +39,12 @@ from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
-from dialfred_sim.protocol import QUESTION_TYPES, names_object
+from dialfred_sim.protocol import QUESTION_TYPES
 from dialfred_sim.ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, make_executor, run_node
 
 from dialfred_sim.tasks.split_files import load_split, read_tasks_file
 
-from .answers import MAX_NOUN_CHARS, Answer, Perturbation, answer, parse_question_type, question_text, situation_key
+from .answers import Answer, Perturbation, answer_now, question_text, refusal_on_its_face, situation_key
 from .swap import SWAP_MODES, AnswerSwap
 
 
@@ -165,22 +165,18 @@ class OracleNode(Node):
 
     def answer(self, qtype: str, noun: str) -> Answer:
         # Questions that are malformed on their face never reach the simulator.
-        parsed = parse_question_type(qtype)
-        if parsed is None:
-            return answer(None, qtype, noun)
-        qtype = parsed
-        if names_object(qtype) and len(noun) > MAX_NOUN_CHARS:
-            return Answer(False, reason=f'the object noun is longer than {MAX_NOUN_CHARS} characters',
-                          question_type=qtype)
+        qtype, refusal = refusal_on_its_face(qtype, noun)
+        if refusal is not None:
+            return refusal
         state = self.world_state()
         snap = state.snapshot
         self._about = snap.task_id
-        result = answer(snap, qtype, noun)
-        if result.valid and qtype == 'appearance' and result.object_id:
-            oid = result.object_id
-            if not self.cache or oid not in state.appearances:
-                state = self.world_state([oid])
-            result = answer(state.with_appearance(oid), qtype, noun)
+
+        def with_looks(object_id: str) -> Snapshot:
+            held = state if self.cache and object_id in state.appearances else self.world_state([object_id])
+            return held.with_appearance(object_id)
+
+        result = answer_now(snap, qtype, noun, with_looks)
         if self.swapped:
             try:
                 return self.swap_for(snap.task_id).apply(result, snap.task_id, noun)
