@@ -288,8 +288,8 @@ def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatc
 
 def test_a_cache_stage_is_timed_by_the_files_it_writes_and_never_cleared(tmp_path, monkeypatch):
     runner = reproduce.Runner(reproduce.ReproduceConfig(quick=True, out=str(tmp_path / 'run')))
-    assert runner.outputs('demos') == [runner.plan.demos] and runner.outputs('frames') == [runner.plan.frames]
-    assert runner.outputs('dialogues') == [runner.plan.dialogue_dir / 'train.jsonl.gz']
+    assert runner.plan.stage_outputs('demos') == [runner.plan.demos] and runner.plan.stage_outputs('frames') == [runner.plan.frames]
+    assert runner.plan.stage_outputs('dialogues') == [runner.plan.dialogue_dir / 'train.jsonl.gz']
     inputs = {'x': 1}
     monkeypatch.setattr(runner, 'stage_inputs', lambda stage, raw=False: dict(inputs))
     demos = runner.plan.demos
@@ -300,16 +300,16 @@ def test_a_cache_stage_is_timed_by_the_files_it_writes_and_never_cleared(tmp_pat
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        runner.run_stage('demos', cut_off, runner.outputs('demos'))
+        runner.run_stage('demos', cut_off, runner.plan.stage_outputs('demos'))
     stamp_path = tmp_path / 'run' / 'stamps' / 'demos.json'
     stamp = json.loads(stamp_path.read_text())
     stamp['started_at'] -= 30.0
     stamp_path.write_text(json.dumps(stamp))
-    runner.run_stage('demos', lambda resume: {'resumed': resume}, runner.outputs('demos'))
+    runner.run_stage('demos', lambda resume: {'resumed': resume}, runner.plan.stage_outputs('demos'))
     done = json.loads(stamp_path.read_text())
     assert done['runs'] == 2 and done['report'] == {'resumed': True} and done['seconds'] >= 30.0
     inputs['x'] = 2                                             # new inputs: rewritten in place, not cleared
-    runner.run_stage('demos', lambda resume: {'resumed': resume}, runner.outputs('demos'))
+    runner.run_stage('demos', lambda resume: {'resumed': resume}, runner.plan.stage_outputs('demos'))
     assert (demos / 'frames.npy').read_text() == 'half'
 
 

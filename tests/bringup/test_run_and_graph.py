@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -25,13 +26,15 @@ def test_a_node_started_with_run_is_listed_by_graph_with_its_services_and_topics
                              '-p', 'resolution:=32'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         graph = {}
-        for _ in range(5):            # the node starts and discovery settles within a few seconds
+        deadline = time.monotonic() + 120     # a few seconds on a quiet machine; far more beside training
+        while time.monotonic() < deadline and node.poll() is None:
             done = subprocess.run([DIALFRED, 'graph', '--json', '--wait', '3'], capture_output=True, text=True,
                                   timeout=120)
             assert done.returncode == 0, done.stderr[-2000:]
             graph = json.loads(done.stdout)
             if '/runtest/sim/reset' in graph['services']:
                 break
+        assert node.poll() is None, f'the node exited with {node.returncode}: {node.stdout.read()[-2000:]}'
         assert '/runtest/dialfred_sim' in graph['nodes']
         assert graph['services']['/runtest/sim/reset'] == ['dialfred_msgs/srv/SimReset']
         assert graph['services']['/runtest/sim/step'] == ['dialfred_msgs/srv/SimStep']

@@ -1,12 +1,15 @@
 """The import graph has no circle: no module of src/ imports, at module
 level or inside a function, a module that imports it back (directly or through others). A circle such
 as dialfred_sim.env <-> dialfred_sim.tasks.splits works only in the order its modules happen to be
-imported; each module must import on its own, in a fresh interpreter.
+imported; each module must import on its own, in a fresh interpreter. Imports sit at module level,
+where a reader sees who depends on whom; one inside a function says why in a comment (a heavy package
+the rest of its module does without, an optional feature).
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -114,3 +117,36 @@ def test_each_module_imports_first_in_a_fresh_interpreter(module):
     proc = subprocess.run([sys.executable, '-c', f'import {module}'], cwd=REPO, capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def unexplained_inner_imports(path: Path) -> list[str]:
+    """'file:line: statement' of each import inside a function of `path` with no comment on its line
+    and none on a comment line heading the run of imports it is in."""
+    lines = path.read_text().splitlines()
+    found = []
+    for fn in ast.walk(ast.parse('\n'.join(lines), str(path))):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        for node in ast.walk(fn):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)) or '#' in lines[node.lineno - 1]:
+                continue
+            k = node.lineno - 2
+            while k >= 0 and re.match(r'\s*(import|from) ', lines[k]) and '#' not in lines[k]:
+                k -= 1
+            if not (k >= 0 and lines[k].strip().startswith('#')):
+                found.append(f'{path.relative_to(REPO)}:{node.lineno}: {lines[node.lineno - 1].strip()}')
+    return sorted(set(found))
+
+
+def test_an_import_inside_a_function_says_why_it_is_there():
+    unexplained = [line for path in project_modules().values() for line in unexplained_inner_imports(path)]
+    assert not unexplained, 'move these to module level, or say why not in a comment:\n' + '\n'.join(unexplained)
+
+
+def test_the_rule_finds_an_unexplained_inner_import_and_accepts_explained_ones(tmp_path, monkeypatch):
+    monkeypatch.setattr(sys.modules[__name__], 'REPO', tmp_path)
+    (tmp_path / 'm.py').write_text(
+        'def a():\n    import json\n'
+        'def b():\n    import torch  # lazy: torch\n    import json\n'
+        'def c():\n    # lazy: the ROS messages\n    from x import y\n    from x import z\n')
+    assert unexplained_inner_imports(tmp_path / 'm.py') == ['m.py:2: import json', 'm.py:5: import json']

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-
+from dialfred_performer.model import load_checkpoint
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.metrics import intervals, summarize
 from dialfred_sim.tasks import load_split
@@ -154,7 +154,6 @@ def baseline_row(config: EvalConfig, resamples: int) -> dict:
 
 
 def checkpoint_info(config: EvalConfig) -> dict:
-    from dialfred_performer.model import load_checkpoint
     run = EvalRun(config, check=False)
     _, _, info = load_checkpoint(run.checkpoint_path)
     return {'path': str(run.checkpoint_path), 'sha256': run.checkpoint_sha256,

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
+from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.protocol import image_array
 from dialfred_sim.tasks import load_split
@@ -116,7 +117,6 @@ def demo_tasks(tasks: list, count: int, first: Optional[int] = None) -> list[tup
 def reference_line(config: EvalConfig, doc: Path = RESULTS_DOC) -> str:
     """Where the demo's few episodes stand: this performer's and questioner's valid_unseen SR in the results
     document of the shipped checkpoints (Table II), or where to measure it."""
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
     names = {b.questioner: b.name for b in BASELINES.values()}
     name, agent = names.get(config.questioner), config.performer or config.agent
     if agent == 'et' and checkpoint_path(config).resolve() == Path(SHIPPED_CHECKPOINT).resolve() \

@@ -36,13 +36,14 @@ from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
 from dialfred_sim.dataclass_cli import add_fields, from_args
-from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, load_results, played_at,
-                                  results_by_task, results_lock, summarize, write_text_atomically)
+from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, git_commit, load_results,
+                                  played_at, results_by_task, results_lock, summarize, write_text_atomically)
 from dialfred_sim.tasks.goals import under_rule
 
 from .eval_config import EvalConfig
 from .eval_run import EvalRun
-from .graph import Graph
+from .graph import Graph, discovery_spans_hosts, host_token
+from .local import play_local
 from .shards import shard_tasks
 from .workers import (LiveHook, PerformerWorker, SimWorker, Supervisor, play_episodes, start_live_view,
                       worker_nodes)
@@ -89,7 +90,6 @@ def run_namespace() -> str:
     """The namespace of this run's nodes (/eval_<pid>): no other run, even in the same ROS domain,
     can reach them or be reached by this one. Where discovery reaches other hosts (a shard per host,
     docs/scaling.md), the host's name goes in too (/eval_<host>_<pid>): a pid is unique on one host only."""
-    from dialfred_bringup.graph import discovery_spans_hosts, host_token
     return f'/eval_{host_token()}_{os.getpid()}' if discovery_spans_hosts() else f'/eval_{os.getpid()}'
 
 
@@ -217,8 +217,6 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
 
 
 def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalReport:
-    from dialfred_performer.model import git_commit
-
     t0 = time.monotonic()
     config = run.options
     tasks = run.split_tasks()[:config.limit]
@@ -247,7 +245,6 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalRepor
         return record
 
     if jobs and config.local:
-        from dialfred_bringup.local import play_local
         with progress_bar(len(tasks), len(done), progress) as bar:
             play_local(run, jobs, recorder(bar))
     elif jobs:

@@ -18,6 +18,7 @@ from typing import Optional
 import numpy as np
 
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
+from dialfred_sim.metrics import load_results
 
 _DISTANCE = re.compile(r'is out of reach \(([\d.]+) m away')
 _OBJECT = re.compile(r'\b[A-Z][A-Za-z]+_\d+\b')
@@ -43,7 +44,6 @@ class FailuresConfig:
 
 
 def breakdown(path: Path, examples: int = 3) -> dict:
-    from dialfred_sim.metrics import load_results
     results = load_results(path, skip_bad=True)
     if not results:
         raise ValueError(f'{path}: no results')

@@ -9,6 +9,8 @@ import textwrap
 from pathlib import Path
 from typing import Optional, Sequence
 
+import numpy as np
+
 
 def save_captioned_gif(film, path: Path, width: int = 320, seconds_per_frame: float = 1.0,
                        durations_ms: Optional[Sequence[int]] = None) -> None:
@@ -39,7 +41,6 @@ def save_captioned_gif(film, path: Path, width: int = 320, seconds_per_frame: fl
 def save_contact_sheet(rows, path: Path, per_row: int = 8, size: int = 128) -> None:
     """One PNG with a row per episode: its label (a line of text) over `per_row` of its frames, evenly
     spaced from the first to the last. `rows`: (label, [frames]) pairs."""
-    import numpy as np
     from PIL import Image, ImageDraw, ImageFont  # lazy: PIL, which the rest of this module does without
     font = ImageFont.load_default(size=12)
     label_h = 18

@@ -24,6 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+import rclpy
+from rclpy.signals import SignalHandlerOptions
+
 from dialfred_sim import ros_util
 from dialfred_sim.ros_util import SERVICE_QOS, SETTLE_S
 
@@ -214,9 +217,6 @@ class Graph:
         return self
 
     def _start(self) -> None:
-        import rclpy
-        from rclpy.signals import SignalHandlerOptions
-
         for n in self.nodes:
             n.start()
         if not rclpy.ok():
@@ -231,7 +231,6 @@ class Graph:
         self.executor.add_node(self.client_node)
 
     def __exit__(self, *exc) -> None:
-        import rclpy
         if self._previous_sigint is not None:
             signal.signal(signal.SIGINT, self._previous_sigint)
             self._previous_sigint = None

@@ -40,10 +40,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from dialfred_performer.model_registry import camera_resolution
+from dialfred_performer.shipped import SHIPPED_CHECKPOINT
+from dialfred_sim.bag import EpisodeRecorder
 from dialfred_sim.dataclass_cli import add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION
 from dialfred_sim.protocol import QUESTION_TYPES, Question, image_array, scale_pixel
 from dialfred_sim.ros_util import RESEND_AFTER_S
+from dialfred_sim.scripted import ExplorerPolicy
+from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .demo import DemoConfig, run_demo
@@ -93,8 +98,6 @@ def run_explore(args: ExploreConfig) -> int:
     from dialfred_msgs.msg import Action  # lazy: the ROS messages, which the rest of this module does without
     # lazy: the ROS messages, which the rest of this module does without
     from dialfred_msgs.srv import SimReset, SimStep
-
-    from dialfred_sim.scripted import ExplorerPolicy
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -156,8 +159,6 @@ def nodes_resolution(resolution: Optional[int]) -> int:
     """The camera of `launch nodes`: as given, else the one the shipped et performer was trained at."""
     if resolution is not None:
         return resolution
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
-    from dialfred_performer.model_registry import camera_resolution
     return camera_resolution('et', SHIPPED_CHECKPOINT)
 
 
@@ -231,7 +232,6 @@ class DialogueRun:
         False if the simulator refused the reset."""
         from dialfred_msgs.srv import SimReset  # lazy: the ROS messages, which the rest of this module does without
 
-        from dialfred_sim.bag import EpisodeRecorder
         args, episode = self.args, self.episode
         reply = self.graph.call(self.reset_cli, SimReset.Request(task_id=task.task_id, with_depth=False,
                                                                  with_segmentation=False), retry_after=RESEND_AFTER_S)
@@ -280,7 +280,6 @@ class DialogueRun:
 def run_dialogue(args: DialogueConfig) -> int:
     """Scripted integration run: on a few tasks, ask the oracle each question type and print the
     dialogue; with `--gif`, also save it as captioned frames (what the agent saw when it asked)."""
-    from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[args.first:args.first + args.tasks]
     with Graph([sim_node(args.resolution), oracle_node(human=args.human)]) as graph:
         run = DialogueRun(args, graph)

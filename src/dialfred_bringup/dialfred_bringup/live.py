@@ -27,6 +27,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from dialfred_sim.world.rooms import footprint, room_layout
+
 FOXGLOVE_PORT = 8765      # the Foxglove WebSocket port when --foxglove comes without one
 
 MAP_PX_PER_M = 48
@@ -43,7 +45,6 @@ class RoomMap:
     """A top-down picture of a room (fixtures as filled footprints on the floor) with the agent drawn on it."""
 
     def __init__(self, scene: str):
-        from dialfred_sim.world.rooms import footprint, room_layout
         from PIL import Image, ImageDraw  # lazy: PIL, which the rest of this module does without
         layout = room_layout(scene)
         self.width, self.depth = layout.width, layout.depth

@@ -12,9 +12,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
+
 from dialfred_sim.bag import STEP_NS, BagError, RecordedEpisode, read_episode
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
+from .film import save_captioned_gif, save_contact_sheet
 from .live import FOXGLOVE_PORT, LiveView, describe
 
 # --------------------------------------------------------------------------------------------- replay
@@ -40,7 +43,6 @@ def transcript(ep: RecordedEpisode) -> list[str]:
 
 def beside(frame, picture):
     """The frame with `picture` (a performer's map) fitted into a square of the frame's height on its right."""
-    import numpy as np
     from PIL import Image  # lazy: PIL, which the rest of this module does without
     h = frame.shape[0]
     scale = h / max(picture.shape[:2])
@@ -138,7 +140,6 @@ def main(argv=None) -> int:
     if not ep.frames:
         print('(no camera frames in this bag: no pictures)', file=sys.stderr)
         return 0
-    from .film import save_captioned_gif, save_contact_sheet
     gif = args.gif or ep.path.parent / f'{ep.path.name}.gif'
     sheet = args.sheet or ep.path.parent / f'{ep.path.name}_sheet.png'
     if args.pictures:

@@ -34,8 +34,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
+from dialfred_sim.bag import BagError, read_episode, bag_name
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
+from dialfred_sim.tasks.split_files import get_task
+
+from .film import save_captioned_gif
+from .replay import film
 from .report_page import OUTCOME_LABELS, render_page
 
 GIF_WIDTH = 256
@@ -175,7 +180,6 @@ def run_settings(results: list[EpisodeResult], run: Optional[dict]) -> tuple[lis
 def task_text(task_id: str) -> tuple[str, str]:
     """(instruction, scene) of a task of a shipped split, ('', '') if it cannot be found there."""
     try:
-        from dialfred_sim.tasks.split_files import get_task
         task = get_task(task_id)
     except Exception:  # noqa: BLE001 - a test split or a split not generated here: the page shows less
         return '', ''
@@ -199,10 +203,6 @@ def render_gif(bag: Path, gif: Path, width: int, expected: Optional[dict] = None
     'scene', 'frames'}; a bag that cannot be read or has no frames gives ok False and why. With `expected`
     (episode_of the results line, and its 'dialogue' [(type, noun, answer)]), a bag of another episode (bags
     are named by task only: another run's, recorded into the same folder) gives ok False, 'mismatch' True."""
-    from .film import save_captioned_gif
-    from dialfred_sim.bag import BagError, read_episode
-
-    from .replay import film
     try:
         ep = read_episode(bag)
     except BagError as exc:
@@ -227,7 +227,6 @@ def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Pat
                 workers: int, say: Callable[[str], None]) -> dict:
     """Render the GIF of every episode whose bag `bags` holds into `media`, and set each view's gif or
     media_note. Returns counts {'gifs', 'missing', 'unreadable', 'mismatched' (a bag of another episode)}."""
-    from dialfred_sim.bag import bag_name
     todo = []
     counts = {'gifs': 0, 'missing': 0, 'unreadable': 0, 'mismatched': 0}
     for view in views:

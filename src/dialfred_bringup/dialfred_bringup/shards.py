@@ -29,6 +29,7 @@ from typing import Optional, Sequence
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
                       played_at, same_episode, summarize, write_text_atomically)
+from dialfred_sim.tasks import load_split
 
 SHARD_NAME = re.compile(r'_shard(\d+)of(\d+)$')
 
@@ -184,7 +185,6 @@ class Merged:
 def split_tasks(settings: dict, run: dict, tasks_path: Optional[Path] = None) -> list:
     """Every task of the split the shards came from (before --limit): the shipped split's, or those of
     its tasks file (at `tasks_path`, else where the run read it), checked by sha256."""
-    from dialfred_sim.tasks import load_split
     if settings['tasks_file'] is None:
         tasks = load_split(settings['split'])
     else:

@@ -16,8 +16,12 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
+from rclpy.action import ActionClient
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from dialfred_sim.agents import task_view
 from dialfred_sim.bag import RecordingObserver
-from dialfred_sim.episode import Ask, EpisodeObserver, Failed, Reset
+from dialfred_sim.episode import Ask, EpisodeObserver, Failed, Reset, play
 from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
 from dialfred_sim.protocol import MapPainter, episode_seed, image_array
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
@@ -53,8 +57,6 @@ class SimWorker(EpisodeObserver):
         return self.future is not None
 
     def begin(self, index: int, task) -> None:
-        from dialfred_sim.agents import task_view
-        from dialfred_sim.episode import play
         self.job = (index, task)
         self.task = task
         self.started_at = time.monotonic()
@@ -158,8 +160,6 @@ class PerformerWorker:
     than `episode_timeout` is cancelled, and its episode recorded as an error."""
 
     def __init__(self, graph: Graph, namespace: str, run, on_feedback=None):
-        from rclpy.action import ActionClient
-
         from dialfred_msgs.action import RunTask  # lazy: the ROS messages, which the rest of this module does without
         self.name = f'{namespace.rstrip("/")}/performer/run_task'
         self.client = ActionClient(graph.client_node, RunTask, self.name)
@@ -453,8 +453,6 @@ class LiveHook:
 def start_live_view(run, graph: Graph, namespaces: list, total: int):
     """The Foxglove server of --foxglove, fed from each worker's sim/observation (camera, pose) and,
     for performer nodes, dialogue/qa and performer/map; the workers' LiveHooks tell it the rest."""
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-
     from sensor_msgs.msg import Image  # lazy: the ROS messages, which the rest of this module does without
 
     # lazy: the ROS messages, which the rest of this module does without

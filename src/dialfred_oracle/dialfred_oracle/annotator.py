@@ -30,8 +30,10 @@ from typing import Callable, Iterable, Optional, Sequence
 
 import numpy as np
 
+from dialfred_sim.ground_truth import snapshot
 from dialfred_sim.protocol import QUESTION_TYPES, question_text
 from dialfred_sim.tasks.instructions import tokenize
+from dialfred_sim.tasks.split_files import SPLIT_CODES
 from dialfred_sim.world.catalog import object_type
 
 from .answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT, Answer, direction_bin
@@ -524,7 +526,6 @@ ANNOTATION_RESOLUTION = 128    # the frame the annotators see (the simulator's d
 
 def annotator_rng(task_id: str, annotator_id: int) -> np.random.Generator:
     """The generator of one annotator on one task: independent streams from (split, number, annotator)."""
-    from dialfred_sim.tasks.splits import SPLIT_CODES
     split, number = task_id.split('/')
     return np.random.default_rng(np.random.SeedSequence([ANNOTATION_SEED, SPLIT_CODES[split], int(number),
                                                          annotator_id]))
@@ -535,7 +536,6 @@ def annotate_task(env, task) -> TaskDialogues:
     still at its start. The same row whatever ran before (its randomness comes from the task id);
     changes nothing in the world (the oracle renders the asked object's look only for an appearance
     question)."""
-    from dialfred_sim.ground_truth import snapshot
     snap = snapshot(env)
     situation = Situation.of(task, snap)
 

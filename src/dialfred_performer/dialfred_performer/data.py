@@ -38,9 +38,13 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task
+from dialfred_oracle.answers import answer
+from dialfred_sim.ground_truth import snapshot, task_object_ids
 from dialfred_sim.protocol import ACTIONS, QA, QUESTION_TYPES, every_question
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
 
+from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
 from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
 
@@ -188,7 +192,6 @@ def insert_failed_interaction(item: dict, at: int, interaction: int) -> dict:
     nor its pointer is a target), then sees frame `at` again with that failed interaction as its
     previous action (`failed_id`) and the expert's action of step `at` as the target; the rest follows
     as before. QAs asked after step `at` move one step later with their frames."""
-    from .nn.enc_action import failed_id
     actions, previous = item['actions'], item['previous_actions']
     clicked = int(actions[interaction])
     out = dict(item)
@@ -236,8 +239,6 @@ def collate(items: Sequence[dict]) -> dict:
 def oracle_qas(env, nouns: Sequence[str], step: int) -> list[AskedQA]:
     """The real oracle's answers now (env at some step of a task): location and appearance of each
     noun, and direction, each marked as asked at `step`."""
-    from dialfred_oracle.answers import answer
-    from dialfred_sim.ground_truth import snapshot, task_object_ids
     snap = snapshot(env, task_object_ids(env))
     questions = every_question(nouns)
     out = []
@@ -318,7 +319,6 @@ class AnnotatingProbe(OracleProbe):
 
     def __call__(self, env, step: int) -> None:
         if step == 0:
-            from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task
             with env.viewed_at(ANNOTATION_RESOLUTION):
                 self.annotation = annotate_task(env, self.task).to_json()
         super().__call__(env, step)

@@ -9,6 +9,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 from .data import collate
 from .model import pointer_ce
@@ -19,7 +20,6 @@ STAT_KEYS = ('steps', 'targets', 'action_ce', 'pointer_ce', 'action_correct', 'p
 def batch_stats(outputs: dict, batch: dict) -> dict:
     """Sums over a batch: cross-entropies and correct predictions (action over the steps whose action is
     a target; pointer over steps with a target, right when its best cell is one of the target's)."""
-    import torch.nn.functional as F
     valid = batch['action_valid']
     a_logits, p_logits = outputs['action_logits'].detach()[valid], outputs['pointer_logits'].detach()
     a_target, masks = batch['actions'][valid], batch['target_masks']

@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,12 +22,13 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from dialfred_sim.metrics import git_commit
 from dialfred_sim.protocol import ACTIONS, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig
-from .shipped import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 from .preprocess import N_TOKEN_TYPES, Vocabulary
+from .shipped import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
 
@@ -211,19 +211,6 @@ def performer_loss(outputs: dict, batch: dict, pointer_weight: float = 1.0) -> t
 
 class CheckpointError(ValueError):
     """A checkpoint that cannot be loaded, with what does not match."""
-
-
-def git_commit() -> str:
-    """The commit of the repository this file is in (with '+dirty' for uncommitted changes), or 'unknown'."""
-    here = Path(__file__).resolve().parent
-    try:
-        head = subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=here, capture_output=True, text=True,
-                              timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(['git', 'status', '--porcelain'], cwd=here, capture_output=True, text=True,
-                               timeout=10).stdout.strip()
-        return head + ('+dirty' if dirty else '')
-    except (OSError, subprocess.SubprocessError):
-        return 'unknown'
 
 
 def save_checkpoint(path: Path, model: Performer, vocab: Vocabulary, command: Optional[str] = None,

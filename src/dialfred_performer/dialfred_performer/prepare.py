@@ -29,13 +29,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations, probe_values
-from dialfred_sim.tasks.splits import SPLIT_SIZES
-
+from dialfred_oracle import answers
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
-from .malloc import ensure_malloc_settings
+from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations, probe_values
+from dialfred_sim.tasks.splits import SPLIT_SIZES
+from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.world.palette import COLOUR_NAMES
+
 from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
+from .malloc import ensure_malloc_settings
 from .preprocess import Vocabulary
 
 VOCABULARY_FILE = 'vocabulary.json'
@@ -77,9 +80,6 @@ class PrepareConfig:
 def oracle_texts() -> list[str]:
     """Every word the oracle's answers can contain: its fixed sentences and templates, and every
     object noun, colour and material of the catalogue."""
-    from dialfred_oracle import answers
-    from dialfred_sim.world.catalog import load_catalog
-    from dialfred_sim.world.palette import COLOUR_NAMES
     texts = [*answers.DIRECTION_BINS, answers.GO_STRAIGHT, answers.TURN_LEFT, answers.TURN_RIGHT,
              answers.TURN_AROUND, answers.STAY, answers.WITHHELD,
              'The is in on the you are holding. You are holding the. The is and made of.', *COLOUR_NAMES]

@@ -47,19 +47,21 @@ from typing import Optional, Sequence
 import numpy as np
 import torch
 
+from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
+from dialfred_sim.metrics import git_commit
 from dialfred_sim.progress import progress_bar
 from dialfred_sim.protocol import ACTIONS
 from dialfred_sim.tasks.demonstrations import default_dir
 
-from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
-from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, held_out, vocabulary_texts
 from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,
                           rank_seed, rank_share, reduce_stats, sharded_loss, zero_stats)
+from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
-from .model import Performer, PerformerConfig, git_commit, load_checkpoint, performer_loss, save_checkpoint
+from .model import Performer, PerformerConfig, load_checkpoint, performer_loss, save_checkpoint
 from .nn import PerceivedFrames
+from .perception import load_perception
 from .prepare import VOCABULARY_FILE, oracle_texts
 from .preprocess import Vocabulary
 
@@ -203,7 +205,6 @@ def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:
         if cfg.model.reach_input:
             raise ValueError('--reach-input needs --perception PATH: the distances are the network\'s predictions')
         return cfg.model, None
-    from .perception import load_perception
     net, _ = load_perception(Path(cfg.perception))
     if net.config.resolution != cfg.model.resolution:
         raise ValueError(f'the perception network reads {net.config.resolution} px frames, the performer '

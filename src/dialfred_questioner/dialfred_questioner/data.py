@@ -19,13 +19,13 @@ import numpy as np
 import torch
 
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
+from dialfred_sim.world.catalog import load_catalog
 
 from .model import NEEDS_OBJECT, TYPE_TOKENS
 
 
 def catalog_nouns() -> tuple[str, ...]:
     """Every object noun of the catalogue (the nouns a question may name), sorted."""
-    from dialfred_sim.world.catalog import load_catalog
     return tuple(sorted({t.noun for t in load_catalog().values()}))
 
 

@@ -43,16 +43,19 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_sim.dataclass_cli import arg, parse
-from dialfred_sim.processes import worker_pool
-from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint, read_state
+from dialfred_oracle.answers import Perturbation
+from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint, read_state
 from dialfred_performer.model_registry import PERFORMER_MODELS, camera_resolution, load_policy
-
+from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_sim.metrics import git_commit
+from dialfred_sim.processes import worker_pool
 from dialfred_sim.protocol import MAX_STEPS
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
+from dialfred_sim.tasks import load_split
 
 from .checkpoint import resume_training, save
 from .model import Questioner
+from .policy import LearnedQuestioner, score_records
 from .rl import Rewards, actor_critic_loss, discounted_returns, group_baseline
 from .rollout import TIMINGS, Timing, play_rollout
 
@@ -155,11 +158,7 @@ _W: dict = {}
 
 
 def _init_worker(cfg_json: str) -> None:
-    from dialfred_oracle.answers import Perturbation
     from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
-    from dialfred_sim.tasks import load_split
-
-    from .policy import LearnedQuestioner
     torch.set_num_threads(1)
     cfg = FinetuneConfig(**json.loads(cfg_json))
     _W['cfg'] = cfg
@@ -207,7 +206,6 @@ def rollout_chunks(jobs: list, workers: int, per_worker: int = 8) -> list[list]:
 
 def update_step(model: Questioner, opt, episodes: list[dict], cfg: FinetuneConfig) -> dict:
     """One actor-critic step on every decision of `episodes` (complete episodes, in order)."""
-    from .policy import score_records
     records, rewards, ends, starts = [], [], [], []
     for ep in episodes:
         if ep['records']:
@@ -264,9 +262,6 @@ def draw_rl_curves(metrics_path: Path, out_path: Path) -> Path:
 
 
 def finetune(cfg: FinetuneConfig) -> dict:
-    from dialfred_sim.tasks import load_split
-
-    from .policy import LearnedQuestioner
     if not cfg.resolution:
         cfg = dataclasses.replace(cfg, resolution=camera_resolution(cfg.model, Path(cfg.performer)))
     out = Path(cfg.out)

@@ -28,6 +28,7 @@ import numpy as np
 
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.processes import worker_pool
+from dialfred_sim.tasks import load_split
 
 CACHE_ENV = 'DIALFRED_QUESTIONER_CACHE'
 CHUNK = 64
@@ -47,7 +48,6 @@ _ENV = None
 def _render_chunk(args: tuple[str, int, int, int]) -> np.ndarray:
     global _ENV
     from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, pybullet, which the rest of this module does without
-    from dialfred_sim.tasks import load_split
     split, resolution, start, stop = args
     if _ENV is None or _ENV.resolution != resolution:
         _ENV = DialfredEnv(resolution=resolution)
@@ -73,7 +73,6 @@ def build_first_frames(split: str, resolution: int = 64, out: Optional[Path] = N
                        limit: int = 0, progress: bool = True, demonstrations: Optional[Path] = None) -> Path:
     """Save the first frames of `split` (its first `limit` tasks if > 0), rendered or copied out of
     `demonstrations`; returns the path."""
-    from dialfred_sim.tasks import load_split
     if resolution < 16:
         raise ValueError(f'resolution must be at least 16, got {resolution}')
     tasks = load_split(split)[:limit or None]

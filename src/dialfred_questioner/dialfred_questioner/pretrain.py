@@ -29,12 +29,15 @@ from typing import Optional
 import numpy as np
 import torch
 
-from dialfred_sim.dataclass_cli import arg, parse
-from dialfred_performer.model import SHIPPED_CHECKPOINT, git_commit, load_checkpoint
+from dialfred_oracle.annotator import load_dialogues
 from dialfred_performer.data import held_out
+from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
+from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_sim.metrics import git_commit
 
-from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
 from .checkpoint import resume_training, save
+from .data import Example, catalog_nouns, collate, frame_features, pretraining_examples
+from .frames import FirstFrames, default_path
 from .model import Questioner, QuestionerConfig
 
 MODULE = 'dialfred_questioner.pretrain'
@@ -103,8 +106,6 @@ def score(model: Questioner, examples: list[Example], vocab, features, batch_siz
 def pretrain(cfg: PretrainConfig) -> dict:
     from dialfred_sim.progress import progress_bar  # lazy: tqdm, which the rest of this module does without
 
-    from dialfred_oracle.annotator import load_dialogues
-    from .frames import FirstFrames, default_path
     out = Path(cfg.out)
     commit = git_commit()
     torch.set_num_threads(cfg.threads or len(os.sched_getaffinity(0)))

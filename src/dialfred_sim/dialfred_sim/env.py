@@ -17,7 +17,11 @@ from gymnasium import spaces
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
 from .protocol import MAX_FAILURES, MAX_STEPS
+from .tasks import get_task
+from .tasks.expert import replay
+from .tasks.generator import apply_setup
 from .tasks.goals import DEFAULT_GOAL_RULE, check_goal_rule, conditions_met, goal_progress, under_rule
+from .tasks.schema import Task
 from .world.bullet import bullet_client, pybullet, quiet_stdout
 from .world.rooms import all_scenes, room_layout, scene_number
 from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World
@@ -133,8 +137,6 @@ class DialfredEnv(gym.Env):
 
     def _reset_to_task(self, task):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
-        from .tasks.expert import replay
-        from .tasks.generator import apply_setup
         task = under_rule(task, self.goal_rule)    # its goal and expert length as this env judges them
         episode = task.episode
         super().reset(seed=episode.seed)
@@ -327,7 +329,6 @@ def _check_probability(name: str, value) -> None:
 
 def _check_options(options) -> dict:
     """reset()'s options, checked; a task is resolved to its Task under 'task'. Changes nothing."""
-    from .tasks.schema import Task
     if options is None:
         return {}
     if not isinstance(options, dict):
@@ -342,7 +343,6 @@ def _check_options(options) -> dict:
             raise ValueError(f"a task sets its own room and state: give 'task_id' or 'task' alone, got "
                              f"{sorted(options)}")
         if 'task_id' in options:
-            from .tasks import get_task
             task_id = checked.pop('task_id')
             if not isinstance(task_id, str):
                 raise TypeError(f"task_id must be a string such as 'valid_unseen/000012', got {task_id!r} "

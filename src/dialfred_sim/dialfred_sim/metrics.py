@@ -21,6 +21,7 @@ import fcntl
 import json
 import os
 import socket
+import subprocess
 import sys
 import time
 import warnings
@@ -295,6 +296,19 @@ class ResultsFileError(ValueError):
 
 class TruncatedResultsWarning(UserWarning):
     """The last line of a results file was cut off (an interrupted write) and was skipped."""
+
+
+def git_commit() -> str:
+    """The commit of the code that runs: of the repository this file is in (with '+dirty' for uncommitted changes), or 'unknown'."""
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=here, capture_output=True, text=True,
+                              timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(['git', 'status', '--porcelain'], cwd=here, capture_output=True, text=True,
+                               timeout=10).stdout.strip()
+        return head + ('+dirty' if dirty else '')
+    except (OSError, subprocess.SubprocessError):
+        return 'unknown'
 
 
 def write_text_atomically(path: Union[str, Path], text: str) -> None:

@@ -9,6 +9,8 @@ import traceback
 from dataclasses import dataclass
 from typing import Any, Optional
 
+import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Services that never drop a request. ROS's default service QoS keeps the last 10 requests: of 500
@@ -41,10 +43,11 @@ def refused_request(srv_type):
 def make_executor():
     """The EventsExecutor (measured about 4x lower service latency here), else single-threaded."""
     try:
+        # lazy: experimental in rclpy; one without it gets the single-threaded executor below
         from rclpy.experimental.events_executor import EventsExecutor
         return EventsExecutor()
     except ImportError:  # pragma: no cover - older rclpy
-        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.executors import SingleThreadedExecutor  # lazy: needed only without the EventsExecutor
         return SingleThreadedExecutor()
 
 
@@ -55,7 +58,6 @@ def spin_forever(executor) -> None:
     spin() never dispatched service requests here, while spin_once() does (tested in
     tests/sim/test_sim_node.py through the real node). Other executors spin().
     """
-    import rclpy
     if type(executor).__name__ != 'EventsExecutor':
         executor.spin()
         return
@@ -86,8 +88,6 @@ def error_reply(field: str = 'error', flag: str = 'ok'):
 def run_node(make_node, args=None, executor_factory=None) -> None:
     """The whole life of a node process: init, build the node (`make_node()`), serve until Ctrl-C
     or shutdown, then tear down in Jazzy's order. `executor_factory`: default `make_executor`."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
     rclpy.init(args=args)
     node, refused = None, None
     executor = (executor_factory or make_executor)()

@@ -67,6 +67,7 @@ from .document import build_report, copy_doc, draw_frontier, render, why_lines, 
 from .plan import (EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,
                    SPLITS, STAGES, Plan, ReproduceConfig, Setting, settings, weights_sha256)
 from .stages import Runner
+from .status import run_status, status_lines
 
 __all__ = ['EXTRA', 'MAP_ROWS', 'PAPER_T2', 'PAPER_T3', 'PAPER_T4', 'PERTURB_PROBABILITY', 'RESOLUTION', 'RL_RUNS',
            'SHIPPED_QUESTIONERS', 'SPLITS', 'STAGES', 'Plan', 'ReproduceConfig', 'Runner', 'Setting', 'copy_doc',
@@ -77,7 +78,6 @@ def main(argv: Optional[list[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     cfg = parse(ReproduceConfig, argv, prog='./dialfred reproduce')
     if cfg.status:
-        from .status import run_status, status_lines
         planned = Runner(cfg).planned_hashes() if (cfg.run_dir / 'stamps').is_dir() else None
         print('\n'.join(status_lines(run_status(cfg.run_dir, cfg.shipped, planned=planned))))
         return 0

@@ -8,13 +8,15 @@ from collections import Counter
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 
+from dialfred_questioner.rl import Rewards
 from dialfred_sim.metrics import has_goto, intervals, summarize
 from dialfred_sim.protocol import QUESTION_TYPES, question_text
+from dialfred_sim.tasks import load_split
 
+from ..evaluation import EvalRun, resumable_results
 from ..paths import REPO
-
-
 from ..report_page import environment
 from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, WORTH_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SHIPPED_RUN, SPLITS, STAGES, Setting, settings)
 
@@ -23,8 +25,6 @@ from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, W
 
 def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
     """The numbers of one setting from its results file (n = 0 when it has none)."""
-    from dialfred_bringup.evaluation import EvalRun, resumable_results
-    from dialfred_sim.tasks import load_split
     if not plan.available(s) or not (plan.eval_dir / f'{s.split}_{s.key}.jsonl').exists():
         return {'n': 0}
     config = plan.eval_config(s)
@@ -42,7 +42,6 @@ def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
               ({t: 0.0 for t in QUESTION_TYPES} if total == 0 else None))
     asked = [[(qa['type'], qa['noun']) for qa in r.dialogue] for r in results]
     repeats = sum(len(a) - len(set(a)) for a in asked)
-    from dialfred_questioner.rl import Rewards
     returns = {name: sum(rewards.of_episode(r.success, r.steps, r.questions, r.invalid_questions) for r in results)
                / len(results) for name, rewards in (('return', Rewards()), ('return_fixed_1', Rewards.fixed_1()))}
     return {'n': len(results), 'tasks': len(tasks), 'repeats': round(repeats / recorded, 3) if recorded else 0.0,
@@ -91,7 +90,6 @@ def most_asked(rows: dict, top: int = 10) -> list[tuple[str, int]]:
 
 def turned_around(rows: dict, count: int = 5) -> list[tuple]:
     """Tasks failed by the performer alone (instruction only) and succeeded with RL anytime's questions."""
-    from dialfred_sim.tasks import load_split
     out = []
     for split in SPLITS:
         base = {r.task_id: r for r in rows[(split, 'instruction_only')].get('results', [])}
@@ -245,7 +243,6 @@ def why_lines(plan: Plan, rows: dict) -> list[str]:
     """What the numbers say about why the paper's findings hold or not here: the worth of a question
     against the rewards' price, greedy against sampled question mixes, what RL does when answers are
     withheld. Every figure is computed from the rows or the RL runs' training logs."""
-    from dialfred_questioner.rl import Rewards
     rewards, lines = Rewards(), []
     price = -rewards.question / rewards.success * 100           # SR points a question must buy to pay for itself
 
@@ -307,9 +304,6 @@ def why_lines(plan: Plan, rows: dict) -> list[str]:
 def paired_interval(a: list, b: list, resamples: int = 2000, seed: int = 0, value=None) -> tuple[float, float]:
     """95% bootstrap interval of the mean paired difference of `value` (an episode's number; default the
     paper's return), a - b (results of the same tasks, in the same order)."""
-    import numpy as np
-
-    from dialfred_questioner.rl import Rewards
     ret = value or (lambda r: Rewards().of_episode(r.success, r.steps, r.questions, r.invalid_questions))
     d = np.array([ret(x) - ret(y) for x, y in zip(a, b)])
     rng = np.random.default_rng(seed)

@@ -1,19 +1,24 @@
 """What `./dialfred reproduce` runs: the settings of the paper's tables, the run's config and sizes."""
 
 from __future__ import annotations
+
 import hashlib
 import json
-
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-
+from dialfred_oracle.annotator import dialogue_path
+from dialfred_performer.model import read_state, state_digest
 from dialfred_performer.model_registry import MAP_CAMERA
+from dialfred_performer.shipped import SHIPPED_CHECKPOINT
+from dialfred_questioner.frames import default_path
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.tasks.demonstrations import default_dir
 
 from ..baseline_runs import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4
+from ..evaluation import EvalConfig
 from ..paths import REPO
 
 
@@ -206,8 +211,6 @@ class Plan:
     """What each stage runs (paths and configs), from the run's config: full size or quick slices."""
 
     def __init__(self, cfg: ReproduceConfig):
-        from dialfred_questioner.frames import default_path
-        from dialfred_sim.tasks.demonstrations import default_dir
         self.cfg, self.run = cfg, cfg.run_dir
         q = cfg.quick
         self.train_limit = 32 if q else 0
@@ -263,7 +266,6 @@ class Plan:
     @property
     def performer_checkpoint(self) -> Path:
         if self.cfg.shipped:
-            from dialfred_performer.model import SHIPPED_CHECKPOINT
             return Path(SHIPPED_CHECKPOINT)
         best = self.performer_dir / 'best.pt'
         return best if best.exists() or not (self.performer_dir / 'last.pt').exists() else self.performer_dir / 'last.pt'
@@ -295,10 +297,20 @@ class Plan:
             return self.pretrain_dir / 'best.pt'
         return self.run / 'questioner' / run / 'final.pt'
 
+    def stage_outputs(self, stage: str) -> list[Path]:
+        """What `stage` writes: cleared before it runs with new inputs (CACHES' are rewritten in place
+        instead), and timed by their modification times when it was cut off."""
+        dialogues = self.dialogue_dir / 'train.jsonl.gz' if self.dialogue_dir else dialogue_path('train')
+        return {
+            'demos': [self.demos], 'dialogues': [dialogues], 'frames': [self.frames],
+            'perception': [self.perception_dir], 'performer': [self.performer_dir], 'pretrain': [self.pretrain_dir],
+            'rl': [self.run / 'questioner' / name for name in RL_RUNS], 'eval': [self.eval_dir],
+            'check': [self.check_dir], 'doc': [self.run / 'results.md', self.run / 'sr_nq.png'],
+        }[stage]
+
     def eval_config(self, s: Setting, check: bool = False):
         """The evaluation of setting `s` for the tables, or with `check` its first check_tasks tasks
         through the graph (performer nodes)."""
-        from dialfred_bringup.evaluation import EvalConfig
         questioner = s.questioner
         if questioner.startswith('rl:'):
             questioner = f'learned:{self.questioner_checkpoint(questioner[3:])}'
@@ -346,7 +358,6 @@ def weights_sha256(path: Path) -> str:
     """A checkpoint's weights digest (dialfred_performer.model.state_digest of its state_dict). Two runs
     that train the same model get the same digest even though their files differ: a checkpoint also
     records the command and git commit that made it."""
-    from dialfred_performer.model import read_state, state_digest
     try:
         state = read_state(path)['state_dict']
     except (OSError, ValueError, KeyError, TypeError) as exc:

@@ -21,10 +21,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
+from dialfred_questioner.policy import LearnedQuestioner, share_visual
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.metrics import write_text_atomically
 
 from ..paths import REPO
+from .document import stage_times
 from .plan import RL_RUNS, SHIPPED_QUESTIONERS, SHIPPED_RUN, TRAINING
 
 SHIPPED_STAGES = ('perception', 'performer', 'pretrain', 'rl')
@@ -41,8 +44,6 @@ class ShipConfig:
 
 
 def ship(cfg: ShipConfig) -> dict:
-    from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
-    from dialfred_questioner.policy import LearnedQuestioner, share_visual
     run = Path(cfg.run) if Path(cfg.run).is_absolute() else REPO / cfg.run
     for stage in SHIPPED_STAGES:
         try:
@@ -73,7 +74,6 @@ def ship(cfg: ShipConfig) -> dict:
     for name, source in questioners.items():
         share_visual(source, targets[name], et)
         LearnedQuestioner.from_checkpoint(targets[name])  # loads, with the encoder from et.pt
-    from .document import stage_times
     record = into / SHIPPED_RUN.name if into else SHIPPED_RUN
     times = {stage: t for stage, t in stage_times(run).items() if stage in TRAINING}
     write_text_atomically(record, json.dumps({'stages': times}, indent=1, sort_keys=True) + '\n')

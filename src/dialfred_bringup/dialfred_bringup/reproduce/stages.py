@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -15,8 +16,21 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
+from dialfred_oracle.annotator import DIALOGUE_CACHE_ENV
+from dialfred_performer.model import PerformerConfig
 from dialfred_performer.model_registry import PERFORMER_MODELS
+from dialfred_performer.perception import PerceptionConfig, train_perception
+from dialfred_performer.prepare import PrepareConfig, prepare
+from dialfred_questioner.finetune import FinetuneConfig, finetune
+from dialfred_questioner.frames import build_first_frames
+from dialfred_questioner.model import QuestionerConfig
+from dialfred_questioner.pretrain import PretrainConfig, pretrain
+from dialfred_sim.metrics import write_text_atomically, same_episode
+from dialfred_sim.tasks import load_split
 
+from ..baseline_runs import run_baseline
+from ..evaluation import EvalRun, resumable_results
+from ..machine import machine
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)
 from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, settings)
@@ -161,6 +175,24 @@ UPSTREAM = {
 }
 
 
+@contextlib.contextmanager
+def dialogues_from(folder: Optional[Path]):
+    """With `folder` (a quick run's own dialogues) as the annotator's dialogue cache while the block runs;
+    None leaves the default cache."""
+    if folder is None:
+        yield
+        return
+    old = os.environ.get(DIALOGUE_CACHE_ENV)
+    os.environ[DIALOGUE_CACHE_ENV] = str(folder)
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(DIALOGUE_CACHE_ENV, None)
+        else:
+            os.environ[DIALOGUE_CACHE_ENV] = old
+
+
 class Runner:
     def __init__(self, cfg: ReproduceConfig):
         self.cfg, self.plan = cfg, Plan(cfg)
@@ -240,7 +272,6 @@ class Runner:
     def write_stamp(self, stage: str, record: dict) -> None:
         self.stamps_dir.mkdir(parents=True, exist_ok=True)
         tmp = self.stamp_path(stage).with_suffix('.tmp')
-        from dialfred_bringup.machine import machine
         record = {**record, 'machine': machine()}      # the seconds, and bit patterns, depend on it
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + '\n')
         tmp.replace(self.stamp_path(stage))
@@ -285,18 +316,15 @@ class Runner:
     # ---- the stages
 
     def demos(self, resume: bool) -> dict:
-        from dialfred_performer.prepare import PrepareConfig, prepare
         return prepare(PrepareConfig(**self.plan.demos_config()))
 
     def perception(self, resume: bool) -> dict:
-        from dialfred_performer.perception import PerceptionConfig, train_perception
         c = self.plan.perception_config()
         resume = resume and (self.plan.perception_dir / 'last.pt').exists()
         report = train_perception(PerceptionConfig(**c, resume=resume))
         return {k: v for k, v in report.items() if isinstance(v, (int, float, str, dict))}
 
     def performer(self, resume: bool) -> dict:
-        from dialfred_performer.model import PerformerConfig
         # lazy: PIL, tqdm, which the rest of this module does without
         from dialfred_performer.train import TrainConfig, train
         c = dict(self.plan.performer_config())
@@ -323,35 +351,18 @@ class Runner:
         return {k: first.get(k) for k in ('split', 'path', 'seconds', 'tasks') if k in first}
 
     def frames(self, resume: bool) -> dict:
-        from dialfred_questioner.frames import build_first_frames
         c = self.plan.frames_config()
         path = build_first_frames(c['split'], c['resolution'], Path(c['out']), limit=c['limit'],
                                   progress=self.cfg.progress, demonstrations=Path(c['demonstrations']))
         return {'path': str(path)}
 
-    def with_dialogues_env(self, fn):
-        d = self.plan.dialogue_dir
-        if d is None:
-            return fn()
-        from dialfred_oracle.annotator import DIALOGUE_CACHE_ENV
-        old = os.environ.get(DIALOGUE_CACHE_ENV)
-        os.environ[DIALOGUE_CACHE_ENV] = str(d)
-        try:
-            return fn()
-        finally:
-            if old is None:
-                os.environ.pop(DIALOGUE_CACHE_ENV, None)
-            else:
-                os.environ[DIALOGUE_CACHE_ENV] = old
-
     def pretrain(self, resume: bool) -> dict:
-        from dialfred_questioner.model import QuestionerConfig
-        from dialfred_questioner.pretrain import PretrainConfig, pretrain
         c = dict(self.plan.pretrain_config())
         if 'model' in c:
             c['model'] = QuestionerConfig(**c['model'])
         resume = resume and (self.plan.pretrain_dir / 'last.pt').exists()
-        report = self.with_dialogues_env(lambda: pretrain(PretrainConfig(**c, resume=resume)))
+        with dialogues_from(self.plan.dialogue_dir):
+            report = pretrain(PretrainConfig(**c, resume=resume))
         return {k: v for k, v in report.items() if isinstance(v, (int, float, str))}
 
     def run_item(self, stage: str, item: str, inputs: dict, code: tuple[str, ...], outputs: list[Path],
@@ -359,7 +370,6 @@ class Runner:
         """One RL run or evaluation setting of an itemized stage, stamped on its own (stamps/<stage>/<item>.json)
         so that a change to one item reruns it alone: reuse it if it was done with these inputs and this code, resume it
         if it was cut off with them, else clear its outputs and run it. {'seconds', 'reused', **action's report}."""
-        from dialfred_sim.metrics import write_text_atomically
         stamp = self.stamps_dir / stage / f'{item.replace("/", "_")}.json'
         try:
             old = json.loads(stamp.read_text())
@@ -389,7 +399,6 @@ class Runner:
         return {**report, 'seconds': seconds, 'reused': False}
 
     def rl(self, resume: bool) -> dict:
-        from dialfred_questioner.finetune import FinetuneConfig, finetune
         p, items = self.plan, {}
         performer = file_sha256(p.performer_checkpoint)
         for name in RL_RUNS:
@@ -405,7 +414,6 @@ class Runner:
         return {'items': items}
 
     def eval(self, resume: bool) -> dict:
-        from dialfred_bringup.baseline_runs import run_baseline
         p, items = self.plan, {}
         p.eval_dir.mkdir(parents=True, exist_ok=True)
         performer = file_sha256(p.performer_checkpoint)
@@ -431,11 +439,6 @@ class Runner:
 
     def check(self, resume: bool) -> dict:
         """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
-        from dialfred_bringup.baseline_runs import run_baseline
-
-        from dialfred_bringup.evaluation import EvalRun, resumable_results
-        from dialfred_sim.metrics import same_episode, write_text_atomically
-        from dialfred_sim.tasks import load_split
         p = self.plan
         p.check_dir.mkdir(parents=True, exist_ok=True)
         report = {'tasks': p.check_tasks, 'eval_path': p.eval_path, 'settings': {}}
@@ -460,19 +463,6 @@ class Runner:
         paths = write_outputs(self.plan, report)
         return {'doc': str(paths[0]), 'plot': str(paths[1]), 'sha256': sha256_of(paths[0].read_bytes())}
 
-    def outputs(self, stage: str) -> list[Path]:
-        """What `stage` writes: cleared before it runs with new inputs (CACHES' are rewritten in place
-        instead), and timed by their modification times when it was cut off."""
-        from dialfred_oracle.annotator import dialogue_path
-        p = self.plan
-        dialogues = p.dialogue_dir / 'train.jsonl.gz' if p.dialogue_dir else dialogue_path('train')
-        return {
-            'demos': [p.demos], 'dialogues': [dialogues], 'frames': [p.frames],
-            'perception': [p.perception_dir], 'performer': [p.performer_dir], 'pretrain': [p.pretrain_dir],
-            'rl': [p.run / 'questioner' / name for name in RL_RUNS], 'eval': [p.eval_dir], 'check': [p.check_dir],
-            'doc': [p.run / 'results.md', p.run / 'sr_nq.png'],
-        }[stage]
-
     def run(self) -> dict:
         self.cfg.run_dir.mkdir(parents=True, exist_ok=True)
         t0 = time.monotonic()
@@ -481,7 +471,7 @@ class Runner:
                 self.log(f'{stage}: skipped (--shipped)')
                 self.summary[stage] = {'status': 'shipped', 'seconds': 0.0}
             else:
-                self.run_stage(stage, getattr(self, stage), self.outputs(stage))
+                self.run_stage(stage, getattr(self, stage), self.plan.stage_outputs(stage))
             if stage == self.cfg.until:
                 break
         target = self.cfg.doc_target if 'doc' in self.summary else None

@@ -42,14 +42,17 @@ from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observa
 from dialfred_sim.tasks.demonstrations import label_classes
 from dialfred_sim.world.catalog import load_catalog
 
+from ..model import load_checkpoint, read_state
+from ..perception import PERCEPTION_FORMAT, load_perception
 from .geometry import Pose
 from .language import Fact, InstructionError, Step, parse_instruction
-from .wayfinding import Navigation
+from .picture import belief_picture
 from .reading import AnswerReading
 from .rules import EXPLORING, INTERACTIONS, MAX_STEP_ACTIONS, REACH_M, REPLAN, SURE, WALKING
 from .semantic_map import SemanticMap
 from .sensing import Sensing
 from .targets import Targets
+from .wayfinding import Navigation
 
 # Attributes a decision reads but never changes (shared with the copy action_probabilities decides on).
 _SHARED = frozenset({'net', 'catalog', 'classes', 'class_id', 'map', 'rgb', 'labels', 'conf', 'ray', 'points', 'class_prob',
@@ -75,8 +78,6 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
     @classmethod
     def from_checkpoint(cls, path: Path) -> 'MapAgent':
         """From a perception performer's checkpoint (its frozen network) or a perception.pt file."""
-        from ..model import load_checkpoint, read_state
-        from ..perception import PERCEPTION_FORMAT, load_perception
         state = read_state(path)                      # once: either file is read from this dict
         if state.get('format') == PERCEPTION_FORMAT:
             net, _ = load_perception(path, state)
@@ -316,7 +317,6 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
 
     def picture(self) -> np.ndarray:
         """[H, W, 3] uint8: the belief map as a picture (`picture.belief_picture`), for bags and the live view."""
-        from .picture import belief_picture
         return belief_picture(self)
 
     def act(self, observation: Observation) -> Decision:

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from dialfred_oracle.answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT
+from dialfred_oracle.nouns import meanings
 from dialfred_sim.tasks.instructions import SYNONYMS
 from dialfred_sim.world.catalog import load_catalog
 
@@ -81,7 +82,6 @@ def object_type(phrase: str) -> str:
     table = _noun_types()
     if text in table:
         return table[text]
-    from dialfred_oracle.nouns import meanings
     catalog = load_catalog()
     for meaning in meanings(text):
         if meaning.types:

@@ -9,6 +9,7 @@ from typing import Optional
 
 import numpy as np
 
+from dialfred_oracle.colours import colour_name
 from dialfred_sim.protocol import QA
 
 from .geometry import Pose, STEP_M, off_bearing
@@ -69,7 +70,6 @@ class AnswerReading:
         return fact[0].colour if fact is not None else None
 
     def _colour_of(self, comp: np.ndarray) -> Optional[str]:
-        from dialfred_oracle.colours import colour_name
         h, w = self.rgb.shape[:2]
         s = comp.shape[0]
         rows = (np.arange(h) * s // h)

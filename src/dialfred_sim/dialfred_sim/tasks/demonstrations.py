@@ -43,7 +43,10 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..dataclass_cli import REQUIRED, arg, from_args, parser_for
+from ..metrics import write_text_atomically
 from ..processes import worker_pool
+from ..protocol import scale_pixel
+from ..world.catalog import load_catalog
 from .splits import SPLIT_SIZES, load_split
 
 CACHE_ENV = 'DIALFRED_DEMO_DIR'
@@ -54,7 +57,6 @@ LABEL_FILES = ('classes.npy', 'depth.npy', 'targets.npy')
 
 def label_classes() -> tuple[str, ...]:
     """The classes of classes.npy: '' (nothing), the room's structure, then every object type."""
-    from ..world.catalog import load_catalog
     return ('', 'Floor', 'Wall', 'Ceiling', *sorted(load_catalog()))
 
 
@@ -108,7 +110,6 @@ def frame_offsets(tasks) -> list[int]:
 def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) -> tuple[int, int]:
     """The pixel for the expert's interaction `action` in the current frame: its pixel scaled to the
     env's resolution, or the nearest pixel showing the action's target when the scaled one misses it."""
-    from ..protocol import scale_pixel
     x, y = scale_pixel(action.x, action.y, task_resolution, env.resolution)
     target = env.world.objects.get(action.target) if action.target else None
     if x < 0 or target is None or segmentation[y, x] == target.body:
@@ -287,7 +288,6 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
             'failed_tasks': [done[k]['task_id'] for k in range(len(tasks)) if not done[k]['success']],
             'seconds_this_run': round(time.monotonic() - t0, 1), 'workers': workers,
             'frames_bytes': int(np.prod(shape))}
-    from ..metrics import write_text_atomically
     write_text_atomically(out / 'meta.json', json.dumps(meta, indent=1) + '\n')   # the build's last word
     return meta
 

@@ -27,6 +27,7 @@ from typing import Iterator, Optional
 import numpy as np
 
 from ..dataclass_cli import REQUIRED, arg, from_args, parser_for
+from ..processes import worker_executor
 from .generator import cut_tasks, generate_episode
 # Reading the split files and looking tasks up live in split_files (the environment uses them, and
 # this module plays episodes in the environment); the names stay importable from here.
@@ -129,7 +130,6 @@ def _worker_play(split: str, split_seed: Optional[int], index: int) -> Optional[
 
 def _played_in_workers(split: str, split_seed: Optional[int], workers: int) -> Iterator[tuple[int, Optional[dict]]]:
     """(index, row) of episodes 0, 1, 2, ... in order, played by `workers` processes a few episodes ahead."""
-    from ..processes import worker_executor
     pool = worker_executor(workers)
     ahead: deque = deque()
     try:
