@@ -31,6 +31,18 @@ def test_sim_step_reports_the_overhead_over_the_bare_render():
     assert 0 < row['ratio_bare_over_step'] <= 2
 
 
+def test_import_weight_tells_a_light_module_from_one_that_loads_torch():
+    report = run_bench('import_weight', '--modules', 'dialfred_sim.protocol', 'dialfred_oracle.answers',
+                       'dialfred_performer.nn.heads')
+    assert report['modules']['dialfred_sim.protocol']['heavy'] == []
+    assert report['light_modules'] == ['dialfred_oracle.answers', 'dialfred_sim.protocol']
+    assert 'torch' in report['modules']['dialfred_performer.nn.heads']['heavy'] and report['modules_loading']['torch'] == 1
+    assert report['errors'] == [] and report['imports_inside_functions'] >= 0
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'import_weight.py'), '--modules', 'no.such'],
+                          cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and 'not a module of src/: no.such' in proc.stderr
+
+
 @pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_ros_step_reports_both_reply_forms_and_the_ros_floor():
     report = run_bench('ros_step', '--resolution', '64', '--steps', '6')
