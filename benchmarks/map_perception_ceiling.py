@@ -39,7 +39,10 @@ def truth_sight(agent_cls):
 
         def sense(self, observation):
             from dialfred_sim.tasks.demonstrations import pixel_classes
-            classes = pixel_classes(self.env.world, np.asarray(observation.segmentation)).astype(np.int64)
+            # The episode's observations carry RGB only (as through the graph): the labels and depth of this
+            # same frame are read from the simulator itself.
+            _, depth, segmentation = self.env.frames()
+            classes = pixel_classes(self.env.world, np.asarray(segmentation)).astype(np.int64)
             s = self.resolution // 2                                # the network's cells
             b = classes.shape[0] // s
             k = len(self.classes)
@@ -50,7 +53,7 @@ def truth_sight(agent_cls):
             objects = counts[:, 4:]
             best_object = objects.argmax(1)
             labels = np.where(objects.max(1) * 4 >= b * b, best_object + 4, counts.argmax(1)).reshape(s, s)
-            depth = np.asarray(observation.depth, np.float32).reshape(s, b, s, b).mean(axis=(1, 3))
+            depth = np.asarray(depth, np.float32).reshape(s, b, s, b).mean(axis=(1, 3))
             return labels, np.ones((s, s), np.float32), depth
 
     return GroundTruthSight

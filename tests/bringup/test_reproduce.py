@@ -1,5 +1,5 @@
-"""`./dialfred reproduce --quick` (dialfred_bringup/reproduce.py): the whole pipeline on tiny slices, in a
-temporary run folder (about 4 minutes on 2 cores).
+"""`./dialfred reproduce --quick` (dialfred_bringup/reproduce/): the whole pipeline on tiny slices, in a
+temporary run folder (each run from nothing takes several minutes on 2 cores; two of them run here).
 
 Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, check, doc) and writes
 its stamp; the check stage plays a learned and a perturbed setting through the ROS graph and finds the
@@ -20,18 +20,20 @@ from pathlib import Path
 
 import pytest
 
-
 import dialfred_bringup.reproduce as reproduce
 from dialfred_sim.protocol import QUESTION_TYPES
 
 ROOT = Path(__file__).resolve().parents[2]
 STAGES = reproduce.STAGES
+# The first test builds the module's run (the fixture) and one test makes a second: each is a whole quick
+# pipeline, longer than pytest.ini's 300 s bound for one test.
+pytestmark = pytest.mark.timeout(1800)
 
 
 def run(out: Path, *more: str) -> dict:
     done = subprocess.run([sys.executable, '-m', 'dialfred_bringup.reproduce', '--quick', '--out', str(out),
                            *more], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          timeout=900)
+                          timeout=1500)
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     summary['stderr'] = done.stderr

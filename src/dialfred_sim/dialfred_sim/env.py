@@ -233,6 +233,12 @@ class DialfredEnv(gym.Env):
     def render(self):
         return None if self._frame is None else self._frame[0]
 
+    def frames(self) -> Optional[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """The current frame's colour (HxWx3 uint8), depth (HxW float32 metres) and segmentation (HxW int32
+        body ids, -1 where none), or None before reset(). For privileged tools that read the simulator's
+        own labels (benchmarks/map_perception_ceiling.py): the graph and the local path give agents RGB only."""
+        return self._frame
+
     def _connect(self) -> None:
         """A new pybullet client (DIRECT, this env's own) and an empty world on it."""
         with quiet_stdout():
