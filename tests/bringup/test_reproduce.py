@@ -1,5 +1,6 @@
 """`./dialfred reproduce --quick` (dialfred_bringup/reproduce/): the whole pipeline on tiny slices, in a
-temporary run folder (each run from nothing takes several minutes on 2 cores; two of them run here).
+temporary run folder (each run from nothing takes about 3.5 minutes on a quiet 2-core machine, longer beside
+other tests; two of them run here).
 
 Claims: every stage runs (demos, performer, dialogues, frames, pretrain, rl, eval, check, doc) and writes
 its stamp; the check stage plays a learned and a perturbed setting through the ROS graph and finds the
