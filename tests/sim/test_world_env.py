@@ -246,6 +246,16 @@ def test_observations_match_the_observation_space(env):
     assert info['room_type'] == 'bedroom' and info['scene'] == 'FloorPlan301'
 
 
+def test_frames_are_the_current_observations_images_and_none_before_reset(make_env):
+    e = make_env()
+    assert e.frames() is None
+    obs, _ = reset(e, 'FloorPlan301')
+    obs, *_ = e.step('RotateLeft')
+    rgb, depth, segmentation = e.frames()
+    assert np.array_equal(rgb, obs['rgb']) and np.array_equal(depth, obs['depth'])
+    assert np.array_equal(segmentation, obs['segmentation'])
+
+
 def test_gymnasium_env_checker_passes(env):
     from gymnasium.utils.env_checker import check_env
     check_env(env.unwrapped, skip_render_check=True)
