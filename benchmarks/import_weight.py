@@ -20,24 +20,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from dialfred_bringup.paths import REPO, source_modules
+
 HEAVY = ('torch', 'rclpy', 'dialfred_msgs', 'pybullet', 'gymnasium', 'PIL', 'foxglove', 'rosbags', 'matplotlib')
 PROBE = ('import sys, time\nt0 = time.perf_counter()\nimport {module}\nseconds = time.perf_counter() - t0\n'
          'print(repr((seconds, [h for h in {heavy!r} if h in sys.modules])))')
-
-
-def project_modules() -> dict[str, Path]:
-    """{dotted name: file} of every module under src/<dist>/<package>/ but the `__main__` ones (importing
-    those runs them)."""
-    modules = {}
-    for init in sorted(REPO.glob('src/*/*/__init__.py')):
-        root = init.parent
-        for path in sorted(root.rglob('*.py')):
-            if path.name == '__main__.py':
-                continue
-            parts = path.relative_to(root.parent).with_suffix('').parts
-            modules['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
-    return modules
 
 
 def weigh(module: str, timeout: float = 300) -> dict:
@@ -65,7 +52,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--modules', nargs='+', metavar='NAME', help='only these modules (default: all of src/)')
     args = parser.parse_args(argv)
-    known = project_modules()
+    known = source_modules(with_main=False)
     chosen = args.modules or list(known)
     unknown = [m for m in chosen if m not in known]
     if unknown:

@@ -16,18 +16,7 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def project_modules() -> dict[str, Path]:
-    """{dotted name: file} of every Python package under src/ (src/<pkg>/<pkg>/...)."""
-    modules = {}
-    for init in sorted(REPO.glob('src/*/*/__init__.py')):
-        root = init.parent
-        for path in sorted(root.rglob('*.py')):
-            parts = path.relative_to(root.parent).with_suffix('').parts
-            modules['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
-    return modules
+from dialfred_bringup.paths import REPO, source_modules
 
 
 def ancestors(name: str) -> list[str]:
@@ -90,7 +79,7 @@ def find_cycle(graph: dict) -> list:
 
 @pytest.mark.parametrize('module_level_only', [True, False], ids=['module-level imports', 'all imports'])
 def test_no_module_imports_a_module_that_imports_it_back(module_level_only):
-    modules = project_modules()
+    modules = source_modules()
     graph = {name: imports_of(name, path, set(modules), module_level_only) for name, path in modules.items()}
     if not module_level_only:      # env looks tasks up inside functions: the walk must see it
         assert 'dialfred_sim.tasks' in graph['dialfred_sim.env']
@@ -139,7 +128,7 @@ def unexplained_inner_imports(path: Path) -> list[str]:
 
 
 def test_an_import_inside_a_function_says_why_it_is_there():
-    unexplained = [line for path in project_modules().values() for line in unexplained_inner_imports(path)]
+    unexplained = [line for path in source_modules().values() for line in unexplained_inner_imports(path)]
     assert not unexplained, 'move these to module level, or say why not in a comment:\n' + '\n'.join(unexplained)
 
 

@@ -18,3 +18,17 @@ def _repo_root() -> Path:
 
 
 REPO = _repo_root()
+
+
+def source_modules(with_main: bool = True) -> dict[str, Path]:
+    """{dotted name: file} of every module of the project's packages (src/<dist>/<package>/...); without
+    `with_main`, not the `__main__` ones (importing those runs them)."""
+    modules = {}
+    for init in sorted(REPO.glob('src/*/*/__init__.py')):
+        root = init.parent
+        for path in sorted(root.rglob('*.py')):
+            if path.name == '__main__.py' and not with_main:
+                continue
+            parts = path.relative_to(root.parent).with_suffix('').parts
+            modules['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
+    return modules
