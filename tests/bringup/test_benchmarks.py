@@ -252,3 +252,25 @@ def test_map_perception_ceiling_plays_both_sights_with_and_without_questions(tmp
     again = run_bench('map_perception_ceiling', '--limit', '8', '--shard', '0/4', '--out', str(tmp_path),
                       '--no-progress')     # resumed: nothing left to play, the same report
     assert again['settings'] == report['settings']
+
+
+@pytest.mark.slow   # a labelled slice rendered and a perception network trained first
+def test_performer_update_times_each_piece_in_random_and_block_order(tmp_path):
+    from dialfred_performer.perception import main as perception_main
+    from dialfred_performer.prepare import PrepareConfig, prepare
+    demos, perception = tmp_path / 'demos', tmp_path / 'perception'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=10, out=str(demos), progress=False,
+                          labels=True))
+    assert perception_main(['--demonstrations', str(demos), '--out', str(perception), '--frames', '32',
+                            '--batch-size', '16', '--val-frames', '16', '--val-fraction', '0.3', '--no-progress', '--c1', '8', '--c2', '8',
+                            '--c3', '16', '--decoder', '8']) == 0
+    args = ('--perception', str(perception / 'perception.pt'), '--demonstrations', str(demos), '--updates', '2',
+            '--skip', '0', '--threads', '1', '--batch-size', '8')
+    random, blocks = run_bench('performer_update', *args), run_bench('performer_update', *args, '--block-tasks', '4')
+    for report in (random, blocks):
+        pieces = report['seconds_per_update']
+        assert report['updates_timed'] >= 1 and pieces['update'] > 0
+        assert sum(v for k, v in pieces.items() if k != 'update') == pytest.approx(pieces['update'], rel=0.05, abs=1e-3)
+    assert random['seconds_per_update']['frozen_network'] > 0 and random['block_load_s'] == 0
+    assert blocks['seconds_per_update']['frozen_network'] == 0 < blocks['block_load_s']     # run once, at the block's start
+    assert blocks['block_batches'] >= 1

@@ -4,13 +4,15 @@ keeps the network frozen and points at single pixels, and the agent reads RGB on
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
 import torch
 import torch.nn.functional as F
 
-from dialfred_performer.model import load_checkpoint, pointer_ce
+from dialfred_performer.distributed import Ranks
+from dialfred_performer.model import PerformerConfig, load_checkpoint, pointer_ce
 from dialfred_performer.perception import (FIRST_OBJECT_CLASS, Perception, PerceptionNetConfig, cell_targets,
                                           load_perception, main as perception_main)
 from dialfred_sim.tasks.demonstrations import DEPTH_STEP, label_classes
@@ -379,3 +381,86 @@ def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(rea
     def at_cut():
         assert keyless._grids and all(g is None for g in keyless._grids)
     assert play_side_by_side(keyless, keyed, check, at_cut) == 10          # the whole-episode steps were played too
+
+
+def test_block_order_shows_every_item_once_with_each_batch_inside_its_block():
+    from dialfred_performer.blocks import block_batches, block_of
+    combos, tasks = 8, 7
+    items = [t * combos + c for t in range(tasks) for c in range(combos) if (t, c) != (3, 5)]   # one item left out
+    lengths = [3 + (i // combos) % 4 for i in items]
+    batches, blocks = block_batches(items, lengths, combos, batch_size=4, seed=0, epoch=0, bucket=2, block_tasks=3)
+    assert sorted(p for b in batches for p in b) == list(range(len(items)))
+    assert [len(b.tasks) for b in blocks] == [3, 3, 1] and sorted(t for b in blocks for t in b.tasks) == list(range(tasks))
+    for position, batch in enumerate(batches):
+        block = blocks[block_of(blocks, position)]
+        assert {items[p] // combos for p in batch} <= set(block.tasks), position
+    assert blocks[0].first_batch == 0 and [block_of(blocks, b.first_batch) for b in blocks] == [0, 1, 2]
+    again = block_batches(items, lengths, combos, 4, 0, 0, 2, 3)
+    assert again == (batches, blocks) and block_batches(items, lengths, combos, 4, 0, 1, 2, 3) != again
+    with pytest.raises(ValueError, match='block_tasks must be at least 1'):
+        block_batches(items, lengths, combos, 4, 0, 0, 2, 0)
+
+
+def test_a_block_s_gathered_features_give_the_numbers_of_perceiving_each_batch(reach_performer, prepared):
+    """The frozen network run once on a block's frames, its output gathered per batch, gives the performer's
+    outputs on frames perceived batch by batch; a frame outside the loaded block is refused."""
+    from dialfred_performer.blocks import BlockFeatures
+    from dialfred_performer.data import DemonstrationDataset, collate
+    checkpoint, _ = reach_performer
+    model, vocab, _ = load_checkpoint(checkpoint)
+    model.eval()
+    ds = DemonstrationDataset(prepared[0], vocab, 32, model.config.max_tokens, seed=0, grid_size=32)
+    combos = len(ds.combinations)
+    items = [0, combos + 3, 2 * combos + 1, 5]            # three tasks, two items of the first
+    with_frames = collate([ds[i] for i in items])
+    features = BlockFeatures(model.visual, ds, chunk=5)   # chunks that cut a task's frames
+    features.load([0, 1, 2])
+    ds.with_frames = False
+    gathered = features.attach(collate([ds[i] for i in items]))
+    assert 'frames' not in gathered and torch.equal(gathered['frame_ids'], with_frames['frame_ids'])
+    assert features.frames_computed == len(features.ids) == sum(ds.steps_of(ds.task_indices[t]) for t in range(3))
+    with torch.no_grad():
+        a, b = model(with_frames), model(gathered)
+    assert torch.allclose(a['action_logits'], b['action_logits'], atol=1e-5)
+    assert torch.allclose(a['pointer_logits'], b['pointer_logits'], atol=1e-4)
+    features.load([0, 1, 2])                               # the loaded block: nothing runs again
+    assert features.frames_computed == len(features.ids)
+    features.load([1])
+    with pytest.raises(ValueError, match='outside the loaded block'):
+        features.attach(collate([ds[0]]))
+
+
+def test_a_block_run_resumed_inside_a_block_ends_with_the_weights_of_an_uninterrupted_one(prepared, tmp_path):
+    from dialfred_performer.train import TrainConfig, Training, train
+    folder, perception = prepared
+    base = dict(demonstrations=str(folder), perception=str(perception / 'perception.pt'), block_tasks=3,
+                model=PerformerConfig(resolution=32, d_model=32, heads=2, layers=1, ff=32, reach_input=True),
+                max_updates=7, batch_size=4, bucket=2, val_fraction=0.3, validate_every=3, checkpoint_every=2,
+                warmup_updates=1, log_every=1, threads=1, device='cpu', progress=False)
+    whole = train(TrainConfig(out=str(tmp_path / 'whole'), **base))
+    assert whole['finished'] and whole['updates'] == 7
+    parts = TrainConfig(out=str(tmp_path / 'parts'), stop_after=4, **base)          # stops inside the second block
+    assert not train(parts)['finished']
+    assert train(dataclasses.replace(parts, resume=True, stop_after=0))['finished']
+    a = load_checkpoint(tmp_path / 'whole' / 'last.pt')[0].state_dict()
+    b = load_checkpoint(tmp_path / 'parts' / 'last.pt')[0].state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    rows = [json.loads(line) for line in (tmp_path / 'whole' / 'metrics.jsonl').read_text().splitlines()]
+    assert [r['update'] for r in rows if r['kind'] == 'val'] == [3, 6, 7]         # along the way, and at the end
+    # the network ran once per frame of each block, not once per item
+    run = Training(TrainConfig(out=str(tmp_path / 'count'), **base), Ranks())
+    items, batches, blocks = run.epoch_plan(0)
+    ds = run.data.train
+    shown = sum(ds.steps_of(ds.task_indices[items[p] // len(ds.combinations)]) for b in batches for p in b)
+    for block in blocks:
+        run.features.load(block.tasks)
+    assert run.features.frames_computed * 4 < shown
+    with pytest.raises(ValueError, match='--block-tasks .* needs --perception'):
+        TrainConfig(demonstrations=str(folder), block_tasks=3)
+
+
+def test_perception_training_without_held_out_frames_says_so(prepared, tmp_path, capsys):
+    folder, _ = prepared
+    assert perception_main(['--demonstrations', str(folder), '--out', str(tmp_path / 'p'), '--frames', '16',
+                            '--val-fraction', '0.001', '--no-progress', *TINY]) == 2    # no task hashes that low
+    assert '0 held-out frames at --val-fraction 0.001' in capsys.readouterr().err

@@ -106,6 +106,9 @@ class DemonstrationDataset(Dataset):
         self.recovery = recovery
         self.no_recovery: set[int] = set()    # task positions (index // combinations) never augmented: held out
         self.grid_size = grid_size or resolution // 8      # the pointer's cells per side
+        # False: items carry their frames' ids only (`frame_ids`), for a run that gathers the frozen
+        # network's output per block (blocks.BlockFeatures) instead of perceiving frames per batch.
+        self.with_frames = True
         # A pointer over every pixel learns from every pixel of the target (the build's labels).
         self.pixel_targets = self.grid_size == self.resolution and self.demo.labels is not None
         if self.pixel_targets and self.frame_size != resolution:
@@ -131,12 +134,16 @@ class DemonstrationDataset(Dataset):
                 chosen += [a for a in of_type if a.step == step]
         return sorted(chosen, key=lambda a: a.step)
 
+    def steps_of(self, k: int) -> int:
+        """The steps (and frames) of the demonstration of task k: its actions, and Stop if it succeeded."""
+        task = self.demo.tasks[k]
+        return len(task['actions']) + bool(task['success'])
+
     def __getitem__(self, index: int) -> dict:
         k = self.task_indices[index // len(self.combinations)]
         task = self.demo.tasks[k]
         n = len(task['actions'])
         names = [a[0] for a in task['actions']] + (['Stop'] if task['success'] else [])
-        frames = np.asarray(self.demo.frames_of(k)[:len(names)])
         actions = torch.tensor([ACTIONS.index(a) for a in names], dtype=torch.long)
         grid = self.grid_size
         cells = [pixel_cell(x, y, grid, self.frame_size) for _, x, y, _ in task['actions']] + [-1] * (len(names) - n)
@@ -148,13 +155,16 @@ class DemonstrationDataset(Dataset):
             if not masks[row].any():              # no labels, or the target is not in view: the expert's cell
                 masks[row, cells[step]] = True
         lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens)
-        item = {'task_id': task['task_id'], 'frames': frame_tensor(frames, self.resolution), 'actions': actions,
+        item = {'task_id': task['task_id'], 'actions': actions,
+                'frame_ids': torch.arange(task['first_frame'], task['first_frame'] + len(names)),
                 'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),
                 'target_cells': torch.tensor(cells, dtype=torch.long), 'target_masks': masks,
                 'lang_ids': torch.tensor(lang.ids, dtype=torch.long),
                 'lang_types': torch.tensor(lang.types, dtype=torch.long),
                 'lang_steps': torch.tensor(lang.steps, dtype=torch.long),
                 'action_valid': torch.ones(len(names), dtype=torch.bool)}
+        if self.with_frames:
+            item['frames'] = frame_tensor(np.asarray(self.demo.frames_of(k)[:len(names)]), self.resolution)
         return self._recovery(index, item) if self.recovery > 0 else item
 
     def _recovery(self, index: int, item: dict) -> dict:
@@ -195,7 +205,9 @@ def insert_failed_interaction(item: dict, at: int, interaction: int) -> dict:
     actions, previous = item['actions'], item['previous_actions']
     clicked = int(actions[interaction])
     out = dict(item)
-    out['frames'] = torch.cat([item['frames'][:at + 1], item['frames'][at:]])
+    for key in ('frames', 'frame_ids'):
+        if key in item:
+            out[key] = torch.cat([item[key][:at + 1], item[key][at:]])
     out['actions'] = torch.cat([actions[:at], actions[interaction:interaction + 1], actions[at:]])
     out['previous_actions'] = torch.cat([previous[:at + 1], torch.tensor([failed_id(clicked, len(ACTIONS))]),
                                          previous[at + 1:]])
@@ -207,27 +219,30 @@ def insert_failed_interaction(item: dict, at: int, interaction: int) -> dict:
 
 
 def collate(items: Sequence[dict]) -> dict:
-    """Pad items to a batch: frames [B, T, 3, R, R], actions / previous_actions / target_cells [B, T]
-    (padding: Stop / <start> / -1), step_valid [B, T], action_valid [B, T] (the valid steps whose action is
+    """Pad items to a batch: frames [B, T, 3, R, R] (if the items have them), frame_ids / actions /
+    previous_actions / target_cells [B, T] (padding: -1 / Stop / <start> / -1), step_valid [B, T], action_valid [B, T] (the valid steps whose action is
     a target: not an inserted failed click); lang_ids / types / steps [B, L] (padding 0),
     lang_valid [B, L]; target_masks [K, C], the target's cells at each of the K steps with a target
     (row-major over [B, T], as `tensor[target_cells >= 0]` orders them)."""
     B = len(items)
     T = max(len(it['actions']) for it in items)
     L = max(max(len(it['lang_ids']) for it in items), 1)
-    R = items[0]['frames'].shape[-1]
-    out = {'task_ids': [it['task_id'] for it in items],
-           'frames': torch.zeros(B, T, 3, R, R), 'actions': torch.full((B, T), STOP, dtype=torch.long),
+    out = {'task_ids': [it['task_id'] for it in items], 'frame_ids': torch.full((B, T), -1, dtype=torch.long),
+           'actions': torch.full((B, T), STOP, dtype=torch.long),
            'previous_actions': torch.full((B, T), START, dtype=torch.long),
            'target_cells': torch.full((B, T), -1, dtype=torch.long),
            'step_valid': torch.zeros(B, T, dtype=torch.bool), 'action_valid': torch.zeros(B, T, dtype=torch.bool),
            'lang_ids': torch.zeros(B, L, dtype=torch.long), 'lang_types': torch.zeros(B, L, dtype=torch.long),
            'lang_steps': torch.zeros(B, L, dtype=torch.long), 'lang_valid': torch.zeros(B, L, dtype=torch.bool),
            'target_masks': torch.cat([it['target_masks'] for it in items])}
+    with_frames = 'frames' in items[0]
+    if with_frames:
+        out['frames'] = torch.zeros(B, T, *items[0]['frames'].shape[1:])
     for b, it in enumerate(items):
         t, n = len(it['actions']), len(it['lang_ids'])
-        out['frames'][b, :t] = it['frames']
-        for key in ('actions', 'previous_actions', 'target_cells', 'action_valid'):
+        if with_frames:
+            out['frames'][b, :t] = it['frames']
+        for key in ('frame_ids', 'actions', 'previous_actions', 'target_cells', 'action_valid'):
             out[key][b, :t] = it[key]
         out['step_valid'][b, :t] = True
         for key in ('lang_ids', 'lang_types', 'lang_steps'):

@@ -7,7 +7,6 @@ import json
 from pathlib import Path
 from typing import Optional, Sequence
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -47,18 +46,32 @@ def to_device(batch: dict, device: torch.device) -> dict:
 
 @torch.no_grad()
 def evaluate(model, ds, items: Sequence[int], lengths: Sequence[int], batch_size: int, pointer_weight: float,
-             device: torch.device, reduce=None) -> dict:
+             device: torch.device, reduce=None, features=None, block_tasks: int = 0) -> dict:
     """Validation: loss, action and pointer accuracy over `items` of the dataset `ds` (episodes of
     `lengths` steps, batched shortest first), in eval mode; uses no random numbers. `reduce`: applied
-    to the summed statistics before the summary (the sum over training processes, each with its share)."""
+    to the summed statistics before the summary (the sum over training processes, each with its share).
+    With `features` (a blocks.BlockFeatures over `ds`), the items go in blocks of `block_tasks` tasks
+    (in task order), the frozen network run once per block."""
     was_training = model.training
     model.eval()
     total = dict.fromkeys(STAT_KEYS, 0)
-    order = [items[k] for k in np.argsort(lengths, kind='stable')]
-    for b in range(0, len(order), batch_size):
-        batch = to_device(collate([ds[i] for i in order[b:b + batch_size]]), device)
-        for k, v in batch_stats(model(batch), batch).items():
-            total[k] += v
+    length_of = dict(zip(items, lengths))
+    combos = len(ds.combinations)
+    tasks = sorted({i // combos for i in items}) if features is not None else [None]
+    step = block_tasks if features is not None else 1
+    for start in range(0, len(tasks), step):
+        block = tasks[start:start + step]
+        chosen = set(block)
+        group = items if features is None else [i for i in items if i // combos in chosen]
+        if features is not None:
+            features.load(block)
+        order = sorted(group, key=lambda i: length_of[i])          # stable: shortest first
+        for b in range(0, len(order), batch_size):
+            batch = to_device(collate([ds[i] for i in order[b:b + batch_size]]), device)
+            if features is not None:
+                batch = features.attach(batch)
+            for k, v in batch_stats(model(batch), batch).items():
+                total[k] += v
     model.train(was_training)
     return summarize(reduce(total) if reduce else total, pointer_weight)
 

@@ -163,14 +163,18 @@ class Performer(nn.Module):
 
     def forward(self, batch: dict) -> dict:
         """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],
-        'pointer_logits' [K, C]: at the K steps with a target (batch['target_cells'] >= 0), in order}."""
-        frames = batch['frames']
-        B, T = frames.shape[:2]
+        'pointer_logits' [K, C]: at the K steps with a target (batch['target_cells'] >= 0), in order}.
+        Over a perception network, batch['perceived'] (its output for the B x T frames, flat: from
+        blocks.BlockFeatures) stands for batch['frames']."""
+        B, T = batch['actions'].shape
         has_target = batch['target_cells'] >= 0
-        flat = frames.reshape(B * T, *frames.shape[2:])
         if isinstance(self.visual, PerceivedFrames):       # keys (no distances) only for the frames that need them
-            emb, keys, out = self.visual.perceive(flat, keys_for=has_target.reshape(-1))
+            if 'perceived' in batch:
+                emb, keys, out = self.visual.read(batch['perceived'], keys_for=has_target.reshape(-1))
+            else:
+                emb, keys, out = self.visual.perceive(batch['frames'].flatten(0, 1), keys_for=has_target.reshape(-1))
         else:
+            flat = batch['frames'].flatten(0, 1)
             emb, grid = self.visual(flat)
             keys = grid.view(B, T, grid.shape[1], -1)[has_target]
         h = self.hidden(batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],

@@ -117,7 +117,12 @@ class Perception(nn.Module):
 
     def heads(self, fine: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """fine [N, c, R/2, R/2] -> (class logits [N, K, R/2, R/2], depth m [N, R/2, R/2], colour [N, 3, R/2, R/2])."""
-        return self.class_head(fine), F.softplus(self.depth_head(fine))[:, 0], torch.sigmoid(self.colour_head(fine))
+        return self.class_head(fine), self.depth(fine), torch.sigmoid(self.colour_head(fine))
+
+    def depth(self, fine: torch.Tensor) -> torch.Tensor:
+        """The depth head alone: `heads(fine)[1]` without the class and colour heads (the class head is most
+        of the three's cost; the numbers are the same)."""
+        return F.softplus(self.depth_head(fine))[:, 0]
 
 
 # ---------------------------------------------------------------------- labels -> targets
@@ -304,6 +309,9 @@ def train_perception(cfg: PerceptionConfig) -> dict:
     if demo.labels is None:
         raise ValueError(f'{cfg.demonstrations} has no labels: build it with prepare-performer --labels')
     train_rows, val_rows = frame_split(demo, cfg.val_fraction)
+    if not len(val_rows) or not len(train_rows):
+        raise ValueError(f'{cfg.demonstrations}: {len(train_rows)} training and {len(val_rows)} held-out frames at '
+                         f'--val-fraction {cfg.val_fraction}: both need some (more tasks, or another --val-fraction)')
     val_rows = val_rows[np.random.default_rng([cfg.seed, 1]).permutation(len(val_rows))[:cfg.val_frames]]
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)

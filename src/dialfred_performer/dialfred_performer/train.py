@@ -53,6 +53,7 @@ from dialfred_sim.progress import progress_bar
 from dialfred_sim.protocol import ACTIONS
 from dialfred_sim.tasks.demonstrations import default_dir
 
+from .blocks import BlockFeatures, block_batches, block_of, epoch_batches
 from .curves import draw_curves
 from .data import DIALOGUES_FILE, DemonstrationDataset, collate, held_out, vocabulary_texts
 from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,
@@ -92,6 +93,10 @@ class TrainConfig:
     batch_size: int = arg(16, 'episodes per update')
     bucket: int = arg(32, 'episodes are sorted by length within shuffled groups of bucket x batch_size '
                           '(less padding; 1: no grouping)')
+    block_tasks: int = arg(0, 'with --perception: an epoch goes in blocks of this many tasks (every combination of '
+                              'a block\'s tasks batched among themselves) and the frozen network runs once per frame '
+                              'of a block instead of once per item (blocks.py); 0: items in random order')
+    validate_every: int = arg(0, 'also validate every this many updates (0: at the end of each epoch and of the run only)')
     lr: float = arg(1e-3, 'peak learning rate (AdamW)')
     final_lr_fraction: float = arg(0.01, 'the cosine decays to lr x this')
     warmup_updates: int = arg(500, 'linear warmup from 0 to lr')
@@ -122,7 +127,7 @@ class TrainConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
         at_least_zero = ('max_updates', 'warmup_updates', 'weight_decay', 'grad_clip', 'pointer_weight',
-                         'threads', 'loader_workers', 'stop_after', 'seed')
+                         'threads', 'loader_workers', 'stop_after', 'seed', 'block_tasks', 'validate_every')
         for name in at_least_zero:
             if getattr(self, name) < 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
@@ -150,6 +155,9 @@ class TrainConfig:
             raise ValueError(f'--perception-precision takes fp32 or bf16, got {self.perception_precision!r}')
         if not 0 <= self.recovery <= 1:
             raise ValueError(f'recovery must be in [0, 1], got {self.recovery}')
+        if self.block_tasks and not self.perception:
+            raise ValueError('--block-tasks keeps the frozen perception network\'s output per block: it needs '
+                             '--perception PATH')
         if self.recovery > 0 and not m.failure_input:
             raise ValueError('--recovery teaches what to do after a failed click: it needs --failure-input')
 
@@ -256,20 +264,6 @@ def epoch_items(data: Data, cfg: TrainConfig, epoch: int) -> list[int]:
     tasks = sorted({i // combos for i in data.train_items})
     draws = np.random.default_rng([cfg.seed, epoch, 1]).integers(combos, size=len(tasks))
     return [k * combos + int(c) for k, c in zip(tasks, draws)]
-
-
-def epoch_batches(lengths: Sequence[int], batch_size: int, seed: int, epoch: int, bucket: int) -> list[list[int]]:
-    """Positions 0..len(lengths)-1 in batches for one epoch: a seeded shuffle, cut into groups of
-    bucket x batch_size sorted by length (less padding), batched, and the batches shuffled."""
-    rng = np.random.default_rng([seed, epoch])
-    order = rng.permutation(len(lengths))
-    lengths = np.asarray(lengths)
-    batches = []
-    for g in range(0, len(order), batch_size * bucket):
-        group = order[g:g + batch_size * bucket]
-        group = group[np.argsort(lengths[group], kind='stable')] if bucket > 1 else group
-        batches += [group[j:j + batch_size].tolist() for j in range(0, len(group), batch_size)]
-    return [batches[k] for k in rng.permutation(len(batches))] if bucket > 1 else batches
 
 
 def lr_factor(update: int, warmup: int, total: int, final: float) -> float:
@@ -414,9 +408,17 @@ class Training:
 
         self.vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
         self.data = load_data(cfg, self.vocab)
-        per_epoch = math.ceil(len(epoch_items(self.data, cfg, 0)) / cfg.batch_size)
-        self.total = total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
         self.model = model = self._model()
+        self.features = self.val_features = None           # blocks.BlockFeatures with --block-tasks
+        if cfg.block_tasks:
+            self.features = BlockFeatures(model.visual, self.data.train)
+            self.data.train.with_frames = False
+            if self.data.val is not None and self.data.val is not self.data.train:
+                self.data.val.with_frames = False
+            self.val_features = (self.features if self.data.val is self.data.train
+                                 else BlockFeatures(model.visual, self.data.val) if self.data.val is not None else None)
+        self.per_epoch = per_epoch = len(self.epoch_plan(0)[1])
+        self.total = total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
         self.optimizer = make_optimizer(model, cfg)
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(
             self.optimizer, lambda u: lr_factor(u, cfg.warmup_updates, total, cfg.final_lr_fraction))
@@ -466,7 +468,8 @@ class Training:
             mine = data.val_items[ranks.rank::ranks.world]          # each process a share; the sums all-reduced
             val = evaluate(self.model, data.val, mine, Data.item_lengths(data.val, mine), cfg.batch_size,
                            cfg.pointer_weight, self.device,
-                           reduce=(lambda totals: reduce_stats(totals, self.device)) if ranks.distributed else None)
+                           reduce=(lambda totals: reduce_stats(totals, self.device)) if ranks.distributed else None,
+                           features=self.val_features, block_tasks=cfg.block_tasks)
             if self.log is not None:
                 self.log.write({'kind': 'val', 'update': self.progress.update, 'epoch': self.progress.epoch, **val})
             self.last['val'] = val
@@ -475,6 +478,18 @@ class Training:
                 self.checkpoint('best.pt', full=False)
         if ranks.main:
             draw_curves(self.out / 'metrics.jsonl', self.out / 'curves.png')
+
+    def epoch_plan(self, epoch: int) -> tuple[list[int], list[list[int]], Optional[list]]:
+        """(the epoch's items, its batches as positions into them, its blocks or None): in random order, or
+        with --block-tasks in blocks (blocks.block_batches)."""
+        cfg, data = self.cfg, self.data
+        items = epoch_items(data, cfg, epoch)
+        lengths = Data.item_lengths(data.train, items)
+        if not cfg.block_tasks:
+            return items, epoch_batches(lengths, cfg.batch_size, cfg.seed, epoch, cfg.bucket), None
+        batches, blocks = block_batches(items, lengths, len(data.train.combinations), cfg.batch_size, cfg.seed, epoch,
+                                        cfg.bucket, cfg.block_tasks)
+        return items, batches, blocks
 
     def update(self, batch, stand_in: bool) -> None:
         """One optimiser step on this process's share of a global batch, counted, logged and checkpointed."""
@@ -514,6 +529,10 @@ class Training:
             self.last['train'] = row
         if progress.update % cfg.log_every == 0:
             progress.window, self.t_window = dict.fromkeys(STAT_KEYS, 0), time.monotonic()
+        if (cfg.validate_every and progress.update % cfg.validate_every == 0 and progress.update < self.total
+                and progress.batch_in_epoch < self.per_epoch):       # the epoch's and the run's end validate anyway
+            self.validate_and_draw()
+            self.t_window = time.monotonic()                      # frames/s of training only
         if progress.update % cfg.checkpoint_every == 0:
             self.checkpoint()
 
@@ -521,9 +540,7 @@ class Training:
         """The rest of the current epoch (ended at --stop-after, Ctrl-C or the last update); whether the
         session must halt."""
         cfg, ranks, progress, data = self.cfg, self.ranks, self.progress, self.data
-        items = epoch_items(data, cfg, progress.epoch)
-        batches = epoch_batches(Data.item_lengths(data.train, items), cfg.batch_size, cfg.seed, progress.epoch,
-                                cfg.bucket)
+        items, batches, blocks = self.epoch_plan(progress.epoch)
         todo = [[items[p] for p in b] for b in batches[progress.batch_in_epoch:]]
         # this process's share of each global batch (all of it for one process); a stand-in weighs 0
         shares = [rank_share(b, ranks) for b in todo] if ranks.distributed else [(b, False) for b in todo]
@@ -534,7 +551,10 @@ class Training:
                                              generator=torch.Generator().manual_seed(cfg.seed),
                                              worker_init_fn=ignore_interrupts if cfg.loader_workers else None)
         halt = False
-        for batch, (_, stand_in) in zip(loader, shares):
+        for position, (batch, (_, stand_in)) in enumerate(zip(loader, shares), start=progress.batch_in_epoch):
+            if blocks is not None:
+                self.features.load(blocks[block_of(blocks, position)].tasks)
+                batch = self.features.attach(to_device(batch, self.device))
             self.update(batch, stand_in)
             halt = (bool(cfg.stop_after) and self.session_updates >= cfg.stop_after) or stop_request.asked
             if ranks.distributed:

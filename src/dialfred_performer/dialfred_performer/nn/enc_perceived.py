@@ -64,10 +64,20 @@ class PerceivedFrames(nn.Module):
     def perceive(self, frames: torch.Tensor, keys_for: Optional[torch.Tensor] = None):
         """As forward without the distance channel, and the network's output (PerceptionOutput, without
         gradient) for `pointer_logits` and `distances`: (embedding, keys [.., R*R, k], output)."""
+        return self.read(self.outputs(frames), keys_for)
+
+    def outputs(self, frames: torch.Tensor, pooled: bool = False):
+        """The frozen network's output for `frames` (PerceptionOutput, without gradient, fp32), in the
+        arithmetic of `precision`. With `pooled`, its coarse map comes pooled to the embedding's cells
+        (what `read` makes the embedding from, the same numbers; a quarter of the memory for a 64 px frame's)."""
         with torch.no_grad(), torch.autocast(frames.device.type, dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
             out = self.net(frames)
         if self.precision == 'bf16':
             out = type(out)(*(t.float() for t in out))
+        return out._replace(coarse=F.adaptive_avg_pool2d(out.coarse, POOLED)) if pooled else out
+
+    def read(self, out, keys_for: Optional[torch.Tensor] = None):
+        """`perceive` of frames whose network output (`outputs`, pooled or not) is `out`."""
         fine, stem = out.fine, out.stem
         if keys_for is not None:
             fine, stem = fine[keys_for], stem[keys_for]
@@ -104,7 +114,7 @@ class PerceivedFrames(nn.Module):
     @torch.no_grad()
     def _distances(self, fine: torch.Tensor, size: int) -> torch.Tensor:
         """[N, size * size]: the network's predicted distance (metres along each pixel's ray)."""
-        depth = self.net.heads(fine)[1]                            # [N, R/2, R/2] metres along the view axis
+        depth = self.net.depth(fine)                               # [N, R/2, R/2] metres along the view axis
         depth = F.interpolate(depth[:, None], size=(size, size), mode='nearest')[:, 0]
         return (depth * pixel_ray_lengths(size).to(depth)).flatten(1)
 

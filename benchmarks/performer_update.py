@@ -1,0 +1,136 @@
+"""Where one performer update's time goes: the training loop of `dialfred_performer.train` on the frozen
+perception network, timed piece by piece over real batches of the demonstrations. Pieces: loading and
+collating the batch; the frozen network (`PerceivedFrames.perceive`: encoder and decoder on every frame,
+the embedding and the keys of the interaction frames); the reach input's gradient-free pointer over every
+step (`pointer_logits`, `distances`); the rest of the forward pass (language, transformer, heads);
+the loss and backward pass; the optimiser step. Prints JSON.
+
+    ./dialfred bench performer_update --perception out/reproduce/perception/perception.pt \
+        [--demonstrations ~/.cache/dialfred/demonstrations/train_64] [--updates 40] [--skip 5] [--threads 2]
+
+The model is the one `./dialfred reproduce` trains (its performer stage's config: batch 16, the reach
+input); its weights are fresh (the time of an update does not depend on them). The batches timed are
+spread evenly over the first epoch's, so their lengths are the run's; the first `--skip` warm the
+allocator and are not counted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import tempfile
+import time
+from collections import defaultdict
+
+import torch
+
+from dialfred_performer.data import collate
+from dialfred_performer.distributed import Ranks
+from dialfred_performer.model import PerformerConfig, performer_loss
+from dialfred_performer.nn.enc_perceived import PerceivedFrames
+from dialfred_performer.train import TrainConfig, Training
+from dialfred_sim.tasks.demonstrations import default_dir
+
+
+class Clock:
+    """Seconds per named piece, per update."""
+
+    def __init__(self):
+        self.now = defaultdict(float)
+
+    def wrap(self, obj, name: str, key: str) -> None:
+        inner = getattr(obj, name)
+
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            out = inner(*args, **kwargs)
+            self.now[key] += time.perf_counter() - t0
+            return out
+        setattr(obj, name, timed)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--perception', required=True, help='the perception checkpoint the performer sees through')
+    ap.add_argument('--demonstrations', default=str(default_dir('train', 64)))
+    ap.add_argument('--updates', type=int, default=40, help='updates timed')
+    ap.add_argument('--skip', type=int, default=5, help='updates first run and not counted')
+    ap.add_argument('--threads', type=int, default=2)
+    ap.add_argument('--batch-size', type=int, default=16)
+    ap.add_argument('--block-tasks', type=int, default=0,
+                    help='time the block order (the network run once per frame of the first block) instead')
+    args = ap.parse_args()
+
+    out = tempfile.mkdtemp(prefix='performer_update_')
+    cfg = TrainConfig(demonstrations=args.demonstrations, perception=args.perception, out=out, epochs=1,
+                      max_updates=args.updates + args.skip, batch_size=args.batch_size, threads=args.threads,
+                      progress=False, model=PerformerConfig(reach_input=True),
+                      block_tasks=args.block_tasks)
+    t0 = time.perf_counter()
+    training = Training(cfg, Ranks())
+    setup_s = time.perf_counter() - t0
+    model, data = training.model, training.data
+    visual = model.visual
+    if not isinstance(visual, PerceivedFrames):
+        raise SystemExit('the model does not see through a perception network')
+    clock = Clock()
+    clock.wrap(visual, 'outputs', 'frozen_network')
+    clock.wrap(visual, 'pointer_logits', 'reach_pointer')
+    clock.wrap(visual, 'distances', 'reach_distances')
+
+    items, batches, blocks = training.epoch_plan(0)
+    n = args.updates + args.skip
+    if blocks is None:
+        chosen = batches[::max(1, len(batches) // n)][:n]      # spread over the epoch: lengths as the run meets them
+    else:
+        chosen = batches[:blocks[1].first_batch if len(blocks) > 1 else len(batches)][:n]   # the first block's
+    model.train()
+    rows, frames, block_load_s, block_batches_n = [], [], 0.0, 0
+    if blocks is not None:
+        t0 = time.perf_counter()
+        training.features.load(blocks[0].tasks)
+        block_load_s = time.perf_counter() - t0
+        block_batches_n = (blocks[1].first_batch if len(blocks) > 1 else len(batches))
+    for k, b in enumerate(chosen):
+        clock.now.clear()
+        t0 = time.perf_counter()
+        batch = collate([data.train[items[p]] for p in b])
+        if blocks is not None:
+            batch = training.features.attach(batch)
+        t1 = time.perf_counter()
+        outputs = model(batch)
+        t2 = time.perf_counter()
+        loss, _ = performer_loss(outputs, batch, cfg.pointer_weight)
+        training.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        t3 = time.perf_counter()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+        training.optimizer.step()
+        t4 = time.perf_counter()
+        if k < args.skip:
+            continue
+        inner = clock.now['frozen_network'] + clock.now['reach_pointer'] + clock.now['reach_distances']
+        rows.append({'load_and_collate': t1 - t0, 'frozen_network': clock.now['frozen_network'],
+                     'reach_pointer': clock.now['reach_pointer'], 'reach_distances': clock.now['reach_distances'],
+                     'rest_of_forward': (t2 - t1) - inner, 'loss_and_backward': t3 - t2,
+                     'clip_and_step': t4 - t3, 'update': t4 - t0})
+        frames.append(int(batch['step_valid'].sum()))
+    pieces = list(rows[0])
+    mean = {p: statistics.fmean(r[p] for r in rows) for p in pieces}
+    print(json.dumps({
+        'perception': args.perception, 'demonstrations': args.demonstrations, 'threads': args.threads,
+        'batch_size': cfg.batch_size, 'updates_timed': len(rows), 'setup_s': round(setup_s, 1),
+        'frames_per_update': round(statistics.fmean(frames), 1),
+        'seconds_per_update': {p: round(v, 4) for p, v in mean.items()},
+        'share_of_update': {p: round(mean[p] / mean['update'], 3) for p in pieces if p != 'update'},
+        'block_tasks': args.block_tasks, 'block_load_s': round(block_load_s, 2),
+        'block_batches': block_batches_n,
+        'seconds_per_update_with_block_load': round(mean['update'] + block_load_s / max(block_batches_n, 1), 4),
+        'frames_per_s': round(sum(frames) / sum(r['update'] for r in rows), 1),
+        'median_update_s': round(statistics.median(r['update'] for r in rows), 4),
+    }, indent=1))
+
+
+if __name__ == '__main__':
+    main()
