@@ -399,6 +399,14 @@ def test_block_order_shows_every_item_once_with_each_batch_inside_its_block():
     assert again == (batches, blocks) and block_batches(items, lengths, combos, 4, 0, 1, 2, 3) != again
     with pytest.raises(ValueError, match='block_tasks must be at least 1'):
         block_batches(items, lengths, combos, 4, 0, 0, 2, 0)
+    # visits of 3 items: the epoch in 3 rounds, each task in one block a round, its items in none twice
+    batches, blocks = block_batches(items, lengths, combos, 4, 0, 0, 2, 3, per_visit=3)
+    assert sorted(p for b in batches for p in b) == list(range(len(items)))
+    assert all(sum(t in b.tasks for b in blocks) == 3 for t in range(tasks))
+    for position, batch in enumerate(batches):
+        assert {items[p] // combos for p in batch} <= set(blocks[block_of(blocks, position)].tasks), position
+    first_round = [b for b in blocks if b.first_batch < blocks[3].first_batch]      # 7 tasks in blocks of 3
+    assert sorted(t for b in first_round for t in b.tasks) == list(range(tasks))
 
 
 def test_a_block_s_gathered_features_give_the_numbers_of_perceiving_each_batch(reach_performer, prepared):

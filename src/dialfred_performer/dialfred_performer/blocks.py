@@ -12,6 +12,11 @@ computes the same numbers.
 
 What changes with blocks is the order alone: each epoch still shows every item once. What the
 performer reads is the same network's output, gathered per batch instead of computed per batch.
+Showing all eight items of a task in one block saves the most (the network once per frame an epoch) but
+sees two new tasks per update where random order sees about thirteen early on, and that cost
+validation loss (measured: docs/performer.md); `per_visit` shows a task's items in several visits, one
+per round of the epoch (two items a visit: the network four times per frame an epoch, eight new tasks
+per update).
 """
 
 from __future__ import annotations
@@ -53,28 +58,39 @@ class Block:
 
 
 def block_batches(items: Sequence[int], lengths: Sequence[int], combinations: int, batch_size: int, seed: int,
-                  epoch: int, bucket: int, block_tasks: int) -> tuple[list[list[int]], list[Block]]:
+                  epoch: int, bucket: int, block_tasks: int, per_visit: int = 0) -> tuple[list[list[int]], list[Block]]:
     """Positions into `items` (dataset indices, `lengths` their steps) in batches for one epoch in block
-    order: the items' tasks shuffled (seeded by (seed, epoch)) and cut into blocks of `block_tasks`,
-    each block's items batched among themselves (`bucketed`, seeded by (seed, epoch, block)). Returns
-    (the batches, the blocks); every position is in exactly one batch."""
+    order. Each task's items are shuffled and cut into visits of `per_visit` items (0: all of them, one
+    visit); the epoch goes in rounds, round r showing every task's r-th visit: its tasks shuffled and cut
+    into blocks of `block_tasks`, each block's items batched among themselves (`bucketed`). Seeded by
+    (seed, epoch). Returns (the batches, the blocks); every position is in exactly one batch."""
     if block_tasks < 1:
         raise ValueError(f'block_tasks must be at least 1, got {block_tasks}')
+    if per_visit < 0:
+        raise ValueError(f'per_visit must be at least 0, got {per_visit}')
     by_task: dict[int, list[int]] = {}
     for p, item in enumerate(items):
         by_task.setdefault(item // combinations, []).append(p)
     tasks = sorted(by_task)
+    shuffle = np.random.default_rng([seed, epoch, 3])
+    visits = {}
+    for t in tasks:
+        mine = [by_task[t][k] for k in shuffle.permutation(len(by_task[t]))]
+        size = per_visit or len(mine)
+        visits[t] = [mine[j:j + size] for j in range(0, len(mine), size)]
     rng = np.random.default_rng([seed, epoch, 1])
-    order = [tasks[k] for k in rng.permutation(len(tasks))]
     batches: list[list[int]] = []
     blocks: list[Block] = []
-    for b, start in enumerate(range(0, len(order), block_tasks)):
-        block = tuple(order[start:start + block_tasks])
-        positions = [p for t in block for p in by_task[t]]
-        blocks.append(Block(len(batches), block))
-        inner = bucketed([lengths[p] for p in positions], batch_size, np.random.default_rng([seed, epoch, 2, b]),
-                         bucket)
-        batches += [[positions[q] for q in batch] for batch in inner]
+    for r in range(max((len(v) for v in visits.values()), default=0)):
+        here = [t for t in tasks if len(visits[t]) > r]
+        order = [here[k] for k in rng.permutation(len(here))]
+        for start in range(0, len(order), block_tasks):
+            block = tuple(order[start:start + block_tasks])
+            positions = [p for t in block for p in visits[t][r]]
+            inner = bucketed([lengths[p] for p in positions], batch_size,
+                             np.random.default_rng([seed, epoch, 2, len(blocks)]), bucket)
+            blocks.append(Block(len(batches), block))
+            batches += [[positions[q] for q in batch] for batch in inner]
     return batches, blocks
 
 

@@ -96,6 +96,9 @@ class TrainConfig:
     block_tasks: int = arg(0, 'with --perception: an epoch goes in blocks of this many tasks (every combination of '
                               'a block\'s tasks batched among themselves) and the frozen network runs once per frame '
                               'of a block instead of once per item (blocks.py); 0: items in random order')
+    block_items: int = arg(0, 'with --block-tasks: how many of a task\'s items (question-type combinations) a block '
+                              'shows together; the epoch visits each task in rounds, this many items a visit (0: all '
+                              'of them in one visit)')
     validate_every: int = arg(0, 'also validate every this many updates (0: at the end of each epoch and of the run only)')
     lr: float = arg(1e-3, 'peak learning rate (AdamW)')
     final_lr_fraction: float = arg(0.01, 'the cosine decays to lr x this')
@@ -127,7 +130,8 @@ class TrainConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
         at_least_zero = ('max_updates', 'warmup_updates', 'weight_decay', 'grad_clip', 'pointer_weight',
-                         'threads', 'loader_workers', 'stop_after', 'seed', 'block_tasks', 'validate_every')
+                         'threads', 'loader_workers', 'stop_after', 'seed', 'block_tasks', 'block_items',
+                         'validate_every')
         for name in at_least_zero:
             if getattr(self, name) < 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
@@ -488,7 +492,7 @@ class Training:
         if not cfg.block_tasks:
             return items, epoch_batches(lengths, cfg.batch_size, cfg.seed, epoch, cfg.bucket), None
         batches, blocks = block_batches(items, lengths, len(data.train.combinations), cfg.batch_size, cfg.seed, epoch,
-                                        cfg.bucket, cfg.block_tasks)
+                                        cfg.bucket, cfg.block_tasks, cfg.block_items)
         return items, batches, blocks
 
     def update(self, batch, stand_in: bool) -> None:
