@@ -38,14 +38,11 @@ RESOLUTION = 64
 # validation loss, but on one with AVX2 alone each update took 10 times as long (docs/figures.md), and a
 # reproduce must run in its time on any CPU.
 PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_objects=0.5, precision='fp32')
-# The performer trains one epoch (every training task once per question-type combination, batches of 16
-# episodes: about 16,300 updates) in blocks of 256 tasks, the frozen perception network run once per frame of
-# a block (dialfred_performer/blocks.py: 0.21 s an update against 0.64 s in random order, measured quiet), and
-# is validated halfway as well as at the end (a validation reads all 13,288 held-out items: 11 min beside other
-# jobs, measured). The frozen network runs in fp32 while it trains, as the agent perceives (bf16: the same CPU
-# caveat).
-PERFORMER_BLOCK_TASKS = 256
-PERFORMER_VALIDATE_EVERY = 8_000
+# The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch, in random order.
+# The frozen perception network runs in fp32 while it trains, as the agent perceives (bf16: the same CPU
+# caveat). It is 73% of an update (0.64 s); block order (--block-tasks, dialfred_performer/blocks.py) runs it
+# once per block but cost validation loss after 1,000 updates (docs/performer.md), so it is not used here yet.
+PERFORMER_UPDATES = 12_000
 PERFORMER_PERCEPTION_PRECISION = 'fp32'
 # Actor-critic updates of every RL fine-tuning: the second 32 of 64 moved RL anytime's SR by -0.1 point.
 RL_UPDATES = 32
@@ -251,13 +248,12 @@ class Plan:
 
     def performer_config(self) -> dict:
         base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
-                    progress=self.cfg.progress, epochs=1, max_updates=0, validation='', val_fraction=0.05,
-                    perception=str(self.perception_checkpoint), model=dict(reach_input=True),
-                    perception_precision=PERFORMER_PERCEPTION_PRECISION, block_tasks=PERFORMER_BLOCK_TASKS,
-                    validate_every=PERFORMER_VALIDATE_EVERY)
+                    progress=self.cfg.progress, epochs=1, max_updates=PERFORMER_UPDATES, validation='',
+                    val_fraction=0.05, perception=str(self.perception_checkpoint), model=dict(reach_input=True),
+                    perception_precision=PERFORMER_PERCEPTION_PRECISION)
         if self.cfg.quick:
             base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
-                        checkpoint_every=30, val_fraction=0.2, block_tasks=8, validate_every=100,
+                        checkpoint_every=30, val_fraction=0.2,
                         model=dict(resolution=RESOLUTION, d_model=32, heads=2, layers=1, ff=64, reach_input=True))
         return base
 
