@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Frames with NaN depth: pybullet's tiny renderer divides by each corner's view depth without clipping, so a
 box corner exactly in the camera's plane turns its faces black with NaN depth (or drops them). The world draws
-its eye 0.7 mm back along the view (`scene.EYE_SHIFT`) to keep corners off that plane. This renders every free
+its eye 0.7 mm back along the view (`camera.EYE_SHIFT`) to keep corners off that plane. This renders every free
 pose x 4 headings x the pitches of the episodes of the given scenes and counts frames with NaN depth, with the
 shift and (`--no-shift`) without it; prints JSON.
 
@@ -29,9 +29,9 @@ def main() -> int:
 
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
-    from dialfred_sim.world import scene
+    from dialfred_sim.world import camera
     if args.no_shift:
-        scene.EYE_SHIFT = 0.0
+        camera.EYE_SHIFT = 0.0
     env = DialfredEnv(resolution=args.resolution)
     seen, frames, bad, t0 = set(), 0, [], time.monotonic()
     for task in load_split(args.split):
@@ -54,7 +54,7 @@ def main() -> int:
                         bad.append({'episode': task.episode.episode_id, 'pose': [i, j, rotation, horizon], 'pixels': n})
     env.close()
     print(json.dumps({'split': args.split, 'scenes': args.scenes, 'episodes': len(seen), 'resolution': args.resolution,
-                      'eye_shift_m': scene.EYE_SHIFT, 'frames': frames, 'nan_frames': len(bad),
+                      'eye_shift_m': camera.EYE_SHIFT, 'frames': frames, 'nan_frames': len(bad),
                       'nan_pixels': [b['pixels'] for b in bad], 'examples': bad[:5],
                       'seconds': round(time.monotonic() - t0, 1)}))
     return 0

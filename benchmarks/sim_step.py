@@ -16,7 +16,7 @@ import statistics
 import time
 
 from dialfred_sim.env import DialfredEnv
-from dialfred_sim.world.scene import LIGHT_DIRECTION
+from dialfred_sim.world.camera import LIGHT_DIRECTION
 
 PATTERN = ['MoveAhead', 'MoveAhead', 'RotateLeft', 'LookDown', 'MoveAhead', 'RotateRight', 'LookUp',
            'RotateRight', 'MoveAhead', 'RotateLeft', 'RotateLeft', 'Pickup']

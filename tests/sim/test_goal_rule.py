@@ -12,7 +12,7 @@ from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.goals import (GOAL_RULES, NEAR_ACTIONS, conditions_met, parse_pose_arg, pose_arg,
                                       rule_goal, under_rule)
 from dialfred_sim.tasks.navigation import STEP, actions_to_pose
-from dialfred_sim.world.scene import HORIZON_MAX, HORIZON_MIN
+from dialfred_sim.world.camera import HORIZON_MAX, HORIZON_MIN
 
 SPLIT = 'valid_unseen'
 

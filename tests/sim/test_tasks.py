@@ -13,7 +13,7 @@ from dialfred_sim.tasks import TASK_TYPES, get_task, load_split, split_scenes
 from dialfred_sim.tasks.goals import conditions_met, goal_progress
 from dialfred_sim.tasks.schema import Condition
 from dialfred_sim.tasks.splits import SPLIT_SIZES, generate_split, packaged_path
-from dialfred_sim.world.scene import HOT
+from dialfred_sim.world.objects import HOT
 
 from helpers import reset, spawn_held, spawn_on
 

@@ -18,7 +18,7 @@ import pytest
 from dialfred_sim.actions import REACH
 from dialfred_sim.world.bodies import articulation_joint
 from dialfred_sim.world.rooms import footprint
-from dialfred_sim.world.scene import COLD, HOT, ROOM
+from dialfred_sim.world.objects import COLD, HOT, ROOM
 
 from helpers import (distance_at, face, face_from_afar, first_of, free_ahead_pose, pixel, pixel_of_structure,
                      poses_towards, rerender, reset, spawn_held, spawn_on, unproject)
@@ -143,7 +143,7 @@ def test_put_into_an_open_fridge(env):
 
 
 def test_put_places_the_object_on_the_shelf_the_agent_points_at(env):
-    from dialfred_sim.world.scene import _to_local
+    from dialfred_sim.world.placement import _to_local
     w = kitchen(env)
     fridge = first_of(env, 'Fridge')
     ok(env, 'Open', face(env, fridge.object_id))      # from where its door cannot hit the agent

@@ -23,6 +23,7 @@ from typing import Optional
 
 import numpy as np
 
+from dialfred_sim.world.camera import LIGHT_DIRECTION
 from dialfred_sim.world.palette import COLOUR_NAMES, PALETTE, rgba
 
 SHADE_MIN, SHADE_MAX = 0.58, 1.0     # measured 0.593-0.993 (see module docstring), with a margin
@@ -106,7 +107,6 @@ def measure_shade_range(size: int = 64) -> tuple[float, float]:
     from dialfred_sim.world.bodies import ShapeCache  # lazy: pybullet, which the rest of this module does without
     # lazy: pybullet, which the rest of this module does without
     from dialfred_sim.world.bullet import bullet_client, pybullet
-    from dialfred_sim.world.scene import LIGHT_DIRECTION  # lazy: pybullet, which the rest of this module does without
 
     client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
     try:

@@ -417,10 +417,11 @@ class Training:
         if cfg.block_tasks:
             self.features = BlockFeatures(model.visual, self.data.train)
             self.data.train.with_frames = False
-            if self.data.val is not None and self.data.val is not self.data.train:
+            if self.data.val is self.data.train:
+                self.val_features = self.features
+            elif self.data.val is not None:
+                self.val_features = BlockFeatures(model.visual, self.data.val)
                 self.data.val.with_frames = False
-            self.val_features = (self.features if self.data.val is self.data.train
-                                 else BlockFeatures(model.visual, self.data.val) if self.data.val is not None else None)
         self.per_epoch = per_epoch = len(self.epoch_plan(0)[1])
         self.total = total = min(cfg.epochs * per_epoch, cfg.max_updates or math.inf)
         self.optimizer = make_optimizer(model, cfg)

@@ -16,7 +16,9 @@ import numpy as np
 
 from .protocol import ACTIONS
 from .world.rooms import AGENT_RADIUS, GRID, footprint
-from .world.scene import COLD, HORIZON_MAX, HORIZON_MIN, HOT, SLICES_PER_OBJECT, DEFAULT_SLICES, World, WorldObject
+from .world.camera import HORIZON_MAX, HORIZON_MIN
+from .world.objects import COLD, HOT, WorldObject
+from .world.scene import SLICES_PER_OBJECT, DEFAULT_SLICES, World
 
 REACH = 1.5            # metres from the camera to the point under the target pixel
 LOOK_STEP = 15.0       # degrees per LookUp / LookDown

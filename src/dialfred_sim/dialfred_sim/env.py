@@ -24,7 +24,8 @@ from .tasks.goals import DEFAULT_GOAL_RULE, check_goal_rule, conditions_met, goa
 from .tasks.schema import Task
 from .world.bullet import bullet_client, pybullet, quiet_stdout
 from .world.rooms import all_scenes, room_layout, scene_number
-from .world.scene import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR, World
+from .world.camera import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR
+from .world.scene import World
 
 DEFAULT_RESOLUTION = 128   # see docs/figures.md: 4x the frame rate of 300x300 on this CPU
 # pybullet 3.2.7 keeps about 0.5 KB for every body made and removed (0.14 MB per reset here) and

@@ -17,10 +17,12 @@ from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 import numpy as np
 
+from .world.camera import FOV_DEG, LIGHT_DIRECTION
 from .world.rooms import GRID
 
 if TYPE_CHECKING:
-    from .world.scene import World, WorldObject
+    from .world.objects import WorldObject
+    from .world.scene import World
 
 MAX_APPEARANCE_PIXELS = 400     # evenly subsampled from the object's mask
 MIN_APPEARANCE_PIXELS = 20      # fewer pixels of it in view: take a close-up instead
@@ -121,7 +123,6 @@ def seen_positions(world: World, depth: np.ndarray, segmentation: np.ndarray,
     the agent is the median of theirs (the lower middle for an even count). For every object with
     at least `min_pixels` pixels. Where one 45-degree direction bin holds more than half of an
     object's pixels, this point lies in it; a mean point can be pulled out of it by perspective."""
-    from .world.scene import FOV_DEG  # lazy: pybullet (world.scene), which the rest of this module does without
     h, w = segmentation.shape
     bodies = {obj.body: oid for oid, obj in world.objects.items()}
     labels = segmentation.ravel().astype(np.int64)
@@ -299,7 +300,6 @@ class _PartView:
 
     def image(self) -> tuple[np.ndarray, np.ndarray]:
         if self._image is None:
-            from .world.scene import LIGHT_DIRECTION  # lazy: pybullet (world.scene), as above
             w = self.world
             c = w.client
             _, _, px, _, seg = c.getCameraImage(w.width, w.height, w.view_matrix(), w._projection,
@@ -346,7 +346,6 @@ def _eye_directions(yaw: float) -> list[tuple[float, float, float]]:
 
 def _render_closeup(world: World, eye, target, near: float) -> tuple[np.ndarray, np.ndarray]:
     """(rgb, segmentation with link indices) of a CLOSEUP_SIZE square image from `eye` at `target`."""
-    from .world.scene import LIGHT_DIRECTION  # lazy: pybullet (world.scene), as above
     c = world.client
     view = c.computeViewMatrix(list(eye), list(target), [0.0, 0.0, 1.0])
     proj = c.computeProjectionMatrixFOV(CLOSEUP_FOV_DEG, 1.0, near, 5.0)

@@ -22,7 +22,7 @@ from .ground_truth import GroundTruthCache
 from .tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
-from .world.scene import CAMERA_HEIGHT
+from .world.camera import CAMERA_HEIGHT
 from .protocol import MAX_FAILURES, MAX_STEPS, fill_image, image_bytes
 from .ros_util import SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from dialfred_sim.actions import LOOK_STEP as LOOK_DEG       # LookDown (+) / LookUp (-): positive looks down
 from dialfred_sim.world.rooms import GRID as STEP_M          # MoveAhead
-from dialfred_sim.world.scene import CAMERA_HEIGHT as CAMERA_HEIGHT_M
-from dialfred_sim.world.scene import FOV_DEG, HORIZON_MAX, HORIZON_MIN
+from dialfred_sim.world.camera import CAMERA_HEIGHT as CAMERA_HEIGHT_M
+from dialfred_sim.world.camera import FOV_DEG, HORIZON_MAX, HORIZON_MIN
 
 TURN_DEG = 90                  # RotateLeft (+) / RotateRight (-)
 HORIZONS = tuple(float(h) for h in range(int(HORIZON_MIN), int(HORIZON_MAX) + 1, int(LOOK_DEG)))

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..actions import LOOK_STEP, Action, execute, interact
 from ..world.rooms import GRID
-from ..world.scene import CAMERA_HEIGHT, HORIZON_MAX, HORIZON_MIN, World
+from ..world.camera import CAMERA_HEIGHT, HORIZON_MAX, HORIZON_MIN
+from ..world.scene import World
 from .goals import is_reachable, reachable_mask
 from .navigation import successors
 from .schema import ExpertAction, Primitive

@@ -22,7 +22,9 @@ import numpy as np
 
 from ..actions import REACH
 from .navigation import Pose, actions_to_pose
-from ..world.scene import COLD, FOV_DEG, HOT, World
+from ..world.camera import FOV_DEG
+from ..world.objects import COLD, HOT
+from ..world.scene import World
 from .schema import Condition, Primitive, Task
 
 MIN_REACHABLE_PIXELS = 4     # at 128x128; scaled with the frame area
