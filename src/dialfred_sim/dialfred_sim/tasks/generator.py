@@ -14,6 +14,7 @@ from typing import Optional
 import numpy as np
 
 from ..world.catalog import load_catalog
+from ..world.objects import WorldObject
 from ..world.scene import World
 from .expert import Expert, ExpertFailed, replay
 from .goals import conditions_met, goal_for, min_pixels, needs_frame, rule_goal
@@ -178,79 +179,95 @@ class _Job:
 
 
 def plan_job(world: World, job: str, rng: np.random.Generator, setup: dict) -> tuple[dict, callable]:
-    """Choose the job's objects (filling `setup`) and return (params, play) where play(expert) runs it."""
-    catalog = load_catalog()
-    params: dict = {}
-
-    def target_for(role: str, pred=lambda o: True):
-        pool = [o for o in _role_objects(world, role) if pred(o)]
-        # Favour what makes the rarer task types: sliceable food in kitchens, laptops elsewhere.
-        favoured = [o for o in pool if (o.otype.sliced_type and world.layout.room_type == 'kitchen')
-                    or o.type_name == 'Laptop']
-        if favoured and rng.random() < FAVOURED_P:
-            return _pick(rng, favoured)
-        return _pick(rng, pool)
-
+    """Choose the job's objects (filling `setup`) and return (params, play) where play(expert) runs it;
+    play is None when this room cannot host the job. The choices draw from `rng` in a fixed order: the
+    job's objects, then where it ends, then a distractor."""
     laptops = sorted(o.object_id for o in world.objects.values() if o.type_name == 'Laptop')
     if laptops:
         setup['open'] = laptops     # AI2-THOR's laptops stand open
+    params = _job_objects(world, job, rng, setup)
+    if params is None or not _job_destination(world, job, rng, params):
+        return params or {}, None
+    _distractor(world, rng, params, setup)
+    return params, lambda expert: _play_job(world, job, rng, params, expert)
 
+
+def _target(world: World, rng: np.random.Generator, role: str, pred=lambda o: True) -> Optional[WorldObject]:
+    """An object for `role`, favouring what makes the rarer task types: sliceable food in kitchens,
+    laptops elsewhere."""
+    pool = [o for o in _role_objects(world, role) if pred(o)]
+    favoured = [o for o in pool if (o.otype.sliced_type and world.layout.room_type == 'kitchen')
+                or o.type_name == 'Laptop']
+    if favoured and rng.random() < FAVOURED_P:
+        return _pick(rng, favoured)
+    return _pick(rng, pool)
+
+
+def _job_objects(world: World, job: str, rng: np.random.Generator, setup: dict) -> Optional[dict]:
+    """The job's object and what it needs besides (a basin and its faucet, an appliance, a lamp, a
+    movable receptacle, a second object of the same type); None if the room lacks one."""
+    params: dict = {}
     if job == 'pick_clean_then_place_in_recep':
-        obj = target_for('object', lambda o: o.otype.cleanable)
+        obj = _target(world, rng, 'object', lambda o: o.otype.cleanable)
         basins = _receptacles(world, ('SinkBasin',))
         faucets = {o.controls: o.object_id for o in world.objects.values() if o.type_name == 'Faucet'}
         basins = [b for b in basins if b.object_id in faucets]
         if obj is None or not basins:
-            return params, None
+            return None
         basin = _pick(rng, [b for b in basins if _has_room(world, obj, b)])
         if basin is None:
-            return params, None
+            return None
         params.update(object=obj.object_id, appliance=basin.object_id, faucet=faucets[basin.object_id])
         setup['dirty'] = sorted(o.object_id for o in world.objects.values() if o.otype.cleanable and not o.fixture)
     elif job in ('pick_heat_then_place_in_recep', 'pick_cool_then_place_in_recep'):
         heat = job == 'pick_heat_then_place_in_recep'
         appliance = _pick(rng, _receptacles(world, ('Microwave',) if heat else ('Fridge',)))
-        obj = target_for('object', lambda o: (o.otype.heatable if heat else o.otype.coolable)
-                         and not world.enclosed_by_closed(o) and appliance is not None
-                         and _has_room(world, o, appliance))
+        obj = _target(world, rng, 'object', lambda o: (o.otype.heatable if heat else o.otype.coolable)
+                      and not world.enclosed_by_closed(o) and appliance is not None
+                      and _has_room(world, o, appliance))
         if obj is None or appliance is None:
-            return params, None
+            return None
         params.update(object=obj.object_id, appliance=appliance.object_id)
     elif job == 'look_at_obj_in_light':
         lamps = sorted((o for o in world.objects.values() if o.type_name in LAMPS), key=lambda o: o.object_id)
-        obj = target_for('object')
+        obj = _target(world, rng, 'object')
         if obj is None or not lamps:
-            return params, None
+            return None
         setup['off'] = [o.object_id for o in lamps]
         params.update(object=obj.object_id, lamp=_pick(rng, lamps).object_id)
     elif job == 'pick_and_place_with_movable_recep':
         movers = _small(world, lambda o: o.otype.movable_receptacle and world.enclosed_by_closed(o) is None)
         mover = _pick(rng, movers)
         if mover is None:
-            return params, None
-        obj = target_for('object', lambda o: o.type_name in mover.otype.accepts and o.object_id != mover.object_id
-                         and _has_room(world, o, mover)
-                         and mover.object_id not in [r.object_id for r in world.container_chain(o)])
+            return None
+        obj = _target(world, rng, 'object', lambda o: o.type_name in mover.otype.accepts
+                      and o.object_id != mover.object_id and _has_room(world, o, mover)
+                      and mover.object_id not in [r.object_id for r in world.container_chain(o)])
         if obj is None:
-            return params, None
+            return None
         params.update(object=obj.object_id, mover=mover.object_id)
     else:
-        obj = target_for('object')
+        obj = _target(world, rng, 'object')
         if obj is None:
-            return params, None
+            return None
         params.update(object=obj.object_id)
         if job == 'pick_two_obj_and_place':
             twins = [o for o in _small(world, lambda o: o.type_name == obj.type_name) if o.object_id != obj.object_id]
             if not twins:
-                return params, None
+                return None
             params['second'] = _pick(rng, twins).object_id
+    return params
+
+
+def _job_destination(world: World, job: str, rng: np.random.Generator, params: dict) -> bool:
+    """Whether the object is sliced first, and where it all ends up: a receptacle that accepts the
+    (possibly sliced, possibly carried) object and has room for it. False if there is none."""
     obj = world.objects[params['object']]
-    # Where it all ends up: a receptacle type that accepts the (possibly sliced, possibly carried) object.
     carried = world.objects[params['mover']] if 'mover' in params else obj
     sliced = (obj.otype.sliced_type and job not in ('look_at_obj_in_light', 'pick_two_obj_and_place')
               and rng.random() < SLICE_PREFIX_P)
     final_type = obj.otype.sliced_type if sliced and 'mover' not in params else carried.type_name
-    holders = set(catalog[final_type].typical_receptacles) - {'SinkBasin', 'Microwave', 'Fridge'} \
+    holders = set(load_catalog()[final_type].typical_receptacles) - {'SinkBasin', 'Microwave', 'Fridge'} \
         if job != 'look_at_obj_in_light' else set()
     exclude = {r.object_id for r in world.container_chain(carried)}
     targets = _receptacles(world, holders, exclude) if holders else []
@@ -258,10 +275,16 @@ def plan_job(world: World, job: str, rng: np.random.Generator, setup: dict) -> t
         target = _pick(rng, [t for t in targets if t.object_id not in (params.get('mover'), params['object'])
                              and _has_room(world, carried, t)])
         if target is None:
-            return params, None
+            return False
         params['receptacle'] = target.object_id
     params['sliced'] = bool(sliced)
-    # A distractor: another object of the target's class, in a colour the room does not have yet.
+    return True
+
+
+def _distractor(world: World, rng: np.random.Generator, params: dict, setup: dict) -> None:
+    """Sometimes another object of the target's type, in a colour the room does not have yet (where the
+    room has one of that type only)."""
+    obj = world.objects[params['object']]
     same = [o for o in world.objects.values() if o.type_name == obj.type_name]
     if len(same) < 2 and rng.random() < DISTRACTOR_P:
         colours = [c for c in obj.otype.colours if c not in {o.colour for o in same}]
@@ -270,31 +293,31 @@ def plan_job(world: World, job: str, rng: np.random.Generator, setup: dict) -> t
             setup['distractors'] = [[obj.type_name, colours[0], _pick(rng, hosts).object_id]]
             setup['place_seed'] = int(rng.integers(2 ** 31))
 
-    def play(expert: Expert) -> None:
-        job_plan = _Job(world, expert, rng)
-        oid = params['object']
-        if params['sliced']:
-            oid = job_plan.slice_first(oid)
-        else:
-            job_plan.fetch(oid)
-        if job == 'look_at_obj_in_light':
-            expert.goto(params['lamp'], [params['lamp']])
-            expert.act('toggle_on', params['lamp'])
-            return
-        if job == 'pick_clean_then_place_in_recep':
-            job_plan.macro('clean', oid, params['appliance'], params['faucet'])
-        elif job in ('pick_heat_then_place_in_recep', 'pick_cool_then_place_in_recep'):
-            job_plan.macro('heat' if 'heat' in job else 'cool', oid, params['appliance'])
-        if job == 'pick_and_place_with_movable_recep':
-            job_plan.deliver(oid, params['mover'])
-            expert.act('pickup', params['mover'])
-            oid = params['mover']
-        job_plan.deliver(oid, params['receptacle'])
-        if job == 'pick_two_obj_and_place':
-            job_plan.fetch(params['second'])
-            job_plan.deliver(params['second'], params['receptacle'])
 
-    return params, play
+def _play_job(world: World, job: str, rng: np.random.Generator, params: dict, expert: Expert) -> None:
+    """The expert plays the planned job: fetch (or slice) the object, the job's macro, then deliver."""
+    job_plan = _Job(world, expert, rng)
+    oid = params['object']
+    if params['sliced']:
+        oid = job_plan.slice_first(oid)
+    else:
+        job_plan.fetch(oid)
+    if job == 'look_at_obj_in_light':
+        expert.goto(params['lamp'], [params['lamp']])
+        expert.act('toggle_on', params['lamp'])
+        return
+    if job == 'pick_clean_then_place_in_recep':
+        job_plan.macro('clean', oid, params['appliance'], params['faucet'])
+    elif job in ('pick_heat_then_place_in_recep', 'pick_cool_then_place_in_recep'):
+        job_plan.macro('heat' if 'heat' in job else 'cool', oid, params['appliance'])
+    if job == 'pick_and_place_with_movable_recep':
+        job_plan.deliver(oid, params['mover'])
+        expert.act('pickup', params['mover'])
+        oid = params['mover']
+    job_plan.deliver(oid, params['receptacle'])
+    if job == 'pick_two_obj_and_place':
+        job_plan.fetch(params['second'])
+        job_plan.deliver(params['second'], params['receptacle'])
 
 
 # ---------------------------------------------------------------------- episodes

@@ -28,6 +28,7 @@ MIN_NAVIGABLE = 30     # free grid points a layout must offer
 WALL_HEIGHT = 2.6
 COUNTER_HEIGHT = 0.9
 COUNTER_DEPTH = 0.62
+COUNTER_SLAB = 0.04      # the counter top's thickness
 
 SCENE_RANGES = {'kitchen': range(1, 31), 'living_room': range(201, 231),
                 'bedroom': range(301, 331), 'bathroom': range(401, 431)}
@@ -400,7 +401,8 @@ class _Builder:
 
     def counter_run(self, units: list[str], unit_width: float, island: bool = False) -> bool:
         """A run of base units with a counter top: 'cabinet', 'drawers', 'sink', 'stove'; against a
-        wall, or free-standing with room to walk round it (`island`)."""
+        wall, or free-standing with room to walk round it (`island`). Kitchen runs against a wall get
+        wall cabinets above some of their units."""
         run_len = unit_width * len(units)
         size = (COUNTER_DEPTH, run_len, COUNTER_HEIGHT)
         if island:
@@ -414,36 +416,39 @@ class _Builder:
                 return False
             wall, s, pos, yaw = slot
         self.rects.append(footprint(pos, yaw, size))
-        # Unit i's centre along the run, in the run's own frame (+y to the run's left).
-        slab_t = 0.04
-        base_h = COUNTER_HEIGHT - slab_t
-        slab_segments: list[tuple[float, float]] = []
+        segments = self._base_units(pos, yaw, units, unit_width)
+        counters = [self.add('CounterTop', slab_spec((COUNTER_DEPTH, b - a, COUNTER_SLAB)),
+                             local_to_world(pos, yaw, (0.0, -(a + b) / 2, COUNTER_HEIGHT - COUNTER_SLAB)), yaw,
+                             blocks=False) for a, b in segments]
+        for k, unit in enumerate(units):
+            if unit == 'stove':
+                y_mid = -run_len / 2 + k * unit_width + unit_width / 2
+                host = next(c for (a, b), c in zip(segments, counters) if a <= y_mid <= b)
+                self._burners(pos, yaw, y_mid, host)
+        if self.room_type == 'kitchen' and not island:
+            for k, unit in enumerate(units):
+                if unit in ('cabinet', 'drawers') and self.rng.random() < WALL_CABINET_P:
+                    y_mid = -run_len / 2 + k * unit_width + unit_width / 2
+                    self.add('Cabinet', self.spec('Cabinet', (0.34, unit_width - 0.02, 0.55)),
+                             local_to_world(pos, yaw, (-COUNTER_DEPTH / 2 + 0.17, -y_mid, 1.5)), yaw, blocks=False)
+        return True
+
+    def _base_units(self, pos, yaw: float, units: list[str], unit_width: float) -> list[tuple[float, float]]:
+        """The units under a counter run at `pos` facing `yaw`, left to right along the run; returns the
+        stretches (along the run's own y, +y to its left) the counter top covers: all but the sinks."""
+        run_len = unit_width * len(units)
+        base_h = COUNTER_HEIGHT - COUNTER_SLAB
+        segments: list[tuple[float, float]] = []
         seg_start = -run_len / 2
         for k, unit in enumerate(units):
             y_lo = -run_len / 2 + k * unit_width
             y_mid = y_lo + unit_width / 2
             centre = local_to_world(pos, yaw, (0.0, -y_mid, 0.0))
             if unit == 'sink':
-                # The counter top has a hole here: close the current slab segment.
-                if y_lo > seg_start + 1e-6:
-                    slab_segments.append((seg_start, y_lo))
+                if y_lo > seg_start + 1e-6:        # the counter top has a hole here
+                    segments.append((seg_start, y_lo))
                 seg_start = y_lo + unit_width
-                bsize = (FURNITURE_SIZE['SinkBasin'][0], unit_width - 0.08, FURNITURE_SIZE['SinkBasin'][2])
-                basin = self.add('SinkBasin', self.spec('SinkBasin', bsize),
-                                 local_to_world(pos, yaw, (0.02, -y_mid, COUNTER_HEIGHT - bsize[2])), yaw,
-                                 blocks=False, colour='silver')
-                # A rim around the basin so the hole is not a gap to the floor.
-                rim = slab_spec((COUNTER_DEPTH, unit_width, slab_t))
-                rim = ShapeSpec(parts=(Part('box', (0.06, unit_width / 2, slab_t / 2),
-                                            (-COUNTER_DEPTH / 2 + 0.06, 0.0, slab_t / 2)),),
-                                size=rim.size)
-                self.add('CounterTop', rim, (centre[0], centre[1], base_h), yaw, blocks=False, colour='gray')
-                self.add('Faucet', self.spec('Faucet', FURNITURE_SIZE['Faucet']),
-                         local_to_world(pos, yaw, (-COUNTER_DEPTH / 2 + 0.1, -y_mid, COUNTER_HEIGHT)), yaw,
-                         controls=basin.object_id, blocks=False, colour='silver', parent=None)
-                self.add('Cabinet', self.spec('Cabinet', (COUNTER_DEPTH - 0.04, unit_width - 0.02,
-                                                          COUNTER_HEIGHT - bsize[2] - 0.04)),
-                         (centre[0], centre[1], 0.0), yaw, blocks=False)
+                self._sink(pos, yaw, y_mid, centre, unit_width)
             elif unit == 'drawers':
                 dh = 0.2
                 self.add('Cabinet', self.spec('Cabinet', (COUNTER_DEPTH - 0.04, unit_width - 0.02, base_h - dh - 0.02)),
@@ -454,34 +459,38 @@ class _Builder:
                 self.add('Cabinet', self.spec('Cabinet', (COUNTER_DEPTH - 0.04, unit_width - 0.02, base_h)),
                          (centre[0], centre[1], 0.0), yaw, blocks=False)
         if seg_start < run_len / 2 - 1e-6:
-            slab_segments.append((seg_start, run_len / 2))
-        counters = []
-        for a, b in slab_segments:
-            mid = (a + b) / 2
-            spec = slab_spec((COUNTER_DEPTH, b - a, slab_t))
-            counters.append(self.add('CounterTop', spec, local_to_world(pos, yaw, (0.0, -mid, base_h)), yaw,
-                                     blocks=False))
-        for k, unit in enumerate(units):
-            if unit != 'stove':
-                continue
-            y_mid = -run_len / 2 + k * unit_width + unit_width / 2
-            host = next(c for a_b, c in zip(slab_segments, counters) if a_b[0] <= y_mid <= a_b[1])
-            for dx, dy in ((0.05, -0.14), (0.05, 0.14), (-0.18, -0.14), (-0.18, 0.14)):
-                burner = self.add('StoveBurner', self.spec('StoveBurner', FURNITURE_SIZE['StoveBurner']),
-                                  local_to_world(pos, yaw, (dx, -y_mid + dy, COUNTER_HEIGHT)), yaw,
-                                  parent=host.object_id, blocks=False)
-                self.add('StoveKnob', self.spec('StoveKnob', FURNITURE_SIZE['StoveKnob']),
-                         local_to_world(pos, yaw, (COUNTER_DEPTH / 2 + 0.025, -y_mid + dy * 0.8 - dx * 0.25,
-                                                   COUNTER_HEIGHT - 0.1)),
-                         yaw, controls=burner.object_id, blocks=False)
-        # Wall cabinets above some base units.
-        if self.room_type == 'kitchen' and not island:
-            for k, unit in enumerate(units):
-                if unit in ('cabinet', 'drawers') and self.rng.random() < WALL_CABINET_P:
-                    y_mid = -run_len / 2 + k * unit_width + unit_width / 2
-                    self.add('Cabinet', self.spec('Cabinet', (0.34, unit_width - 0.02, 0.55)),
-                             local_to_world(pos, yaw, (-COUNTER_DEPTH / 2 + 0.17, -y_mid, 1.5)), yaw, blocks=False)
-        return True
+            segments.append((seg_start, run_len / 2))
+        return segments
+
+    def _sink(self, pos, yaw: float, y_mid: float, centre, unit_width: float) -> None:
+        """A sink unit: the basin, a rim of counter round it (so the hole is no gap to the floor), the
+        faucet that controls it and the cabinet under it."""
+        bsize = (FURNITURE_SIZE['SinkBasin'][0], unit_width - 0.08, FURNITURE_SIZE['SinkBasin'][2])
+        basin = self.add('SinkBasin', self.spec('SinkBasin', bsize),
+                         local_to_world(pos, yaw, (0.02, -y_mid, COUNTER_HEIGHT - bsize[2])), yaw,
+                         blocks=False, colour='silver')
+        rim = ShapeSpec(parts=(Part('box', (0.06, unit_width / 2, COUNTER_SLAB / 2),
+                                    (-COUNTER_DEPTH / 2 + 0.06, 0.0, COUNTER_SLAB / 2)),),
+                        size=slab_spec((COUNTER_DEPTH, unit_width, COUNTER_SLAB)).size)
+        self.add('CounterTop', rim, (centre[0], centre[1], COUNTER_HEIGHT - COUNTER_SLAB), yaw, blocks=False,
+                 colour='gray')
+        self.add('Faucet', self.spec('Faucet', FURNITURE_SIZE['Faucet']),
+                 local_to_world(pos, yaw, (-COUNTER_DEPTH / 2 + 0.1, -y_mid, COUNTER_HEIGHT)), yaw,
+                 controls=basin.object_id, blocks=False, colour='silver', parent=None)
+        self.add('Cabinet', self.spec('Cabinet', (COUNTER_DEPTH - 0.04, unit_width - 0.02,
+                                                  COUNTER_HEIGHT - bsize[2] - 0.04)),
+                 (centre[0], centre[1], 0.0), yaw, blocks=False)
+
+    def _burners(self, pos, yaw: float, y_mid: float, host: Fixture) -> None:
+        """A stove unit's four burners on the counter top `host`, each with its knob on the front."""
+        for dx, dy in ((0.05, -0.14), (0.05, 0.14), (-0.18, -0.14), (-0.18, 0.14)):
+            burner = self.add('StoveBurner', self.spec('StoveBurner', FURNITURE_SIZE['StoveBurner']),
+                              local_to_world(pos, yaw, (dx, -y_mid + dy, COUNTER_HEIGHT)), yaw,
+                              parent=host.object_id, blocks=False)
+            self.add('StoveKnob', self.spec('StoveKnob', FURNITURE_SIZE['StoveKnob']),
+                     local_to_world(pos, yaw, (COUNTER_DEPTH / 2 + 0.025, -y_mid + dy * 0.8 - dx * 0.25,
+                                               COUNTER_HEIGHT - 0.1)),
+                     yaw, controls=burner.object_id, blocks=False)
 
 
 def _chairs_at(b: _Builder, host: Fixture, spots) -> int:
