@@ -19,7 +19,8 @@ CASES = {
     'performer + random QA, location withheld': dict(agent='et', questioner='random', perturb_type='location'),
     'performer + model confusion': dict(agent='et', questioner='confusion'),
     'performer + all QAs, answers swapped': dict(agent='et', questioner='all', answers='swapped'),
-    'performer + RL anytime (learned)': dict(agent='et', questioner='rl-anytime', limit=12),   # it asks seldom
+    # RL anytime with a chance at every step (the shipped rl-anytime asks about once in 25 episodes)
+    'performer + RL anytime (learned)': dict(agent='et', questioner='rl-anytime-1'),
 }
 
 
