@@ -274,3 +274,21 @@ def test_performer_update_times_each_piece_in_random_and_block_order(tmp_path):
     assert random['seconds_per_update']['frozen_network'] > 0 and random['block_load_s'] == 0
     assert blocks['seconds_per_update']['frozen_network'] == 0 < blocks['block_load_s']     # run once, at the block's start
     assert blocks['block_batches'] >= 1
+
+
+def test_perception_layout_times_both_layouts_and_finds_the_same_outputs_up_to_rounding():
+    report = run_bench('perception_layout', '--steps', '1', '--skip', '0', '--batch', '4', '--forward-batch', '4',
+                       '--threads', '1', '--rounds', '2')
+    assert report['rounds'] == 2
+    for layout in ('nchw', 'nhwc'):
+        row = report[layout]
+        assert row['train_step_s'] > 0 and row['forward_4_s'] > 0 and row['forward_1_frame_1_thread_ms'] > 0
+    assert report['data'] == 'synthetic' and set(report['speedup']) == {'train_step_s', 'forward_4_s',
+                                                                        'forward_1_frame_1_thread_ms'}
+    assert 0 <= report['max_abs_output_difference'] < 1e-3
+
+
+def test_perception_layout_refuses_a_bad_budget():
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'perception_layout.py'), '--steps', '0'],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and '--steps must be at least 1' in proc.stderr
