@@ -465,6 +465,8 @@ def test_a_block_run_resumed_inside_a_block_ends_with_the_weights_of_an_uninterr
     assert run.features.frames_computed * 4 < shown
     with pytest.raises(ValueError, match='--block-tasks .* needs --perception'):
         TrainConfig(demonstrations=str(folder), block_tasks=3)
+    with pytest.raises(ValueError, match='--block-items needs --block-tasks'):
+        TrainConfig(demonstrations=str(folder), block_items=2)
 
 
 def test_perception_training_without_held_out_frames_says_so(prepared, tmp_path, capsys):

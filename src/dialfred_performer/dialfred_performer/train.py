@@ -135,6 +135,8 @@ class TrainConfig:
         for name in at_least_zero:
             if getattr(self, name) < 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if self.block_items and not self.block_tasks:
+            raise ValueError('--block-items needs --block-tasks (it says how a block shows a task\'s items)')
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise ValueError(f'lr must be a positive number, got {self.lr}')
         if not 0 <= self.final_lr_fraction <= 1:
