@@ -16,7 +16,6 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from dialfred_sim.env import DialfredEnv
-from dialfred_sim.world.scene import LIGHT_DIRECTION
 
 ROOT = Path(__file__).resolve().parents[1]
 LABELS = {'kitchen': 'kitchen', 'living_room': 'living room', 'bedroom': 'bedroom', 'bathroom': 'bathroom'}
@@ -29,8 +28,7 @@ def overview(env: DialfredEnv, size: int) -> np.ndarray:
     target = (lay.width * 0.6, lay.depth * 0.6, 0.3)
     view = c.computeViewMatrix(eye, target, (0, 0, 1))
     proj = c.computeProjectionMatrixFOV(80, 1.0, 0.05, 20)
-    _, _, px, _, _ = c.getCameraImage(size, size, view, proj, renderer=c.ER_TINY_RENDERER, shadow=0,
-                                      lightDirection=LIGHT_DIRECTION)
+    _, _, px, _, _ = env.world.draw(size, size, view, proj)
     return np.asarray(px, np.uint8).reshape(size, size, 4)[:, :, :3]
 
 

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 import numpy as np
 
-from .world.camera import FOV_DEG, LIGHT_DIRECTION
+from .world.camera import FOV_DEG
 from .world.rooms import GRID
 
 if TYPE_CHECKING:
@@ -302,10 +302,8 @@ class _PartView:
         if self._image is None:
             w = self.world
             c = w.client
-            _, _, px, _, seg = c.getCameraImage(w.width, w.height, w.view_matrix(), w._projection,
-                                                renderer=c.ER_TINY_RENDERER, shadow=0,
-                                                lightDirection=LIGHT_DIRECTION,
-                                                flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
+            _, _, px, _, seg = w.draw(w.width, w.height, w.view_matrix(), w._projection,
+                                      flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
             rgb = np.asarray(px, dtype=np.uint8).reshape(w.height, w.width, 4)[:, :, :3]
             self._image = rgb, np.asarray(seg, dtype=np.int64).reshape(w.height, w.width)
         return self._image
@@ -350,9 +348,7 @@ def _render_closeup(world: World, eye, target, near: float) -> tuple[np.ndarray,
     view = c.computeViewMatrix(list(eye), list(target), [0.0, 0.0, 1.0])
     proj = c.computeProjectionMatrixFOV(CLOSEUP_FOV_DEG, 1.0, near, 5.0)
     n = CLOSEUP_SIZE
-    _, _, px, _, seg = c.getCameraImage(n, n, view, proj, renderer=c.ER_TINY_RENDERER, shadow=0,
-                                        lightDirection=LIGHT_DIRECTION,
-                                        flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
+    _, _, px, _, seg = world.draw(n, n, view, proj, flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
     rgb = np.asarray(px, dtype=np.uint8).reshape(n, n, 4)[:, :, :3]
     return rgb, np.asarray(seg, dtype=np.int64).reshape(n, n)
 

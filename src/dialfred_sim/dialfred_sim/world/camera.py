@@ -56,10 +56,16 @@ class AgentView:
         return rgb, depth, seg
 
     def _camera_image(self, w: int, h: int, view):
-        _, _, rgba_px, zbuf, seg = self.client.getCameraImage(
-            w, h, view, self._projection,
-            renderer=self.client.ER_TINY_RENDERER, shadow=0, lightDirection=LIGHT_DIRECTION)
+        _, _, rgba_px, zbuf, seg = self.draw(w, h, view, self._projection)
         return rgba_px, np.asarray(zbuf, dtype=np.float32), seg
+
+    def draw(self, width: int, height: int, view, projection, **flags):
+        """pybullet's getCameraImage with TinyRenderer and the world's light, from any camera (`view`,
+        `projection`): the objects wholly outside its view are left out of the draw (culling.py; the
+        same image as a draw of everything). `flags`: getCameraImage's further keywords."""
+        self.culling.prepare(view, projection, self.objects.values())
+        return self.client.getCameraImage(width, height, view, projection, renderer=self.client.ER_TINY_RENDERER,
+                                          shadow=0, lightDirection=LIGHT_DIRECTION, **flags)
 
     def pixel_point(self, px: int, py: int, depth: np.ndarray) -> tuple[tuple[float, float, float], float]:
         """The world point seen at pixel (px, py) and its distance from the eye."""

@@ -7,6 +7,7 @@ checker and the oracle read) and its body in pybullet (what the camera sees).
 
 from __future__ import annotations
 
+import os
 from typing import Iterable, Optional
 
 import numpy as np
@@ -14,6 +15,7 @@ import numpy as np
 from .bodies import ShapeCache, build_body, set_articulation
 from .camera import FAR, FOV_DEG, NEAR, START_HORIZON, AgentView
 from .catalog import load_catalog
+from .culling import CULLING_ENV, Culling
 from .objects import COLD, AgentPose, ObjectState, WorldObject
 from .palette import rgba
 from .placement import Placement
@@ -46,6 +48,8 @@ class World(Placement, AgentView):
         self.client = client
         self.width, self.height = width, height
         self.cache = ShapeCache(client)
+        self.culling = Culling(client)                 # what the camera's draws leave out (culling.py)
+        self.culling.enabled = os.environ.get(CULLING_ENV, '1') != '0'
         self.layout: Optional[RoomLayout] = None
         self.objects: dict[str, WorldObject] = {}
         self.body_to_object: dict[int, str] = {}
@@ -62,9 +66,11 @@ class World(Placement, AgentView):
         self.closeup_cache: dict[tuple, object] = {}
 
     def bodies_changed(self) -> None:
-        """A body was made or removed: renders made before may not repeat bit for bit (pybullet's
-        draw order), so cached close-ups are dropped."""
+        """A body was made or removed (or is about to be): renders made before may not repeat bit for
+        bit (pybullet's draw order), so cached close-ups are dropped, and the culling shows its hidden
+        bodies again and forgets their shapes."""
         self.closeup_cache = {}
+        self.culling.forget(set(self.body_to_object) | set(self.structure_bodies))
 
     # ------------------------------------------------------------------ building
 
