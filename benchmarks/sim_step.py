@@ -29,7 +29,7 @@ def play(env: DialfredEnv, steps: int, seed: int, scene: str):
     Returns (seconds per step, seconds per bare render).
     """
     c, r = env.client, env.resolution
-    proj = env.world._projection
+    proj = env.world.projection
     env.reset(seed=seed, options={'scene': scene})
     t_step = t_bare = 0.0
     for k in range(steps):

@@ -182,7 +182,7 @@ def unproject(env, px: int, py: int) -> np.ndarray:
     w = env.world
     _, depth, _ = env._frame
     view = np.array(w.view_matrix(), dtype=float).reshape(4, 4).T
-    proj = np.array(w._projection, dtype=float).reshape(4, 4).T
+    proj = np.array(w.projection, dtype=float).reshape(4, 4).T
     x_ndc = px / w.width * 2 - 1
     y_ndc = 1 - (py + 1) / w.height * 2
     d = float(depth[py, px])

@@ -119,7 +119,7 @@ def test_a_shapes_radius_holds_every_part_in_every_pose_of_its_joint():
 def test_the_frustum_planes_hold_what_the_camera_sees_and_nothing_behind_it(env):
     env.reset(options={'task': load_split('valid_unseen')[0]})
     w = env.world
-    planes = frustum_planes(w.view_matrix(), w._projection)
+    planes = frustum_planes(w.view_matrix(), w.projection)
     eye, d = w.camera()
     ahead = np.array(eye) + 2.0 * np.array(d)
     behind = np.array(eye) - 2.0 * np.array(d)

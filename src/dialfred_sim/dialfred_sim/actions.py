@@ -267,7 +267,7 @@ def slice_object(world: World, obj: WorldObject) -> ActionResult:
         piece.is_dirty, piece.temperature = state
         piece.sliced_from = oid
         parent.contents.append(piece.object_id)
-        world._update_pose(piece)
+        world.update_pose(piece)
     return ActionResult(True, target=oid)
 
 

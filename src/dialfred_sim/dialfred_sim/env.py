@@ -211,14 +211,14 @@ class DialfredEnv(gym.Env):
         if not _is_integer(resolution) or not 16 <= resolution <= 1024:
             raise ValueError(f'resolution must be an integer in 16-1024, got {resolution!r}')
         world = self.world
-        saved = (self.resolution, world.width, world.height, world._projection, self._frame)
+        saved = (self.resolution, world.width, world.height, world.projection, self._frame)
         try:
             self.resolution = world.width = world.height = int(resolution)
-            world._projection = self.client.computeProjectionMatrixFOV(FOV_DEG, 1.0, NEAR, FAR)
+            world.projection = self.client.computeProjectionMatrixFOV(FOV_DEG, 1.0, NEAR, FAR)
             self._frame = world.render()
             yield self
         finally:
-            self.resolution, world.width, world.height, world._projection, self._frame = saved
+            self.resolution, world.width, world.height, world.projection, self._frame = saved
 
     def pixel_of(self, object_id: str):
         """A pixel (x, y) of `object_id` in the current frame (the one nearest its mask's centre), or None."""

@@ -302,7 +302,7 @@ class _PartView:
         if self._image is None:
             w = self.world
             c = w.client
-            _, _, px, _, seg = w.draw(w.width, w.height, w.view_matrix(), w._projection,
+            _, _, px, _, seg = w.draw(w.width, w.height, w.view_matrix(), w.projection,
                                       flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
             rgb = np.asarray(px, dtype=np.uint8).reshape(w.height, w.width, 4)[:, :, :3]
             self._image = rgb, np.asarray(seg, dtype=np.int64).reshape(w.height, w.width)

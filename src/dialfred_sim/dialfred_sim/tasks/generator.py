@@ -76,7 +76,7 @@ def _receptacles(world: World, type_names, exclude=()) -> list:
 
 
 def _has_room(world: World, obj, receptacle) -> bool:
-    return any(world._free_spots(receptacle, obj, k) for k in range(len(receptacle.spec.surfaces)))
+    return any(world.free_spots(receptacle, obj, k) for k in range(len(receptacle.spec.surfaces)))
 
 
 def _pick(rng: np.random.Generator, items: list):

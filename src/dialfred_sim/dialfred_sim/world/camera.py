@@ -56,7 +56,7 @@ class AgentView:
         return rgb, depth, seg
 
     def _camera_image(self, w: int, h: int, view):
-        _, _, rgba_px, zbuf, seg = self.draw(w, h, view, self._projection)
+        _, _, rgba_px, zbuf, seg = self.draw(w, h, view, self.projection)
         return rgba_px, np.asarray(zbuf, dtype=np.float32), seg
 
     def draw(self, width: int, height: int, view, projection, **flags):

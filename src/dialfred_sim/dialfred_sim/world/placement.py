@@ -32,7 +32,7 @@ class Placement:
             return (art.axis[0] * art.open_value, art.axis[1] * art.open_value, art.axis[2] * art.open_value)
         return (0.0, 0.0, 0.0)
 
-    def _free_spots(self, receptacle: WorldObject, obj: WorldObject, surface_index: int):
+    def free_spots(self, receptacle: WorldObject, obj: WorldObject, surface_index: int):
         """Candidate resting points (local x, y) on a surface where `obj` fits, and their count."""
         surf = receptacle.spec.surfaces[surface_index]
         hx, hy = obj.spec.size[0] / 2, obj.spec.size[1] / 2
@@ -80,7 +80,7 @@ class Placement:
         """
         candidates = []
         for k in range(len(receptacle.spec.surfaces)):
-            for spot in self._free_spots(receptacle, obj, k):
+            for spot in self.free_spots(receptacle, obj, k):
                 candidates.append((k, spot))
         if not candidates:
             return False
@@ -103,7 +103,7 @@ class Placement:
         obj.local = (x, y, receptacle.spec.surfaces[k].center[2])
         obj.local_yaw = 0.0
         receptacle.contents.append(obj.object_id)
-        self._update_pose(obj)
+        self.update_pose(obj)
         return True
 
     def _detach(self, obj: WorldObject) -> None:
@@ -160,7 +160,7 @@ class Placement:
         obj.position, obj.yaw = spot, math.radians(a.rotation)
         self._move_body(obj)
 
-    def _update_pose(self, obj: WorldObject) -> None:
+    def update_pose(self, obj: WorldObject) -> None:
         parent = self.objects[obj.parent]
         off = self.surface_offset(parent)
         local = (obj.local[0] + off[0], obj.local[1] + off[1], obj.local[2] + off[2])
@@ -173,7 +173,7 @@ class Placement:
         for cid in obj.contents:
             child = self.objects[cid]
             if not child.fixture:
-                self._update_pose(child)
+                self.update_pose(child)
 
     def set_open(self, obj: WorldObject, is_open: bool) -> None:
         obj.is_open = is_open
@@ -182,7 +182,7 @@ class Placement:
             for cid in obj.contents:   # a drawer carries its contents when it slides
                 child = self.objects[cid]
                 if not child.fixture:
-                    self._update_pose(child)
+                    self.update_pose(child)
 
     # ------------------------------------------------------------------ floor taken by open doors
 

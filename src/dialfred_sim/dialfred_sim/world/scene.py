@@ -56,7 +56,8 @@ class World(Placement, AgentView):
         self.structure_bodies: dict[int, str] = {}   # floor, walls, ceiling
         self.agent = AgentPose(0, 0)
         self.held: Optional[str] = None
-        self._projection = client.computeProjectionMatrixFOV(FOV_DEG, width / height, NEAR, FAR)
+        # the camera's projection (pybullet's column-major 4 x 4, AI2-THOR's field of view and clipping planes)
+        self.projection = client.computeProjectionMatrixFOV(FOV_DEG, width / height, NEAR, FAR)
         self._counts: dict[str, int] = {}
         self._fixture_bodies: dict[str, int] = {}      # the current room's furniture, kept for its next episode
         self._carry_cache: dict[tuple, tuple] = {}     # carry_spot per (size, pose), for this room
