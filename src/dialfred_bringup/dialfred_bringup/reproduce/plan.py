@@ -41,7 +41,8 @@ PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_object
 # The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch, in random order.
 # The frozen perception network runs in fp32 while it trains, as the agent perceives (bf16: the same CPU
 # caveat). It is 73% of an update (0.64 s); block order (--block-tasks, dialfred_performer/blocks.py) runs it
-# once per block but cost validation loss after 1,000 updates (docs/performer.md), so it is not used here yet.
+# once per block, but over these 12,000 updates it ended at 27% more validation loss (1.144 against 0.900,
+# docs/performer.md), so it is not used here.
 PERFORMER_UPDATES = 12_000
 PERFORMER_PERCEPTION_PRECISION = 'fp32'
 # Actor-critic updates of every RL fine-tuning: the second 32 of 64 moved RL anytime's SR by -0.1 point.
