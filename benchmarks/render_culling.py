@@ -29,26 +29,21 @@ import numpy as np
 
 from dialfred_sim.env import DialfredEnv
 from dialfred_sim.tasks import load_split
+from dialfred_sim.tasks.demonstrations import play_demonstration
 
 
 def play(env: DialfredEnv, task, cull: bool) -> tuple[list, list[float], list[int]]:
     """The expert's frames of `task` with the culling on or off: (frames, seconds per render, hidden)."""
     env.world.culling.enabled = cull
-    env.reset(options={'task': task})
     frames, seconds, hidden = [], [], []
-    r = env.resolution
-    for action in [*task.expert_actions, None]:
+
+    def observe(env: DialfredEnv, k: int) -> None:
         t0 = time.perf_counter()
         frames.append(env.world.render())
         seconds.append(time.perf_counter() - t0)
         hidden.append(len(env.world.culling.hidden))
-        if action is None:
-            break
-        x = action.x * r // task.resolution if action.x >= 0 else -1
-        y = action.y * r // task.resolution if action.y >= 0 else -1
-        _, _, terminated, truncated, _ = env.step({'action': action.action, 'pixel': (x, y)})
-        if terminated or truncated:
-            break
+    r = env.resolution
+    play_demonstration(env, task, np.zeros((len(task.expert_actions) + 1, r, r, 3), np.uint8), observe)
     return frames, seconds, hidden
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from dialfred_sim.ground_truth import closeup_pixels
 from dialfred_sim.tasks import load_split
+from dialfred_sim.tasks.demonstrations import play_demonstration
 from dialfred_sim.world.catalog import load_catalog
 from dialfred_sim.world.culling import frustum_planes, shape_radius
 from dialfred_sim.world.shapes import shape_for
@@ -23,27 +24,20 @@ def same(a, b) -> bool:
 def frames_both_ways(env, task):
     """Play the task's expert; at every frame render with the culling off, then on. Returns
     (frames, frames that differ, the largest share of the world's objects hidden at a frame)."""
-    env.reset(options={'task': task})
-    frames = differing = 0
-    most_hidden = 0.0
-    r = env.resolution
-    for action in [*task.expert_actions, None]:
+    seen = {'frames': 0, 'differing': 0, 'hidden': 0.0}
+
+    def observe(env, k: int) -> None:
         w = env.world
         w.culling.enabled = False
         full = w.render()
         w.culling.enabled = True
         culled = w.render()
-        frames += 1
-        differing += not same(full, culled)
-        most_hidden = max(most_hidden, len(w.culling.hidden) / len(w.objects))
-        if action is None:
-            break
-        x = action.x * r // task.resolution if action.x >= 0 else -1
-        y = action.y * r // task.resolution if action.y >= 0 else -1
-        _, _, terminated, truncated, _ = env.step({'action': action.action, 'pixel': (x, y)})
-        if terminated or truncated:
-            break
-    return frames, differing, most_hidden
+        seen['frames'] += 1
+        seen['differing'] += not same(full, culled)
+        seen['hidden'] = max(seen['hidden'], len(w.culling.hidden) / len(w.objects))
+    r = env.resolution
+    play_demonstration(env, task, np.zeros((len(task.expert_actions) + 1, r, r, 3), np.uint8), observe)
+    return seen['frames'], seen['differing'], seen['hidden']
 
 
 @pytest.mark.parametrize('split, first', [('valid_unseen', 0), ('train', 40)])
