@@ -24,6 +24,14 @@ def run_bench(name: str, *args: str, timeout: float = 240) -> dict:
     return json.loads(out[out.index('{'):])   # pybullet prints a banner line first
 
 
+def test_render_culling_times_both_draws_and_finds_the_same_frames_and_files():
+    report = run_bench('render_culling', '--tasks', '2', '--resolutions', '64', '--demos', '3', '--rounds', '1')
+    row = report['resolutions']['64']
+    assert row['frames'] > 2 and row['differing_frames'] == 0
+    assert row['ms_per_render_off'] > 0 and row['ms_per_render_on'] > 0 and row['hidden_objects_mean'] > 0
+    assert report['demos']['tasks'] == 3 and report['demos']['same_files'] is True
+
+
 def test_sim_step_reports_the_overhead_over_the_bare_render():
     report = run_bench('sim_step', '--steps', '5', '--rounds', '1', '--resolutions', '64')
     row = report['results']['64x64']
