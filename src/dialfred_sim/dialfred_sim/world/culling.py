@@ -1,8 +1,8 @@
 """Frustum culling for pybullet's TinyRenderer: the objects wholly outside a camera's view are left out
 of its draw, and every image is the same, pixel for pixel, as a draw of everything.
 
-TinyRenderer draws every triangle of every body, in view or not; at the agent's 64 px, a room's bodies
-outside the view cost about half of a frame's time. Before each draw, `Culling.prepare` bounds each
+TinyRenderer draws every triangle of every body, in view or not; leaving out the bodies outside the
+view makes a 64 px frame about 1.3x faster (128 px: about 1.1x). Before each draw, `Culling.prepare` bounds each
 object by a sphere about its body's origin (a radius from its shape: its parts in any pose of its
 joint, `shape_radius`) and tests it against the view's six planes (taken from the view and projection
 matrices, so any camera goes: the agent's, the oracle's close-ups). A body wholly outside is drawn
