@@ -136,3 +136,67 @@ def test_missing_folders_and_unfinished_runs_are_clear_errors(runs, tmp_path, ca
     assert compare_runs.main([str(a), str(b), '--parts', 'weights,caches']) == 0     # what an unfinished run has
     assert compare_runs.main([str(a), str(b), '--parts', 'weights,nope']) == 2
     assert 'parts are some of' in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- --shipped
+
+def shipped_run(run: Path) -> Path:
+    """A run folder assembled from the shipped checkpoints and docs/results.md, as a run that trained the
+    same models would hold them: the perception network on its own, each questioner with its encoder's copy."""
+    from dialfred_bringup.reproduce.plan import SHIPPED_QUESTIONERS
+    from dialfred_performer.model import visual_state
+    from dialfred_performer.shipped import SHIPPED_CHECKPOINT
+    et = torch.load(SHIPPED_CHECKPOINT, weights_only=True)
+    (run / 'performer').mkdir(parents=True)
+    shutil.copy(SHIPPED_CHECKPOINT, run / 'performer' / 'best.pt')
+    (run / 'perception').mkdir()
+    net = compare_runs.perception_of(et)
+    torch.save({'format': 'dialfred-perception/1', 'extra': {'update': 1}, **net}, run / 'perception' / 'perception.pt')
+    encoder = visual_state(Path(SHIPPED_CHECKPOINT))
+    for name in ('pretrained', 'rl_anytime'):
+        q = torch.load(SHIPPED_QUESTIONERS / f'{name}.pt', weights_only=True)
+        q = {k: v for k, v in q.items() if k != 'visual_source'} | {'visual': encoder, 'command': f'train --out {run}'}
+        rel = 'questioner/pretrain/best.pt' if name == 'pretrained' else f'questioner/{name}/final.pt'
+        (run / rel).parent.mkdir(parents=True, exist_ok=True)
+        torch.save(q, run / rel)
+    (run / 'results.md').write_text((ROOT / 'docs' / 'results.md').read_text().replace('out/reproduce', str(run)))
+    return run
+
+
+def test_a_run_of_the_shipped_models_is_the_shipped_run(tmp_path):
+    run = shipped_run(tmp_path / 'mine')
+    report = compare_runs.compare_with_shipped(run)
+    assert report['same'], report
+    assert set(report['weights']['models']) == {'perception', 'performer', 'pretrain', 'rl_anytime'}
+    assert 'rl_begin' in report['weights']['not_made'] and report['weights']['not_shipped'] == []
+    assert report['tables']['lines'] > 50
+    assert compare_runs.main([str(run), '--shipped']) == 0
+
+
+def test_a_changed_perception_tensor_encoder_or_table_line_differs_from_the_shipped(tmp_path, capsys):
+    run = shipped_run(tmp_path / 'mine')
+    path = run / 'perception' / 'perception.pt'
+    state = torch.load(path, weights_only=True)
+    state['state_dict']['stem.0.weight'][0, 0, 0, 0] += 1e-6
+    torch.save(state, path)
+    q = run / 'questioner' / 'rl_anytime' / 'final.pt'
+    state = torch.load(q, weights_only=True)
+    name = sorted(state['visual'])[0]
+    state['visual'][name] = state['visual'][name] + 1e-6
+    torch.save(state, q)
+    doc = run / 'results.md'
+    lines = doc.read_text().splitlines()
+    row = next(i for i, line in enumerate(lines) if line.startswith('| 2 | All QAs | valid_unseen'))
+    lines[row] = lines[row].replace('| 2 | All QAs', '| 2 | All  QAs')
+    doc.write_text('\n'.join(lines) + '\n')
+    report = compare_runs.compare_with_shipped(run)
+    models = report['weights']['models']
+    assert models['perception'] == {'same': False, 'differing': ['state_dict'], 'first_tensors': ['stem.0.weight']}
+    assert models['rl_anytime']['differing'] == ['visual'] and models['performer']['same']
+    assert report['tables']['differing_lines'] == 1 and not report['same']
+    assert compare_runs.main([str(run), '--shipped', '--parts', 'weights']) == 1
+    capsys.readouterr()
+    assert compare_runs.main([str(run), str(run), '--shipped']) == 2
+    assert 'one of them' in capsys.readouterr().err
+    assert compare_runs.main([str(run), '--shipped', '--parts', 'episodes']) == 2
+    assert compare_runs.main([str(tmp_path / 'empty'), '--shipped']) == 2

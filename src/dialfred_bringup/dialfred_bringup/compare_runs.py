@@ -27,6 +27,14 @@ What is compared (each part says `same` true/false, with the first differences):
 
 `--parts` picks what to compare (default tables,episodes,weights): a run still under way can be
 compared on what it has made so far, e.g. `--parts caches,weights` after its training stages.
+
+`--shipped` compares one run with what the repository ships instead of with another run: its models
+with the shipped checkpoints (the perception network with the one inside `et.pt`, the performer with
+`et.pt`, each questioner with its file, whose frame encoder is named by digest), and its tables with
+`docs/results.md`. No second run is needed to tell whether a `./dialfred reproduce` gave the shipped
+models bit for bit; the models the run has not made yet are listed, not counted as differences.
+
+    ./dialfred env python -m dialfred_bringup.compare_runs out/reproduce --shipped [--parts weights]
 Prints one JSON object; exit status 0 when every part compared is the same, 1 when something differs,
 2 when a run folder or a part that was asked for is missing.
 """
@@ -50,10 +58,14 @@ class MissingPart(Exception):
     """A run folder, or a file that both runs must have, is absent or unreadable."""
 
 
-def tables_text(run: Path) -> str:
-    """The part of a run's results.md that must not depend on the run: Table II up to the run times,
-    with the run folder's path removed."""
-    path = run / 'results.md'
+# How the shipped document names the run it was written from (document._relative of the default run folder)
+SHIPPED_RUN_FOLDER = 'out/reproduce'
+
+
+def tables_text(run: Path, path: Optional[Path] = None) -> str:
+    """The part of a run's results.md (or of `path`, a document written from a run) that must not depend
+    on the run: Table II up to the run times, with the run folder's path removed."""
+    path = run / 'results.md' if path is None else path
     try:
         text = path.read_text()
     except OSError as exc:
@@ -61,13 +73,16 @@ def tables_text(run: Path) -> str:
     if TABLES_FROM not in text or TABLES_TO not in text:
         raise MissingPart(f'{path} has no "{TABLES_FROM}" ... "{TABLES_TO}" part (an unfinished run?)')
     part = text.split(TABLES_FROM, 1)[1].split(TABLES_TO, 1)[0]
-    for form in (str(run.resolve()), str(run)):
+    for form in (str(run.resolve()), str(run), SHIPPED_RUN_FOLDER):
         part = part.replace(form, '<run>')
     return part
 
 
 def compare_tables(a: Path, b: Path, show: int) -> dict:
-    ta, tb = tables_text(a).splitlines(), tables_text(b).splitlines()
+    return _compare_lines(tables_text(a).splitlines(), tables_text(b).splitlines(), show)
+
+
+def _compare_lines(ta: list, tb: list, show: int) -> dict:
     differing = [(i, x, y) for i, (x, y) in enumerate(zip(ta, tb)) if x != y]
     same = ta == tb
     return {'same': same, 'lines': len(ta), 'differing_lines': len(differing) + abs(len(ta) - len(tb)),
@@ -147,21 +162,95 @@ MODEL_KEYS = ('format', 'config', 'vocab', 'nouns', 'state_dict', 'visual', 'vis
               'reads_dialogue')
 
 
-def compare_weights(a: Path, b: Path, show: int) -> dict:
+def _load(name: str, path: Path) -> dict:
     from dialfred_performer.model import read_state  # lazy: pybullet, torch, which the rest of this module does without
+    try:
+        return read_state(path)
+    except (OSError, ValueError) as exc:
+        raise MissingPart(f'{name}: cannot load its checkpoint: {exc}') from None
+
+
+def compare_models(ma: dict, mb: dict, show: int) -> dict:
+    """Two checkpoints' dicts, on what must not depend on the run (MODEL_KEYS): {'same', 'differing' (the
+    keys), 'first_tensors' (of the state dict)}."""
+    keys = [k for k in MODEL_KEYS if k in ma or k in mb]
+    bad = [k for k in keys if not same_value(ma.get(k), mb.get(k))]
+    sa, sb = ma.get('state_dict', {}), mb.get('state_dict', {})
+    tensors = [t for t in sorted(set(sa) | set(sb)) if not same_value(sa.get(t), sb.get(t))]
+    return {'same': not bad, 'differing': bad, 'first_tensors': tensors[:show]}
+
+
+def compare_weights(a: Path, b: Path, show: int) -> dict:
     ca, cb = checkpoints(a), checkpoints(b)
     models, only = {}, sorted(set(ca) ^ set(cb))
     for name in sorted(set(ca) & set(cb)):
-        try:
-            ma, mb = read_state(ca[name]), read_state(cb[name])
-        except (OSError, ValueError) as exc:
-            raise MissingPart(f'{name}: cannot load its checkpoint: {exc}') from None
-        keys = [k for k in MODEL_KEYS if k in ma or k in mb]
-        bad = [k for k in keys if not same_value(ma.get(k), mb.get(k))]
-        tensors = [t for t in ma.get('state_dict', {})
-                   if not same_value(ma['state_dict'][t], mb.get('state_dict', {}).get(t))]
-        models[name] = {'same': not bad, 'differing': bad, 'first_tensors': tensors[:show]}
+        models[name] = compare_models(_load(name, ca[name]), _load(name, cb[name]), show)
     return {'same': not only and all(m['same'] for m in models.values()), 'models': models, 'only_in_one': only}
+
+
+# ---------------------------------------------------------------------- a run against the shipped models
+
+PERCEPTION_PREFIX = 'visual.net.'       # where the performer's state dict holds its frozen perception network
+
+
+def shipped_checkpoints() -> dict:
+    """{name (as `checkpoints` names a run's models): path} of the shipped checkpoints: the performer (et.pt,
+    which also holds the perception network) and every questioner."""
+    from dialfred_performer.shipped import SHIPPED_CHECKPOINT  # lazy: as above
+    from .reproduce.plan import SHIPPED_QUESTIONERS
+    out = {'performer': Path(SHIPPED_CHECKPOINT)}
+    for p in sorted(Path(SHIPPED_QUESTIONERS).glob('*.pt')):
+        out['pretrain' if p.stem == 'pretrained' else p.stem] = p
+    return out
+
+
+def perception_of(performer: dict) -> dict:
+    """The perception network inside a performer checkpoint's dict, as its own checkpoint holds it: config
+    and state dict."""
+    net = performer.get('config', {}).get('perception_net')
+    return {'config': json.loads(net) if net else None,
+            'state_dict': {k[len(PERCEPTION_PREFIX):]: v for k, v in performer.get('state_dict', {}).items()
+                           if k.startswith(PERCEPTION_PREFIX)}}
+
+
+def without_encoder(questioner: dict) -> dict:
+    """A questioner checkpoint's dict with its frame encoder as a digest: its own copy (a run's) or the digest
+    that names the performer's (a shipped file, dialfred_questioner.policy.share_visual)."""
+    from dialfred_performer.model import state_digest  # lazy: as above
+    out = {k: v for k, v in questioner.items() if k not in ('visual', 'visual_source')}
+    if 'visual' in questioner:
+        out['visual'] = state_digest(questioner['visual'])
+    elif 'visual_source' in questioner:
+        out['visual'] = questioner['visual_source'].get('sha256')
+    return out
+
+
+def compare_shipped_weights(run: Path, show: int, shipped: Optional[dict] = None) -> dict:
+    """The run's models against the shipped ones (`shipped`: {name: path}, default shipped_checkpoints()):
+    the ones the run has made; those it has not are listed in 'not_made'."""
+    mine = checkpoints(run)
+    theirs = shipped_checkpoints() if shipped is None else shipped
+    if not mine:
+        raise MissingPart(f'{run} has made no model yet')
+    models = {}
+    for name in sorted(mine):
+        if name == 'perception':
+            et = _load('performer', theirs['performer'])
+            own = _load(name, mine[name])
+            models[name] = compare_models({'config': own.get('config'), 'state_dict': own.get('state_dict', {})},
+                                          perception_of(et), show)
+        elif name in theirs:
+            models[name] = compare_models(without_encoder(_load(name, mine[name])),
+                                          without_encoder(_load(name, theirs[name])), show)
+    extra = sorted(set(mine) - set(theirs) - {'perception'})
+    return {'same': not extra and all(m['same'] for m in models.values()), 'models': models,
+            'not_shipped': extra, 'not_made': sorted(set(theirs) - set(mine))}
+
+
+def compare_shipped_tables(run: Path, show: int, doc: Optional[Path] = None) -> dict:
+    from .paths import REPO
+    doc = REPO / 'docs' / 'results.md' if doc is None else doc
+    return _compare_lines(tables_text(run).splitlines(), tables_text(run, doc).splitlines(), show)
 
 
 def sha256_file(path: Path) -> str:
@@ -238,21 +327,48 @@ def compare(a: Path, b: Path, parts=DEFAULT_PARTS, show: int = 5) -> dict:
     return report
 
 
+SHIPPED_PARTS = {'tables': compare_shipped_tables, 'weights': compare_shipped_weights}
+
+
+def compare_with_shipped(run: Path, parts=tuple(SHIPPED_PARTS), show: int = 5) -> dict:
+    """One run against the repository's shipped checkpoints and docs/results.md (see the module's doc)."""
+    unknown = [p for p in parts if p not in SHIPPED_PARTS]
+    if unknown or not parts:
+        raise ValueError(f'with --shipped, parts are some of {", ".join(SHIPPED_PARTS)}, got {", ".join(parts) or "none"}')
+    if not run.is_dir():
+        raise MissingPart(f'{run} is not a run folder')
+    report = {'a': str(run), 'b': 'shipped'}
+    for part in SHIPPED_PARTS:
+        if part in parts:
+            report[part] = SHIPPED_PARTS[part](run, show)
+    report['same'] = all(report[p]['same'] for p in SHIPPED_PARTS if p in report)
+    return report
+
+
 @dataclass
 class CompareConfig:
-    """Compare two run folders of ./dialfred reproduce."""
+    """Compare two run folders of ./dialfred reproduce, or one with the shipped models and tables."""
 
     a: Path = arg(REQUIRED, 'a run folder of ./dialfred reproduce', positional=True)
-    b: Path = arg(REQUIRED, 'another run folder', positional=True)
-    parts: str = arg(','.join(DEFAULT_PARTS), f'what to compare, comma-separated: some of {", ".join(PARTS)}')
+    b: str = arg('', 'another run folder (not with --shipped)', positional=True)
+    shipped: bool = arg(False, "compare run `a` with the shipped checkpoints and docs/results.md instead "
+                               "(parts: tables, weights)")
+    parts: str = arg('', f'what to compare, comma-separated: some of {", ".join(PARTS)} (default '
+                         f'{",".join(DEFAULT_PARTS)}; with --shipped: {",".join(SHIPPED_PARTS)})')
     show: int = arg(5, 'how many differences of each kind to list')
 
 
 def main(argv: Optional[list[str]] = None) -> int:
     args = parse(CompareConfig, argv, prog='python -m dialfred_bringup.compare_runs',
                  description=__doc__.split('\n')[0])
+    parts = tuple(p for p in args.parts.split(',') if p)
     try:
-        report = compare(args.a, args.b, tuple(p for p in args.parts.split(',') if p), args.show)
+        if args.shipped == bool(args.b):
+            raise ValueError('give a second run folder or --shipped (one of them)')
+        if args.shipped:
+            report = compare_with_shipped(args.a, parts or tuple(SHIPPED_PARTS), args.show)
+        else:
+            report = compare(args.a, Path(args.b), parts or DEFAULT_PARTS, args.show)
     except (MissingPart, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
