@@ -170,7 +170,21 @@ def test_a_run_of_the_shipped_models_is_the_shipped_run(tmp_path):
     assert set(report['weights']['models']) == {'perception', 'performer', 'pretrain', 'rl_anytime'}
     assert 'rl_begin' in report['weights']['not_made'] and report['weights']['not_shipped'] == []
     assert report['tables']['lines'] > 50
+    assert report['machines']['shipped'] and not report['machines']['same_cpu']     # the run has no stamps
     assert compare_runs.main([str(run), '--shipped']) == 0
+
+
+def test_the_machines_of_the_run_and_of_the_shipped_run_are_named(tmp_path):
+    (tmp_path / 'run' / 'stamps').mkdir(parents=True)
+    for stage, cpu in (('perception', 'CPU A'), ('performer', 'CPU A')):
+        (tmp_path / 'run' / 'stamps' / f'{stage}.json').write_text(json.dumps({'machine': {'cpu': cpu, 'cpus': 2}}))
+    shipped = tmp_path / 'shipped_run.json'
+    shipped.write_text(json.dumps({'stages': {'perception': {'machine': {'cpu': 'CPU A'}}}}))
+    assert compare_runs.training_machines(tmp_path / 'run', shipped) == {'run': ['CPU A'], 'shipped': ['CPU A'],
+                                                                          'same_cpu': True}
+    shipped.write_text(json.dumps({'stages': {'perception': {'machine': {'cpu': 'CPU B'}}}}))
+    other = compare_runs.training_machines(tmp_path / 'run', shipped)
+    assert not other['same_cpu'] and 'another CPU' in other['note']
 
 
 def test_a_changed_perception_tensor_encoder_or_table_line_differs_from_the_shipped(tmp_path, capsys):

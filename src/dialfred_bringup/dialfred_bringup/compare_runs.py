@@ -33,6 +33,8 @@ with the shipped checkpoints (the perception network with the one inside `et.pt`
 `et.pt`, each questioner with its file, whose frame encoder is named by digest), and its tables with
 `docs/results.md`. No second run is needed to tell whether a `./dialfred reproduce` gave the shipped
 models bit for bit; the models the run has not made yet are listed, not counted as differences.
+Training repeats bit for bit on one kind of CPU, not across kinds: `machines` names the CPU of the run's
+training stages and of the shipped run's (`reproduce/shipped_run.json`), and says when they differ.
 
     ./dialfred env python -m dialfred_bringup.compare_runs out/reproduce --shipped [--parts weights]
 Prints one JSON object; exit status 0 when every part compared is the same, 1 when something differs,
@@ -337,12 +339,37 @@ def compare_with_shipped(run: Path, parts=tuple(SHIPPED_PARTS), show: int = 5) -
         raise ValueError(f'with --shipped, parts are some of {", ".join(SHIPPED_PARTS)}, got {", ".join(parts) or "none"}')
     if not run.is_dir():
         raise MissingPart(f'{run} is not a run folder')
-    report = {'a': str(run), 'b': 'shipped'}
+    report = {'a': str(run), 'b': 'shipped', 'machines': training_machines(run)}
     for part in SHIPPED_PARTS:
         if part in parts:
             report[part] = SHIPPED_PARTS[part](run, show)
     report['same'] = all(report[p]['same'] for p in SHIPPED_PARTS if p in report)
     return report
+
+
+def training_machines(run: Path, shipped_run: Optional[Path] = None) -> dict:
+    """The CPU the run's training stages ran on (from its stamps) and the shipped run's (shipped_run.json):
+    training repeats bit for bit on one kind of CPU, not across kinds, so models trained on another are
+    expected to differ (docs/evaluation.md)."""
+    from .reproduce.plan import SHIPPED_RUN, TRAINING
+    def cpus(stages: dict) -> list:
+        return sorted({(s.get('machine') or {}).get('cpu') for s in stages.values() if (s.get('machine') or {}).get('cpu')})
+    mine = {}
+    for stage in TRAINING:
+        try:
+            mine[stage] = json.loads((run / 'stamps' / f'{stage}.json').read_text())
+        except (OSError, ValueError):
+            continue
+    try:
+        theirs = json.loads((shipped_run or SHIPPED_RUN).read_text()).get('stages', {})
+    except (OSError, ValueError):
+        theirs = {}
+    out = {'run': cpus(mine), 'shipped': cpus(theirs)}
+    out['same_cpu'] = bool(out['run']) and out['run'] == out['shipped']
+    if not out['same_cpu']:
+        out['note'] = ('the run trained on another CPU than the shipped models (or one of them is unknown): the last '
+                       'bits of training differ across kinds of CPU, so different weights and tables are expected')
+    return out
 
 
 @dataclass
