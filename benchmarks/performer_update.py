@@ -6,7 +6,8 @@ step (`pointer_logits`, `distances`); the rest of the forward pass (language, tr
 the loss and backward pass; the optimiser step. Prints JSON.
 
     ./dialfred bench performer_update --perception out/reproduce/perception/perception.pt \
-        [--demonstrations ~/.cache/dialfred/demonstrations/train_64] [--updates 40] [--skip 5] [--threads 2]
+        [--demonstrations ~/.cache/dialfred/demonstrations/train_64] [--updates 40] [--skip 5] [--threads 2] \
+        [--precision bf16]
 
 The model is the one `./dialfred reproduce` trains (its performer stage's config: batch 16, the reach
 input); its weights are fresh (the time of an update does not depend on them). The batches timed are
@@ -60,13 +61,16 @@ def main() -> None:
     ap.add_argument('--batch-size', type=int, default=16)
     ap.add_argument('--block-tasks', type=int, default=0,
                     help='time the block order (the network run once per frame of the first block) instead')
+    ap.add_argument('--precision', choices=('fp32', 'bf16'), default='fp32',
+                    help="the frozen network's arithmetic (TrainConfig.perception_precision; bf16 is native only on "
+                         'CPUs with AVX512-BF16 or AMX, emulated and slow elsewhere)')
     args = ap.parse_args()
 
     out = tempfile.mkdtemp(prefix='performer_update_')
     cfg = TrainConfig(demonstrations=args.demonstrations, perception=args.perception, out=out, epochs=1,
                       max_updates=args.updates + args.skip, batch_size=args.batch_size, threads=args.threads,
                       progress=False, model=PerformerConfig(reach_input=True),
-                      block_tasks=args.block_tasks)
+                      block_tasks=args.block_tasks, perception_precision=args.precision)
     t0 = time.perf_counter()
     training = Training(cfg, Ranks())
     setup_s = time.perf_counter() - t0
@@ -124,7 +128,7 @@ def main() -> None:
         'frames_per_update': round(statistics.fmean(frames), 1),
         'seconds_per_update': {p: round(v, 4) for p, v in mean.items()},
         'share_of_update': {p: round(mean[p] / mean['update'], 3) for p in pieces if p != 'update'},
-        'block_tasks': args.block_tasks, 'block_load_s': round(block_load_s, 2),
+        'block_tasks': args.block_tasks, 'precision': args.precision, 'block_load_s': round(block_load_s, 2),
         'block_batches': block_batches_n,
         'seconds_per_update_with_block_load': round(mean['update'] + block_load_s / max(block_batches_n, 1), 4),
         'frames_per_s': round(sum(frames) / sum(r['update'] for r in rows), 1),
