@@ -52,6 +52,8 @@ from typing import Optional
 
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
+from .paths import REPO
+
 TABLES_FROM, TABLES_TO = '## Table II', '## Run times'
 IGNORED_FIELDS = ('wall_s', 'code', 'agent')   # RUN_FIELDS (dialfred_sim.metrics) and the agent's name
 
@@ -199,7 +201,7 @@ def shipped_checkpoints() -> dict:
     """{name (as `checkpoints` names a run's models): path} of the shipped checkpoints: the performer (et.pt,
     which also holds the perception network) and every questioner."""
     from dialfred_performer.shipped import SHIPPED_CHECKPOINT  # lazy: as above
-    from .reproduce.plan import SHIPPED_QUESTIONERS
+    from .reproduce.plan import SHIPPED_QUESTIONERS  # lazy: the plan imports torch and pybullet
     out = {'performer': Path(SHIPPED_CHECKPOINT)}
     for p in sorted(Path(SHIPPED_QUESTIONERS).glob('*.pt')):
         out['pretrain' if p.stem == 'pretrained' else p.stem] = p
@@ -250,7 +252,6 @@ def compare_shipped_weights(run: Path, show: int, shipped: Optional[dict] = None
 
 
 def compare_shipped_tables(run: Path, show: int, doc: Optional[Path] = None) -> dict:
-    from .paths import REPO
     doc = REPO / 'docs' / 'results.md' if doc is None else doc
     return _compare_lines(tables_text(run).splitlines(), tables_text(run, doc).splitlines(), show)
 
@@ -351,7 +352,7 @@ def training_machines(run: Path, shipped_run: Optional[Path] = None) -> dict:
     """The CPU the run's training stages ran on (from its stamps) and the shipped run's (shipped_run.json):
     training repeats bit for bit on one kind of CPU, not across kinds, so models trained on another are
     expected to differ (docs/evaluation.md)."""
-    from .reproduce.plan import SHIPPED_RUN, TRAINING
+    from .reproduce.plan import SHIPPED_RUN, TRAINING  # lazy: the plan imports torch and pybullet
     def cpus(stages: dict) -> list:
         return sorted({(s.get('machine') or {}).get('cpu') for s in stages.values() if (s.get('machine') or {}).get('cpu')})
     mine = {}
