@@ -37,6 +37,7 @@ Training repeats bit for bit on one kind of CPU, not across kinds: `machines` na
 training stages and of the shipped run's (`reproduce/shipped_run.json`), and says when they differ.
 
     ./dialfred env python -m dialfred_bringup.compare_runs out/reproduce --shipped [--parts weights]
+
 Prints one JSON object; exit status 0 when every part compared is the same, 1 when something differs,
 2 when a run folder or a part that was asked for is missing.
 """
