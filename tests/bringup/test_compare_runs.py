@@ -214,3 +214,16 @@ def test_a_changed_perception_tensor_encoder_or_table_line_differs_from_the_ship
     assert 'one of them' in capsys.readouterr().err
     assert compare_runs.main([str(run), '--shipped', '--parts', 'episodes']) == 2
     assert compare_runs.main([str(tmp_path / 'empty'), '--shipped']) == 2
+
+
+def test_runs_given_by_absolute_paths_compare_as_their_documents_name_them(tmp_path, monkeypatch):
+    """A document names its run folder relative to the repository (out/reproduce_b); the folders given as
+    absolute paths still compare on the tables alone."""
+    monkeypatch.setattr(compare_runs, 'REPO', tmp_path)
+    a = make_run(tmp_path / 'out' / 'reproduce', tmp_path / 'cache_a')
+    b = make_run(tmp_path / 'out' / 'reproduce_b', tmp_path / 'cache_b')
+    for run in (a, b):
+        doc = run / 'results.md'
+        doc.write_text(doc.read_text().replace(str(run), str(run.relative_to(tmp_path))))
+    assert 'out/reproduce_b/eval' in (b / 'results.md').read_text()
+    assert compare_runs.compare(a.resolve(), b.resolve(), parts=('tables',))['tables']['same']

@@ -78,7 +78,10 @@ def tables_text(run: Path, path: Optional[Path] = None) -> str:
     if TABLES_FROM not in text or TABLES_TO not in text:
         raise MissingPart(f'{path} has no "{TABLES_FROM}" ... "{TABLES_TO}" part (an unfinished run?)')
     part = text.split(TABLES_FROM, 1)[1].split(TABLES_TO, 1)[0]
-    for form in (str(run.resolve()), str(run), SHIPPED_RUN_FOLDER):
+    forms = {str(run.resolve()), str(run), SHIPPED_RUN_FOLDER}
+    if run.resolve().is_relative_to(REPO):
+        forms.add(str(run.resolve().relative_to(REPO)))         # as the document names a run folder of the repository
+    for form in sorted(forms, key=len, reverse=True):            # the longest first: out/reproduce_b before out/reproduce
         part = part.replace(form, '<run>')
     return part
 
