@@ -302,3 +302,19 @@ def test_perception_layout_refuses_a_bad_budget():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'perception_layout.py'), '--steps', '0'],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and '--steps must be at least 1' in proc.stderr
+
+
+def test_cpu_arithmetic_gives_each_mode_a_digest_that_repeats():
+    first = run_bench('cpu_arithmetic', '--tiny', '--updates', '2', '--modes', 'native,avx2')
+    again = run_bench('cpu_arithmetic', '--tiny', '--updates', '2', '--modes', 'native')
+    assert set(first['modes']) == {'native', 'avx2'} and first['data'].startswith('synthetic')
+    assert first['modes']['avx2']['env']['ATEN_CPU_CAPABILITY'] == 'avx2'
+    assert first['same_weights_as_native']['native'] is True
+    # a fresh process in the same mode trains the same weights
+    assert again['modes']['native']['weights_sha256'] == first['modes']['native']['weights_sha256']
+
+
+def test_cpu_arithmetic_refuses_an_unknown_mode():
+    proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'cpu_arithmetic.py'), '--modes', 'fast'],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and 'unknown mode' in proc.stderr
