@@ -677,3 +677,62 @@ def test_facing_goals_keep_the_points_from_which_the_cell_lies_near_a_heading():
     for i, j in np.argwhere(facing):
         dx, dy = float(x[0]) - (i - off) * 0.25, float(y[0]) - (j - off) * 0.25
         assert abs((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0) <= 25.0
+
+
+def _a_sofa_ahead(agent):
+    """The agent's map with a sofa 0.5 m deep centred 1.5 m ahead of the start (its cells mapped as the
+    sofa and as an obstacle, 0.45 m high) and the room free around it."""
+    smap = SemanticMap(n_classes=len(agent.classes), map_m=8.0)
+    k = agent.class_id['Sofa']
+    smap.class_votes[k] = np.zeros((smap.n, smap.n), np.float32)
+    smap.class_height[k] = np.zeros((smap.n, smap.n), np.float32)
+    for x in np.arange(1.25, 1.75, 0.125):
+        for y in np.arange(-0.5, 0.5, 0.125):
+            cx, cy = smap.cell_of(x + 0.01, y + 0.01)
+            smap.class_votes[k][cx, cy], smap.class_height[k][cx, cy] = 1.0, 0.45
+            smap.occupied[cx, cy] = 5.0
+    return smap
+
+
+def test_the_last_stand_walks_to_the_designated_pose_of_what_the_agent_went_to():
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.geometry import HORIZON_MAX
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Go to the sofa.'})())
+    agent.map = _a_sofa_ahead(agent)
+    agent.pose = Pose(0, -2, 90, 30.0)                   # off to the side, facing away from the sofa's line
+    assert agent._stand() is None                        # nothing gone to or acted on yet: no stand
+    agent.stand_anchor = ('Sofa', 1.3, 0.0)
+    goal = agent._designated_pose('Sofa', 1.3, 0.0)
+    # The free grid point nearest the sofa's centre (1.5, 0) along the axis it lies most along: straight
+    # in front of it, facing +x, the camera pitched at its base (clamped to the lowest look).
+    i, j, heading, horizon = goal
+    assert j == 0 and heading == 0 and horizon == HORIZON_MAX
+    free = agent.map.traversable()
+    off = agent.map.node_offset()
+    assert free[i + off, j + off] and not free[i + 1 + off, j + off]     # the nearest: a step more is blocked
+    moves = []
+    for _ in range(30):
+        move = agent._stand()
+        if move is None:
+            break
+        moves.append(move)
+        agent.pose = agent.pose.after(move)
+    assert (agent.pose.i, agent.pose.j, agent.pose.heading, agent.pose.horizon) == goal
+    assert agent.stand_actions == len(moves) and 'MoveAhead' in moves and 'LookDown' in moves
+
+
+def test_the_last_stand_gives_up_on_an_instance_it_has_not_mapped_or_cannot_reach():
+    from dialfred_performer.mapper.agent import MapAgent
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Go to the sofa.'})())
+    agent.map = _a_sofa_ahead(agent)
+    assert agent._designated_pose('Sofa', -2.0, 3.0) is None          # no sofa mapped there
+    assert agent._designated_pose('Bread', 1.3, 0.0) is None          # no bread mapped at all
+    c0x, c0y = agent.map.node_cell(0, 0)
+    agent.map.occupied[c0x - 4:c0x + 5, c0y - 4:c0y + 5] = 5.0         # boxed in where it stands
+    agent.map.occupied[c0x - 2:c0x + 3, c0y - 2:c0y + 3] = 0.0
+    # From the one point it can stand on, the sofa is out of reach: no designated pose, and it stops there.
+    assert agent._designated_pose('Sofa', 1.3, 0.0) is None
+    agent.stand_anchor = ('Sofa', 1.3, 0.0)
+    assert agent._stand() is None and agent.stand_goal == () and agent.stand_actions == 0

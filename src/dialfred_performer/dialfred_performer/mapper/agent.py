@@ -112,6 +112,9 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self.approached = False
         self.macro: deque[str] = deque()
         self.anchors: dict[str, tuple[float, float]] = {}     # type -> map point of the instance acted on
+        self.stand_anchor: Optional[tuple[str, float, float]] = None   # (type, map point) acted on or gone to last
+        self.stand_goal: Optional[tuple] = None    # the last stand's pose (i, j, heading, horizon); () none
+        self.stand_actions = 0
         self.cone_spent: set[str] = set()      # types whose location answer's direction was searched in vain
         self.last_ray: Optional[float] = None
         self.visits: Counter = Counter()
@@ -220,6 +223,10 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
             else:
                 self.confidence = WALKING
                 return action, -1, -1, None
+        if step.kind == 'stop':
+            move = self._stand()
+            if move is not None:
+                return move, -1, -1, None
         if step.kind == 'stop' or self.step_actions > MAX_STEP_ACTIONS:
             self.confidence = SURE if step.kind == 'stop' else EXPLORING
             if step.kind != 'stop':
@@ -232,6 +239,7 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         target = self._target_pixel(k, step)
         if step.kind == 'goto':
             if target is not None:
+                self.stand_anchor = (step.target, *target[1])
                 self.plan.popleft()
                 self.step_actions = 0
                 return self._decide(depth + 1)

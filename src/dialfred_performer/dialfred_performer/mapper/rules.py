@@ -14,6 +14,7 @@ PUT_CHANGE = 30.0                # _where_put: mean change of a cell's RGB (summ
 PLACED_M = 0.15                  # _inside_opened: how near the point of its own Put a cell must lie
 INSIDE_P = 0.03                   # _inside_opened: the least probability of the target's type taken as it
 MAX_STEP_ACTIONS = 120           # actions on one step of the plan before the agent gives up and stops
+STAND_MAX_ACTIONS = 16           # moves, turns and looks of the last stand (wayfinding._stand) at most
 SCAN_TURNS = 3                   # turns of the first look around
 SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
 ANSWER_CONE_DEG = 67.5           # half a location answer's 45-degree direction bin, and one bin more either side

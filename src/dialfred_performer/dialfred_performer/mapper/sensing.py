@@ -101,6 +101,7 @@ class Sensing:
             self.step_failures = 0
             if point is not None:
                 self.anchors[step.target] = point
+                self.stand_anchor = (step.target, *point)
             if action == 'Pickup':
                 self.held, self.held_confirmed = step.target, True
                 self.placed.pop(step.target, None)

@@ -1,6 +1,15 @@
 """`Navigation`, a part of `MapAgent` (mapper/agent.py): moving about: towards where a type can be reached
-on the map, turning and tilting to face it, and exploring (the first look around, the answers'
-directions, the nearest unexplored edge)."""
+on the map, turning and tilting to face it, exploring (the first look around, the answers'
+directions, the nearest unexplored edge), and the last stand of a task with a go-to.
+
+The last stand. A task with a go-to is judged by where the agent ends: within 4 actions of the pose
+where the expert ended it (DialFRED's goal rule). The expert ends a go-to at ALFRED's designated pose
+for the object it acts on there (the free grid point nearest the object's centre by L1 distance, with
+the eye at least 0.5 m from that centre and the object within reach, facing it along the axis it lies
+most along, the camera pitched at its base: `dialfred_sim.tasks.expert.Expert.find_pose`). Before
+every Stop the agent walks to that pose as its own map places the object it acted on (or went to)
+last. The agent is not told whether its task has a go-to (an instruction may leave it unsaid: "Open
+the box."); where it has none, the stand costs a few actions and changes no outcome."""
 
 from __future__ import annotations
 
@@ -9,10 +18,10 @@ from typing import Optional
 
 import numpy as np
 
-from .geometry import HORIZON_MAX, HORIZON_MIN, LOOK_DEG, bearing_deg, off_bearing
+from .geometry import CAMERA_HEIGHT_M, HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, bearing_deg, off_bearing
 from .language import Step
 from .semantic_map import TIGHT_CELLS, UNREACHABLE, distance_field, next_move, reach_goals, unexamined_goals
-from .rules import ANSWER_CONE_DEG, EXPLORING, REPLAN, SCAN_TURNS, WALKING
+from .rules import ANSWER_CONE_DEG, EXPLORING, REPLAN, SCAN_TURNS, STAND_MAX_ACTIONS, WALKING
 
 
 class Navigation:
@@ -176,3 +185,104 @@ class Navigation:
         if move is None:
             return 'RotateLeft' if self._loop_guard('RotateLeft') else None
         return move if self._loop_guard(move) else None
+
+    # ------------------------------------------------------------------ the last stand
+
+    def _stand(self) -> Optional[str]:
+        """Before the final Stop: the next move, turn or look towards the designated pose of the object
+        acted on (or gone to) last (see the module); None when there, or when that pose is unknown, out of
+        the way or not reached within STAND_MAX_ACTIONS."""
+        if self.stand_anchor is None:
+            return None
+        if self.stand_goal is None:
+            self.stand_goal = self._designated_pose(*self.stand_anchor) or ()
+        if not self.stand_goal or self.stand_actions >= STAND_MAX_ACTIONS:
+            return None
+        i, j, heading, horizon = self.stand_goal
+        move = None
+        if (self.pose.i, self.pose.j) != (i, j):
+            off = self.map.node_offset()
+            goals = np.zeros((self.map.nodes, self.map.nodes), bool)
+            goals[i + off, j + off] = True
+            dist = distance_field(self.map.traversable(), goals, until=(self.pose.i + off, self.pose.j + off))
+            move = next_move(dist, self.pose, off)
+            if move is None or (move == 'MoveAhead' and self.pose.forward() in self.map.blocked):
+                self.stand_goal = ()                 # no way there after all: stop where it is
+                return None
+        elif heading != self.pose.heading:
+            move = 'RotateRight' if (heading - self.pose.heading) % 360 == 270 else 'RotateLeft'
+        elif horizon > self.pose.horizon + 1e-6:
+            move = 'LookDown'
+        elif horizon < self.pose.horizon - 1e-6:
+            move = 'LookUp'
+        if move is None or not self._loop_guard(move):
+            return None
+        self.stand_actions += 1
+        self.confidence = WALKING
+        return move
+
+    def _designated_pose(self, type_name: str, x: float, y: float) -> Optional[tuple[int, int, int, float]]:
+        """(i, j, heading, horizon): ALFRED's designated pose for the instance of `type_name` the map has
+        at map point (x, y) (its cells connected to the nearest one within 0.5 m), among the grid points
+        the agent can walk to; None when the map has no such instance or no such point."""
+        k = self.class_id.get(type_name)
+        if k is None:
+            return None
+        cx, cy, height = self.map.object_cells(k)
+        if len(cx) == 0:
+            return None
+        xs, ys = self.map.cell_centre(cx, cy)
+        d2 = (xs - x) ** 2 + (ys - y) ** 2
+        seed = int(np.argmin(d2))
+        if d2[seed] > 0.5 ** 2:
+            return None
+        part = _connected(cx, cy, seed)
+        xs, ys, hs = xs[part], ys[part], height[part]
+        centre = np.array([(xs.min() + xs.max()) / 2, (ys.min() + ys.max()) / 2, (hs.min() + hs.max()) / 2])
+        base = float(hs.min())
+        off = self.map.node_offset()
+        free = self.map.traversable()
+        at = np.zeros_like(free)
+        at[self.pose.i + off, self.pose.j + off] = True
+        walk = distance_field(free, at)
+        ni, nj = np.nonzero(free & (walk < UNREACHABLE))
+        gi, gj = (ni - off) * STEP_M, (nj - off) * STEP_M
+        dx, dy = centre[0] - gi, centre[1] - gj
+        eye_to_centre = np.sqrt(dx ** 2 + dy ** 2 + (CAMERA_HEIGHT_M - centre[2]) ** 2)
+        reach = np.sqrt((xs[None, :] - gi[:, None]) ** 2 + (ys[None, :] - gj[:, None]) ** 2
+                        + (CAMERA_HEIGHT_M - hs[None, :]) ** 2).min(1)
+        ok = (eye_to_centre >= PULL_BACK_M) & (reach <= DESIGNATED_REACH_M)
+        if not ok.any():
+            return None
+        steps = (np.abs(dx) + np.abs(dy)) / STEP_M
+        order = np.lexsort((walk[ni, nj], np.where(ok, steps, np.inf)))
+        n = int(order[0])
+        ddx, ddy = float(dx[n]), float(dy[n])
+        heading = (0 if ddx >= 0 else 180) if abs(ddx) > abs(ddy) else (90 if ddy >= 0 else 270)
+        pitch = math.degrees(math.atan2(CAMERA_HEIGHT_M - base, max(abs(ddx), abs(ddy), 0.05)))
+        horizon = min(max(round(pitch / LOOK_DEG) * LOOK_DEG, HORIZON_MIN), HORIZON_MAX)
+        return int(ni[n] - off), int(nj[n] - off), heading, float(horizon)
+
+
+# ALFRED's designated pose (dialfred_sim.tasks.expert): the eye this far from the target's centre at least,
+# and the target's nearest point within the simulator's reach less the expert's margin.
+PULL_BACK_M = 0.5
+DESIGNATED_REACH_M = 1.5 - 0.08
+
+
+def _connected(cx: np.ndarray, cy: np.ndarray, seed: int) -> np.ndarray:
+    """bool [len(cx)]: the cells (cx, cy) 8-connected to cell `seed` through the others."""
+    index = {(int(a), int(b)): n for n, (a, b) in enumerate(zip(cx.tolist(), cy.tolist()))}
+    keep = np.zeros(len(cx), bool)
+    keep[seed] = True
+    todo = [seed]
+    while todo:
+        n = todo.pop()
+        a, b = int(cx[n]), int(cy[n])
+        for da in (-1, 0, 1):
+            for db in (-1, 0, 1):
+                m = index.get((a + da, b + db))
+                if m is not None and not keep[m]:
+                    keep[m] = True
+                    todo.append(m)
+    return keep
