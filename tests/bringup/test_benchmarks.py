@@ -144,6 +144,19 @@ def test_world_statistics_puts_each_figure_beside_ai2thors():
     assert 'reference' not in split['target_visible_at_task_start']
 
 
+def test_world_statistics_reads_a_split_file_of_ones_own(tmp_path):
+    from dialfred_sim.tasks.splits import write_split
+    path = tmp_path / 'sealed.jsonl.gz'
+    write_split('test_unseen', path, size=4, split_seed=11, progress=False)
+    report = run_bench('world_statistics', '--file', str(path))
+    assert report['split'] == 'test_unseen' and report['file']['tasks'] == 4 == report['tasks']
+    assert report['file']['path'] == str(path) and len(report['file']['sha256']) == 64
+    assert report['per_split']['gotos'] >= 0 and report['per_split']['goto_looks']['reference'] == 1.85
+    missing = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'world_statistics.py'), '--file',
+                              str(tmp_path / 'none.jsonl.gz')], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert missing.returncode == 2 and 'does not exist' in missing.stderr
+
+
 @pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests of its own
 def test_split_physics_finds_every_shipped_valid_episode_allowed():
     report = run_bench('split_physics', '--split', 'valid_unseen', '--limit', '6')
