@@ -24,7 +24,7 @@ import time
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     source = parser.add_mutually_exclusive_group()
-    source.add_argument('--split', default=None, choices=('train', 'valid_seen', 'valid_unseen'),
+    source.add_argument('--split', default='valid_unseen', choices=('train', 'valid_seen', 'valid_unseen'),
                         help='a shipped split (default: valid_unseen)')
     source.add_argument('--file', default=None, metavar='PATH',
                         help='a split file of your own (.jsonl.gz, e.g. a sealed test split) instead')
@@ -42,7 +42,6 @@ def main() -> None:
     from dialfred_sim.tasks.statistics import world_statistics
 
     t0 = time.monotonic()
-    source: dict = {}
     if args.file is not None:
         try:
             tasks_file = read_tasks_file(args.file)
@@ -50,8 +49,7 @@ def main() -> None:
             parser.error(str(exc))          # exit 2, nothing measured
         tasks, source = tasks_file.tasks, {'split': tasks_file.split, 'file': tasks_file.describe()}
     else:
-        split = args.split or 'valid_unseen'
-        tasks, source = load_split(split), {'split': split}
+        tasks, source = load_split(args.split), {'split': args.split}
     if args.tasks is not None:
         tasks = tasks[:args.tasks]
     figures = world_statistics(tasks, args.episodes)
