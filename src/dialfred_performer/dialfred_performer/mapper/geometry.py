@@ -93,10 +93,11 @@ def to_map_frame(points: np.ndarray, pose: Pose) -> np.ndarray:
     return np.stack([x0 + c * f - s * l, y0 + s * f + c * l, points[..., 2]], -1)
 
 
-def ray_distance(depth: np.ndarray) -> np.ndarray:
-    """Distance from the camera to each cell's point (what the simulator's reach is measured on)."""
-    u, v = pixel_rays(depth.shape[0])
-    return depth * np.sqrt(1 + u ** 2 + v ** 2)
+def axis_distance(depth: np.ndarray, horizon: float) -> np.ndarray:
+    """Distance of each cell's point from the agent's vertical axis, for a camera pitched `horizon`
+    degrees down (what the simulator's reach is measured on, as AI2-THOR's)."""
+    points = points_in_agent_frame(depth, horizon)
+    return np.hypot(points[..., 0], points[..., 1])
 
 
 def estimate_horizon(depth: np.ndarray, floor: np.ndarray, default: float = 30.0) -> float:

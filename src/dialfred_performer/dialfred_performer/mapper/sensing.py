@@ -13,7 +13,7 @@ import torch
 from dialfred_sim.protocol import Observation
 
 from ..preprocess import frame_tensor
-from .geometry import estimate_horizon, points_in_agent_frame, ray_distance, to_map_frame
+from .geometry import axis_distance, estimate_horizon, points_in_agent_frame, to_map_frame
 from .rules import FLOOR, STRUCTURE, carried_volume, hand_cell
 
 
@@ -43,7 +43,7 @@ class Sensing:
         else:
             self._dead_reckon(observation.last_action_success)
         self.labels, self.conf = labels, conf
-        self.ray = ray_distance(depth)
+        self.ray = axis_distance(depth, self.pose.horizon)    # how far from the agent's axis: its reach
         local = points_in_agent_frame(depth, self.pose.horizon)
         points = to_map_frame(local, self.pose)
         self.points = points

@@ -56,7 +56,7 @@ class Navigation:
         """The next move towards where the cells (cx, cy) of class k can be reached; None when there
         is no way."""
         off = self.map.node_offset()
-        goals = reach_goals(self.map, cx, cy, height)
+        goals = reach_goals(self.map, cx, cy)
         at = (self.pose.i + off, self.pose.j + off)
         dist = distance_field(free, goals, until=at)
         here = dist[at]
@@ -122,10 +122,10 @@ class Navigation:
                     x, y = self.map.cell_centre(cx, cy)
                     keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
                     if keep.any():
-                        goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
+                        goals = reach_goals(self.map, cx[keep], cy[keep])
                         if f.inside and f.receptacle in self.opened:
                             # opened to be searched: stand where it lies ahead, so its inside is in view
-                            facing = reach_goals(self.map, cx[keep], cy[keep], height[keep], facing_deg=25.0)
+                            facing = reach_goals(self.map, cx[keep], cy[keep], facing_deg=25.0)
                             if (facing & free).any():
                                 goals = facing
                         dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
@@ -249,8 +249,7 @@ class Navigation:
         gi, gj = (ni - off) * STEP_M, (nj - off) * STEP_M
         dx, dy = centre[0] - gi, centre[1] - gj
         eye_to_centre = np.sqrt(dx ** 2 + dy ** 2 + (CAMERA_HEIGHT_M - centre[2]) ** 2)
-        reach = np.sqrt((xs[None, :] - gi[:, None]) ** 2 + (ys[None, :] - gj[:, None]) ** 2
-                        + (CAMERA_HEIGHT_M - hs[None, :]) ** 2).min(1)
+        reach = np.sqrt((xs[None, :] - gi[:, None]) ** 2 + (ys[None, :] - gj[:, None]) ** 2).min(1)   # from the axis
         ok = (eye_to_centre >= PULL_BACK_M) & (reach <= DESIGNATED_REACH_M)
         if not ok.any():
             return None

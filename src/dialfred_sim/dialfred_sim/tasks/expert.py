@@ -138,8 +138,8 @@ class Expert:
             eye = np.array([i * GRID, j * GRID, CAMERA_HEIGHT])
             if np.linalg.norm(eye - centre) < PULL_BACK:
                 continue
-            # Every target's nearest point must be within reach, or no view of it can be.
-            if any(np.linalg.norm(eye - np.clip(eye, lo, hi)) > 1.5 - MARGIN for lo, hi in boxes):
+            # Every target's nearest point must be within reach of the agent's axis, or no view of it can be.
+            if any(np.linalg.norm(eye[:2] - np.clip(eye[:2], lo[:2], hi[:2])) > 1.5 - MARGIN for lo, hi in boxes):
                 continue
             if not self._clear_to_open(focus, i, j):
                 continue
