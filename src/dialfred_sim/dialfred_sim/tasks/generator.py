@@ -34,7 +34,7 @@ JOB_WEIGHTS = {
 }
 SLICE_PREFIX_P = 0.5           # jobs on a sliceable object start by slicing it (ALFRED's object_sliced)
 FAVOURED_P = 0.4               # chance a job takes sliceable food (kitchens) or a laptop when there is one
-DISTRACTOR_P = 0.6             # add a same-class object of another colour when the room has none
+DISTRACTOR_P = 0.25            # add a same-class object of another colour when the room has none
 LAMPS = ('DeskLamp', 'FloorLamp')
 
 # How strongly each task pattern is preferred where several fit (longer ones are rarer to fit).
