@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from dialfred_performer.mapper.geometry import Pose, axis_distance, estimate_horizon, points_in_agent_frame, to_map_frame
+from dialfred_performer.mapper.geometry import (Pose, axis_distance, estimate_horizon, points_in_agent_frame,
+                                                ray_distance, to_map_frame)
 from dialfred_performer.mapper.language import InstructionError, Step, parse_answer, parse_instruction
 from dialfred_performer.model import SHIPPED_CHECKPOINT as SHIPPED
 from dialfred_performer.mapper.semantic_map import (UNREACHABLE, SemanticMap, distance_field, next_move,
@@ -62,11 +63,12 @@ def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():
     points = points_in_agent_frame(depth, a.horizon)
     yaw = math.radians(a.rotation)
     for px, py in ((5, 20), (16, 16), (30, 28)):
-        world, _ = env.world.pixel_point(px, py, depth)
+        world, dist = env.world.pixel_point(px, py, depth)
         f, l, h = points[py, px]
         assert a.x + math.cos(yaw) * f - math.sin(yaw) * l == pytest.approx(world[0], abs=1e-4)
         assert a.y + math.sin(yaw) * f + math.cos(yaw) * l == pytest.approx(world[1], abs=1e-4)
         assert h == pytest.approx(world[2], abs=1e-4)
+        assert ray_distance(depth)[py, px] == pytest.approx(dist, abs=1e-4)
         assert axis_distance(depth, a.horizon)[py, px] == pytest.approx(env.world.axis_distance(world), abs=1e-4)
 
 

@@ -93,6 +93,12 @@ def to_map_frame(points: np.ndarray, pose: Pose) -> np.ndarray:
     return np.stack([x0 + c * f - s * l, y0 + s * f + c * l, points[..., 2]], -1)
 
 
+def ray_distance(depth: np.ndarray) -> np.ndarray:
+    """Distance from the eye to each cell's point (how far out the map takes points)."""
+    u, v = pixel_rays(depth.shape[0])
+    return depth * np.sqrt(1 + u ** 2 + v ** 2)
+
+
 def axis_distance(depth: np.ndarray, horizon: float) -> np.ndarray:
     """Distance of each cell's point from the agent's vertical axis, for a camera pitched `horizon`
     degrees down (what the simulator's reach is measured on, as AI2-THOR's)."""

@@ -21,7 +21,7 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.actions import REACH as REACH_M          # the simulator's reach, from the camera
+from dialfred_sim.actions import REACH as REACH_M          # the simulator's reach, from the agent's axis
 
 from .geometry import HEADING_STEPS, STEP_M, Pose
 
@@ -80,7 +80,7 @@ class SemanticMap:
     def update(self, points: np.ndarray, labels: np.ndarray, confidence: np.ndarray, ray: np.ndarray,
                floor_class: int, structure_classes: int) -> None:
         """One frame: points [S, S, 3] in the map frame, the predicted class of each [S, S] with its
-        probability, and the distance from the camera [S, S]."""
+        probability, and the distance from the eye [S, S]."""
         ok = (ray < MAX_RANGE_M) & np.isfinite(points).all(-1)
         cx, cy = self.cell_of(points[..., 0], points[..., 1])
         ok &= (cx >= 0) & (cx < self.n) & (cy >= 0) & (cy < self.n)
