@@ -670,7 +670,6 @@ def test_what_the_agent_put_into_a_receptacle_is_taken_back_where_its_frame_chan
 def test_facing_goals_keep_the_points_from_which_the_cell_lies_near_a_heading():
     smap = SemanticMap(n_classes=4, map_m=8.0)
     cx, cy = smap.cell_of(1.0, 0.0)
-    height = np.array([0.9])
     every = reach_goals(smap, np.array([cx]), np.array([cy]))
     facing = reach_goals(smap, np.array([cx]), np.array([cy]), facing_deg=25.0)
     assert facing.sum() < every.sum() and not (facing & ~every).any()
