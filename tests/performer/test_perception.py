@@ -382,7 +382,7 @@ def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(rea
 
     def at_cut():
         assert keyless._grids and all(g is None for g in keyless._grids)
-    assert play_side_by_side(keyless, keyed, check, at_cut) == 10          # the whole-episode steps were played too
+    assert play_side_by_side(keyless, keyed, check, at_cut, keep_going=True) == 10          # the whole-episode steps were played too
 
 
 def test_block_order_shows_every_item_once_with_each_batch_inside_its_block():
