@@ -115,7 +115,7 @@ class _Job:
         closed = w.enclosed_by_closed(obj)
         landmark = _landmark(w, oid)
         if closed is not None:
-            e.goto(landmark, [closed.object_id])
+            e.goto(landmark, [closed.object_id], inside=[oid])
             e.act('open', closed.object_id)
             e.act('pickup', oid)
             e.act('close', closed.object_id)
@@ -131,7 +131,7 @@ class _Job:
     def deliver(self, oid: str, rid: str, walk: bool = True) -> None:
         w, e = self.world, self.expert
         if walk:
-            e.goto(rid, [rid])
+            e.goto(rid, [rid], put=oid)
         r = w.objects[rid]
         if r.otype.openable and not r.is_open:
             e.act('open', rid)
@@ -163,13 +163,13 @@ class _Job:
         """Clean in the sink, heat in the microwave, or cool in the fridge (ALFRED's expansions)."""
         e = self.expert
         if kind == 'clean':
-            e.goto(appliance, [appliance, faucet])
+            e.goto(appliance, [appliance, faucet], put=oid)
             e.act('put', oid, appliance)
             e.act('toggle_on', faucet)
             e.act('toggle_off', faucet)
             e.act('pickup', oid)
             return
-        e.goto(appliance, [appliance])
+        e.goto(appliance, [appliance], put=oid)
         e.act('open', appliance)
         e.act('put', oid, appliance)
         e.act('close', appliance)
