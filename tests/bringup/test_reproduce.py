@@ -549,6 +549,39 @@ def test_the_status_of_a_run_reads_its_stamps_and_runs_nothing(tmp_path):
     assert not (tmp_path / 'run' / 'results.md').exists()
 
 
+def test_a_running_stage_says_how_far_it_has_come_and_how_long_it_has_left(tmp_path):
+    from dialfred_bringup.reproduce.status import run_status, status_lines
+    stamps, perf = tmp_path / 'run' / 'stamps', tmp_path / 'run' / 'performer'
+    (stamps / 'eval').mkdir(parents=True)
+    perf.mkdir()
+    (stamps / 'performer.json').write_text(json.dumps({
+        'status': 'running', 'started_at': 1000.0, 'seconds_before': 200.0,
+        'inputs': {'config': {'out': str(perf), 'max_updates': 1000}}}))
+    # a validation line after the last train line, and a torn line being written
+    perf.joinpath('metrics.jsonl').write_text('{"kind": "train", "update": 100}\n{"kind": "train", "update": 250}\n'
+                                              '{"kind": "val", "loss": 1.0}\n{"kind": "train", "upd')
+    (stamps / 'eval.json').write_text(json.dumps({'status': 'running', 'started_at': 1000.0,
+                                                  'inputs': {'config': {'settings': [{}, {}, {}, {}]}}}))
+    (stamps / 'eval' / 'valid_seen_all_qas.json').write_text(json.dumps({'status': 'done', 'seconds': 50.0}))
+    (stamps / 'eval' / 'valid_seen_random_qa.json').write_text(json.dumps({'status': 'running'}))
+    times = tmp_path / 'shipped_run.json'
+    times.write_text(json.dumps({'stages': {'performer': {'seconds': 9000.0}, 'eval': {'seconds': 9000.0}}}))
+    status = run_status(tmp_path / 'run', now=1100.0, shipped_run=times)
+    performer, evaluation = status['stages']['performer'], status['stages']['eval']
+    # 300 s for a quarter of the updates: 900 s more at that rate, not the shipped run's 9000 - 300
+    assert performer['progress'] == {'done': 250, 'total': 1000, 'unit': 'updates', 'left_s': 900.0}
+    assert evaluation['progress'] == {'done': 1, 'total': 4, 'unit': 'items', 'left_s': 300.0}
+    assert status['left_s'] == 900.0 + 300.0
+    text = '\n'.join(status_lines(status))
+    assert '250 of 1,000 updates (25%), about 15 min more at its rate so far' in text
+    assert '1 of 4 items (25%), about 5 min more' in text
+    # nothing written yet: 0 of the total, and no estimate of its own (the shipped run's time stands)
+    perf.joinpath('metrics.jsonl').unlink()
+    early = run_status(tmp_path / 'run', now=1100.0, shipped_run=times)
+    assert early['stages']['performer']['progress'] == {'done': 0, 'total': 1000, 'unit': 'updates'}
+    assert early['left_s'] == 9000.0 - 300.0 + 300.0
+
+
 def test_the_status_marks_a_done_stage_stale_when_a_run_would_redo_it(tmp_path):
     from dialfred_bringup.reproduce.status import run_status, status_lines
     from dialfred_sim.dataclass_cli import parse

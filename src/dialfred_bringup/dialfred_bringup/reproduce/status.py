@@ -1,9 +1,12 @@
 """Where a `./dialfred reproduce` run stands, read from its stamps (`./dialfred reproduce --status`):
 each stage done (with its time), stale (done, but a run would redo it: the hashes of its inputs now,
 computed as a run computes them, differ from its stamp's), running (since when, how long so far, over how many runs) or not
-started, and the items of the rl and eval stages. Nothing is run or written. With the times of the run
-whose models are shipped (`shipped_run.json`), the stages not done are given that run's times as an
-estimate of what is left.
+started, and the items of the rl and eval stages. A running stage also says how far it has come, read
+from what it has written (the perception network's frames and the performer's updates from their
+metrics.jsonl, the rl and eval stages' items done of those planned), and how long it has left at its
+own rate so far. Nothing is run or written. The stages not done are given the times of the run whose
+models are shipped (`shipped_run.json`) as an estimate of what is left; a running stage with a
+progress, its own estimate.
 """
 
 from __future__ import annotations
@@ -25,6 +28,43 @@ def _read(path: Path) -> Optional[dict]:
 
 def _clock(t: float) -> str:
     return time.strftime('%Y-%m-%d %H:%M', time.localtime(t))
+
+
+def _last_line(path: Path, key: str) -> Optional[dict]:
+    """The last JSON line of `path` that has `key` (a metrics.jsonl being appended to: a torn last line is
+    skipped), read from the file's end."""
+    try:
+        with open(path, 'rb') as f:
+            f.seek(0, 2)
+            f.seek(max(0, f.tell() - 65536))
+            tail = f.read().decode('utf-8', 'replace').splitlines()
+    except OSError:
+        return None
+    for line in reversed(tail):
+        try:
+            row = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(row, dict) and isinstance(row.get(key), (int, float)):
+            return row
+    return None
+
+
+def stage_progress(stage: str, stamp: dict, items: dict) -> Optional[dict]:
+    """{'done', 'total', 'unit'} of a running stage, from its stamp's config and what it has written, or
+    None where it cannot tell: perception counts frames trained on, the performer updates (its metrics'
+    train lines), rl and eval the items done of those in the stamp's config."""
+    config = (stamp.get('inputs') or {}).get('config') or {}
+    if stage == 'perception' and config.get('frames') and config.get('out'):
+        row = _last_line(Path(config['out']) / 'metrics.jsonl', 'frames')
+        return {'done': row['frames'] if row else 0, 'total': config['frames'], 'unit': 'frames'}
+    if stage == 'performer' and config.get('max_updates') and config.get('out'):
+        row = _last_line(Path(config['out']) / 'metrics.jsonl', 'update')
+        return {'done': row['update'] if row else 0, 'total': config['max_updates'], 'unit': 'updates'}
+    planned = {'rl': lambda: len(config), 'eval': lambda: len(config.get('settings') or ())}.get(stage)
+    if planned and planned():
+        return {'done': sum(v['status'] == 'done' for v in items.values()), 'total': planned(), 'unit': 'items'}
+    return None
 
 
 def run_status(run: Path, shipped: bool = False, now: Optional[float] = None, shipped_run: Path = SHIPPED_RUN,
@@ -60,7 +100,16 @@ def run_status(run: Path, shipped: bool = False, now: Optional[float] = None, sh
                    'seconds': round(stamp.get('seconds_before', 0.0) + max(0.0, now - since), 1)}
         if items:
             row['items'] = items
-        if row['status'] == 'stale' and stage in times:
+        if row['status'] == 'running':
+            progress = stage_progress(stage, stamp, items)
+            if progress:
+                fraction = min(1.0, progress['done'] / progress['total'])
+                if 0 < fraction < 1:     # its own rate so far, cut-off runs' time included
+                    progress['left_s'] = round(row['seconds'] * (1 - fraction) / fraction, 1)
+                row['progress'] = progress
+        if row.get('progress', {}).get('left_s') is not None:
+            left += row['progress']['left_s']
+        elif row['status'] == 'stale' and stage in times:
             left += times[stage]['seconds']
         elif row['status'] != 'done' and stage in times:
             left += max(0.0, times[stage]['seconds'] - (row.get('seconds') or 0.0))
@@ -79,6 +128,12 @@ def status_lines(status: dict) -> list[str]:
         if row['status'] == 'running':
             notes.append(f'since {row["since"]}' + (f', run {row["runs"]}' if row['runs'] > 1 else '')
                          + ' (or cut off: rerun the same command to resume)')
+        progress = row.get('progress')
+        if progress:
+            notes.append(f'{progress["done"]:,} of {progress["total"]:,} {progress["unit"]}'
+                         f' ({100 * progress["done"] / progress["total"]:.0f}%)'
+                         + (f', about {progress["left_s"] / 60:.0f} min more at its rate so far'
+                            if progress.get('left_s') is not None else ''))
         items = row.get('items') or {}
         if items:
             done = [k for k, v in items.items() if v['status'] == 'done']
@@ -86,5 +141,6 @@ def status_lines(status: dict) -> list[str]:
             notes.append(f'{len(done)} items done' + (f', {", ".join(running)} running or cut off' if running else ''))
         lines.append(f'{stage:<11} {row["status"]:<12} {seconds:>9}  {"; ".join(notes)}'.rstrip())
     if status['left_s'] is not None:
-        lines.append(f'left, by the times of the run that made the shipped models: about {status["left_s"] / 60:.0f} min')
+        lines.append(f'left, by the times of the run that made the shipped models (a running stage: its own rate): '
+                     f'about {status["left_s"] / 60:.0f} min')
     return lines
