@@ -182,9 +182,9 @@ def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, 
     conds = _object_goal(task_type, prims, world_types)
     gotos = [p for p in prims if p.kind == 'goto']
     if gotos:
-        # ALFRED's expert never walks inside an interaction, so there the go-to's end pose is where the
-        # task ends. Ours sometimes steps closer to reach into a container: the pose wanted is where
-        # the task's steps end (Task.expert_end_pose, which the direction answers point to).
+        # Neither ALFRED's expert nor ours walks inside an interaction, so the pose where the task's
+        # steps end is the go-to's end pose, give or take the looks of the actions after it
+        # (Task.expert_end_pose, which the direction answers point to).
         conds.append(Condition('near', gotos[-1].target, pose_arg(poses[prims[-1].end])))
     return conds
 
