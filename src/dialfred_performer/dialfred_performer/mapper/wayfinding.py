@@ -8,8 +8,11 @@ for the object it acts on there (the free grid point nearest the object's centre
 the eye at least 0.5 m from that centre and the object within reach, facing it along the axis it lies
 most along, the camera pitched at its base: `dialfred_sim.tasks.expert.Expert.find_pose`). Before
 every Stop the agent walks to that pose as its own map places the object it acted on (or went to)
-last. The agent is not told whether its task has a go-to (an instruction may leave it unsaid: "Open
-the box."); where it has none, the stand costs a few actions and changes no outcome."""
+last. The expert passes over that pose where a put from it would land out of view or a closed
+container's contents would be out of reach (dialfred_sim/tasks/expert.py); there the stand aims at the
+plain pose and can end more than 4 actions from the expert's (`./dialfred bench expert_poses` counts
+how often). The agent is not told whether its task has a go-to (an instruction may leave it unsaid:
+"Open the box."); where it has none, the stand costs a few actions and changes no outcome."""
 
 from __future__ import annotations
 
