@@ -157,11 +157,11 @@ def test_expert_poses_replays_the_shipped_episodes_and_counts_the_go_tos_that_en
 
 
 def test_the_gap_between_two_poses_counts_steps_turns_and_looks():
-    sys.path.insert(0, str(REPO / 'benchmarks'))
-    try:
-        from expert_poses import gap_actions
-    finally:
-        sys.path.pop(0)
+    import importlib.util     # inline: the bench is a script, not a module of a package
+    spec = importlib.util.spec_from_file_location('expert_poses', REPO / 'benchmarks' / 'expert_poses.py')
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    gap_actions = bench.gap_actions
     assert gap_actions((3, 4, 90, 30.0), (3, 4, 90, 30.0)) == 0
     assert gap_actions((3, 4, 0, 30.0), (5, 3, 270, 0.0)) == 3 + 1 + 2       # 3 steps, a quarter turn, 2 looks
     assert gap_actions((0, 0, 0, 0.0), (0, 0, 180, 0.0)) == 2
