@@ -11,8 +11,12 @@ the loss and backward pass; the optimiser step. Prints JSON.
 
 The model is the one `./dialfred reproduce` trains (its performer stage's config: batch 16, the reach
 input); its weights are fresh (the time of an update does not depend on them). The batches timed are
-spread evenly over the first epoch's, so their lengths are the run's; the first `--skip` warm the
-allocator and are not counted.
+spread evenly over the first epoch's; the first `--skip` warm the allocator and are not counted.
+
+An update's time grows with its frames (the frozen network runs on every one), and a few dozen batches
+can average many more or fewer frames than the epoch's. So the figure to multiply by a stage's updates is
+`seconds_per_update_at_epoch_mean`: the sample's seconds per frame times the epoch's mean frames per
+update (`epoch_frames_per_update`, from every batch's lengths).
 """
 
 from __future__ import annotations
@@ -84,6 +88,8 @@ def main() -> None:
     clock.wrap(visual, 'distances', 'reach_distances')
 
     items, batches, blocks = training.epoch_plan(0)
+    lengths = data.item_lengths(data.train, items)
+    epoch_frames = statistics.fmean(sum(lengths[p] for p in b) for b in batches)
     n = args.updates + args.skip
     if blocks is None:
         chosen = batches[::max(1, len(batches) // n)][:n]      # spread over the epoch: lengths as the run meets them
@@ -132,6 +138,8 @@ def main() -> None:
         'block_batches': block_batches_n,
         'seconds_per_update_with_block_load': round(mean['update'] + block_load_s / max(block_batches_n, 1), 4),
         'frames_per_s': round(sum(frames) / sum(r['update'] for r in rows), 1),
+        'epoch_frames_per_update': round(epoch_frames, 1),
+        'seconds_per_update_at_epoch_mean': round(sum(r['update'] for r in rows) / sum(frames) * epoch_frames, 4),
         'median_update_s': round(statistics.median(r['update'] for r in rows), 4),
     }, indent=1))
 

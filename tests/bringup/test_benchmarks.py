@@ -313,10 +313,18 @@ def test_performer_update_times_each_piece_in_random_and_block_order(tmp_path):
     args = ('--perception', str(perception / 'perception.pt'), '--demonstrations', str(demos), '--updates', '2',
             '--skip', '0', '--threads', '1', '--batch-size', '8')
     random, blocks = run_bench('performer_update', *args), run_bench('performer_update', *args, '--block-tasks', '4')
+    # Every batch of the epoch timed: the sample's frames per update are the epoch's.
+    whole = run_bench('performer_update', *args[:4], '--updates', '1000', '--skip', '0', '--threads', '1',
+                      '--batch-size', '8')
+    assert whole['frames_per_update'] == pytest.approx(whole['epoch_frames_per_update'], abs=0.1)
     for report in (random, blocks):
         pieces = report['seconds_per_update']
         assert report['updates_timed'] >= 1 and pieces['update'] > 0
         assert sum(v for k, v in pieces.items() if k != 'update') == pytest.approx(pieces['update'], rel=0.05, abs=1e-3)
+        # The stage's estimate: the sample's seconds per frame at the epoch's mean frames per update.
+        per_frame = report['seconds_per_update_at_epoch_mean'] / report['epoch_frames_per_update']
+        assert report['epoch_frames_per_update'] > 1
+        assert per_frame == pytest.approx(1 / report['frames_per_s'], rel=0.02)
     assert random['seconds_per_update']['frozen_network'] > 0 and random['block_load_s'] == 0
     assert blocks['seconds_per_update']['frozen_network'] == 0 < blocks['block_load_s']     # run once, at the block's start
     assert blocks['block_batches'] >= 1

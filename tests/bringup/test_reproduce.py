@@ -551,35 +551,43 @@ def test_the_status_of_a_run_reads_its_stamps_and_runs_nothing(tmp_path):
 
 def test_a_running_stage_says_how_far_it_has_come_and_how_long_it_has_left(tmp_path):
     from dialfred_bringup.reproduce.status import run_status, status_lines
-    stamps, perf = tmp_path / 'run' / 'stamps', tmp_path / 'run' / 'performer'
-    (stamps / 'eval').mkdir(parents=True)
-    perf.mkdir()
+    run = tmp_path / 'run'
+    stamps, perf, rl_a, rl_b = run / 'stamps', run / 'performer', run / 'questioner' / 'a', run / 'questioner' / 'b'
+    for folder in (stamps, perf, rl_a, rl_b, run / 'eval'):
+        folder.mkdir(parents=True)
     (stamps / 'performer.json').write_text(json.dumps({
         'status': 'running', 'started_at': 1000.0, 'seconds_before': 200.0,
         'inputs': {'config': {'out': str(perf), 'max_updates': 1000}}}))
     # a validation line after the last train line, and a torn line being written
     perf.joinpath('metrics.jsonl').write_text('{"kind": "train", "update": 100}\n{"kind": "train", "update": 250}\n'
                                               '{"kind": "val", "loss": 1.0}\n{"kind": "train", "upd')
-    (stamps / 'eval.json').write_text(json.dumps({'status': 'running', 'started_at': 1000.0,
-                                                  'inputs': {'config': {'settings': [{}, {}, {}, {}]}}}))
-    (stamps / 'eval' / 'valid_seen_all_qas.json').write_text(json.dumps({'status': 'done', 'seconds': 50.0}))
-    (stamps / 'eval' / 'valid_seen_random_qa.json').write_text(json.dumps({'status': 'running'}))
+    # two RL runs of 32 updates: one finished, one half way (48 of 64 in all)
+    (stamps / 'rl.json').write_text(json.dumps({'status': 'running', 'started_at': 1000.0, 'inputs': {'config': {
+        'a': {'out': str(rl_a), 'updates': 32}, 'b': {'out': str(rl_b), 'updates': 32}}}}))
+    rl_a.joinpath('metrics.jsonl').write_text(''.join(json.dumps({'update': u}) + '\n' for u in range(1, 33)))
+    rl_b.joinpath('metrics.jsonl').write_text(json.dumps({'update': 16}) + '\n')
+    # eval: 2 settings of valid_seen's 1296 tasks (limit 0: all), 648 episodes played in all
+    (stamps / 'eval.json').write_text(json.dumps({'status': 'running', 'started_at': 1000.0, 'inputs': {'config': {
+        'limit': 0, 'settings': [{'split': 'valid_seen', 'key': 'x'}, {'split': 'valid_seen', 'key': 'y'}]}}}))
+    (run / 'eval' / 'valid_seen_x.jsonl').write_text('{}\n' * 648)
     times = tmp_path / 'shipped_run.json'
-    times.write_text(json.dumps({'stages': {'performer': {'seconds': 9000.0}, 'eval': {'seconds': 9000.0}}}))
-    status = run_status(tmp_path / 'run', now=1100.0, shipped_run=times)
-    performer, evaluation = status['stages']['performer'], status['stages']['eval']
+    times.write_text(json.dumps({'stages': {'performer': {'seconds': 9000.0}, 'rl': {'seconds': 9000.0},
+                                            'eval': {'seconds': 9000.0}}}))
+    status = run_status(run, now=1100.0, shipped_run=times)
+    rows = status['stages']
     # 300 s for a quarter of the updates: 900 s more at that rate, not the shipped run's 9000 - 300
-    assert performer['progress'] == {'done': 250, 'total': 1000, 'unit': 'updates', 'left_s': 900.0}
-    assert evaluation['progress'] == {'done': 1, 'total': 4, 'unit': 'items', 'left_s': 300.0}
-    assert status['left_s'] == 900.0 + 300.0
+    assert rows['performer']['progress'] == {'done': 250, 'total': 1000, 'unit': 'updates', 'left_s': 900.0}
+    assert rows['rl']['progress'] == {'done': 48, 'total': 64, 'unit': 'RL updates', 'left_s': 33.3}
+    assert rows['eval']['progress'] == {'done': 648, 'total': 2592, 'unit': 'episodes', 'left_s': 300.0}
+    assert status['left_s'] == 900.0 + 33.3 + 300.0
     text = '\n'.join(status_lines(status))
     assert '250 of 1,000 updates (25%), about 15 min more at its rate so far' in text
-    assert '1 of 4 items (25%), about 5 min more' in text
+    assert '648 of 2,592 episodes (25%), about 5 min more' in text
     # nothing written yet: 0 of the total, and no estimate of its own (the shipped run's time stands)
     perf.joinpath('metrics.jsonl').unlink()
-    early = run_status(tmp_path / 'run', now=1100.0, shipped_run=times)
+    early = run_status(run, now=1100.0, shipped_run=times)
     assert early['stages']['performer']['progress'] == {'done': 0, 'total': 1000, 'unit': 'updates'}
-    assert early['left_s'] == 9000.0 - 300.0 + 300.0
+    assert early['left_s'] == 9000.0 - 300.0 + 33.3 + 300.0
 
 
 def test_the_status_marks_a_done_stage_stale_when_a_run_would_redo_it(tmp_path):

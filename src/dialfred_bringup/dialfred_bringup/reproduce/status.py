@@ -1,12 +1,12 @@
 """Where a `./dialfred reproduce` run stands, read from its stamps (`./dialfred reproduce --status`):
 each stage done (with its time), stale (done, but a run would redo it: the hashes of its inputs now,
-computed as a run computes them, differ from its stamp's), running (since when, how long so far, over how many runs) or not
-started, and the items of the rl and eval stages. A running stage also says how far it has come, read
-from what it has written (the perception network's frames and the performer's updates from their
-metrics.jsonl, the rl and eval stages' items done of those planned), and how long it has left at its
-own rate so far. Nothing is run or written. The stages not done are given the times of the run whose
-models are shipped (`shipped_run.json`) as an estimate of what is left; a running stage with a
-progress, its own estimate.
+computed as a run computes them, differ from its stamp's), running (since when, how long so far, over
+how many runs) or not started, and the items of the rl and eval stages. A running stage also says how
+far it has come, read from what it has written (the perception network's frames and the performer's
+updates from their metrics.jsonl, the rl stage's actor-critic updates over all its runs, the eval
+stage's episodes over all its settings), and how long it has left at its own rate so far. Nothing is
+run or written. The stages not done are given the times of the run whose models are shipped
+(`shipped_run.json`) as an estimate of what is left; a running stage with a progress, its own estimate.
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ import json
 import time
 from pathlib import Path
 from typing import Optional
+
+from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
 from .plan import SHIPPED_RUN, STAGES, TRAINING
 
@@ -50,10 +52,19 @@ def _last_line(path: Path, key: str) -> Optional[dict]:
     return None
 
 
-def stage_progress(stage: str, stamp: dict, items: dict) -> Optional[dict]:
+def _lines(path: Path) -> int:
+    try:
+        with open(path, 'rb') as f:
+            return sum(1 for line in f if line.strip())
+    except OSError:
+        return 0
+
+
+def stage_progress(stage: str, stamp: dict, run: Path) -> Optional[dict]:
     """{'done', 'total', 'unit'} of a running stage, from its stamp's config and what it has written, or
     None where it cannot tell: perception counts frames trained on, the performer updates (its metrics'
-    train lines), rl and eval the items done of those in the stamp's config."""
+    train lines), rl the actor-critic updates of all its runs (each run's metrics.jsonl) and eval the
+    episodes of all its settings (each setting's results file)."""
     config = (stamp.get('inputs') or {}).get('config') or {}
     if stage == 'perception' and config.get('frames') and config.get('out'):
         row = _last_line(Path(config['out']) / 'metrics.jsonl', 'frames')
@@ -61,9 +72,21 @@ def stage_progress(stage: str, stamp: dict, items: dict) -> Optional[dict]:
     if stage == 'performer' and config.get('max_updates') and config.get('out'):
         row = _last_line(Path(config['out']) / 'metrics.jsonl', 'update')
         return {'done': row['update'] if row else 0, 'total': config['max_updates'], 'unit': 'updates'}
-    planned = {'rl': lambda: len(config), 'eval': lambda: len(config.get('settings') or ())}.get(stage)
-    if planned and planned():
-        return {'done': sum(v['status'] == 'done' for v in items.values()), 'total': planned(), 'unit': 'items'}
+    if stage == 'rl' and config and all(isinstance(c, dict) and c.get('updates') and c.get('out')
+                                        for c in config.values()):
+        done = 0
+        for c in config.values():
+            row = _last_line(Path(c['out']) / 'metrics.jsonl', 'update')
+            done += min(c['updates'], row['update']) if row else 0
+        return {'done': done, 'total': sum(c['updates'] for c in config.values()), 'unit': 'RL updates'}
+    if stage == 'eval' and config.get('settings'):
+        done = total = 0
+        for s in config['settings']:
+            size = SPLIT_SIZES.get(s.get('split'), 0)
+            n = min(size, config['limit']) if config.get('limit') else size
+            total += n
+            done += min(n, _lines(run / 'eval' / f'{s.get("split")}_{s.get("key")}.jsonl'))
+        return {'done': done, 'total': total, 'unit': 'episodes'} if total else None
     return None
 
 
@@ -101,7 +124,7 @@ def run_status(run: Path, shipped: bool = False, now: Optional[float] = None, sh
         if items:
             row['items'] = items
         if row['status'] == 'running':
-            progress = stage_progress(stage, stamp, items)
+            progress = stage_progress(stage, stamp, run)
             if progress:
                 fraction = min(1.0, progress['done'] / progress['total'])
                 if 0 < fraction < 1:     # its own rate so far, cut-off runs' time included
