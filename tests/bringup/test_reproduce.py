@@ -159,7 +159,8 @@ def test_a_runs_models_are_shipped_with_the_frame_encoder_kept_once(first, tmp_p
     report = ship(ShipConfig(run=str(run), into=str(tmp_path / 'ship')))
     assert len(report['files']) == 1 + 1 + len(reproduce.RL_RUNS)
     times = json.loads((tmp_path / 'ship' / 'shipped_run.json').read_text())['stages']
-    assert {'perception', 'performer', 'pretrain', 'rl'} <= set(times) <= set(reproduce.plan.TRAINING)
+    # every finished stage's time (the training stages' for --shipped documents, all for --status's estimate)
+    assert set(times) == set(STAGES[:-1])
     full = run / 'questioner' / 'rl_anytime' / 'final.pt'
     shipped = tmp_path / 'ship' / 'rl_anytime.pt'
     assert shipped.stat().st_size < full.stat().st_size
@@ -613,6 +614,26 @@ def test_the_status_marks_a_done_stage_stale_when_a_run_would_redo_it(tmp_path):
     moved = [s for s in STAGES if other[s] != planned[s]]
     assert moved == [s for s in STAGES if s not in ('demos', 'dialogues', 'frames')]   # the caches are not seeded
     assert sorted(p.name for p in stamps.iterdir()) == sorted(f'{s}.json' for s in STAGES)
+
+
+def test_the_shipped_record_holds_every_finished_stage_so_status_counts_the_evaluations_left(tmp_path):
+    from dialfred_bringup.reproduce.ship import finished_times
+    from dialfred_bringup.reproduce.status import run_status
+    made = tmp_path / 'made' / 'stamps'
+    made.mkdir(parents=True)
+    for stage, seconds in (('perception', 600.0), ('performer', 1200.0), ('eval', 900.0)):
+        (made / f'{stage}.json').write_text(json.dumps({'status': 'done', 'seconds': seconds}))
+    (made / 'check.json').write_text(json.dumps({'status': 'running', 'started_at': 0.0, 'seconds_before': 50.0}))
+    (made / 'rl.json').write_text('{"status": "do')                     # torn: not a finished stage
+    record = finished_times(tmp_path / 'made')
+    assert set(record) == {'perception', 'performer', 'eval'} and record['eval']['seconds'] == 900.0
+    times = tmp_path / 'shipped_run.json'
+    times.write_text(json.dumps({'stages': record}))
+    stamps = tmp_path / 'run' / 'stamps'
+    stamps.mkdir(parents=True)
+    (stamps / 'perception.json').write_text(json.dumps({'status': 'done', 'seconds': 500.0}))
+    status = run_status(tmp_path / 'run', now=0.0, shipped_run=times)
+    assert status['left_s'] == 1200.0 + 900.0       # the performer and the evaluations still to run
 
 
 def test_redoc_refuses_a_run_without_results_and_writes_nothing(tmp_path, capsys):

@@ -6,9 +6,10 @@ The run's performer (`performer/best.pt`) becomes `dialfred_performer/checkpoint
 pre-trained and RL questioners become `dialfred_questioner/checkpoints/<name>.pt`. The questioners
 were trained with a frozen copy of the performer's frame encoder; the shipped files name et.pt instead of
 carrying that copy in every file (`dialfred_questioner.policy.share_visual`, checked by weights digest on
-every load), which keeps the shipped checkpoints small. The run's training stages' times and machine go
-to `reproduce/shipped_run.json`, so that the document of `reproduce --shipped` can say what the models
-cost. Nothing is written unless every model of the run is there, and each of its stamps says done.
+every load), which keeps the shipped checkpoints small. The times and machine of the run's finished
+stages go to `reproduce/shipped_run.json`: the document of `reproduce --shipped` says from them what the
+models cost (the training stages'), and `reproduce --status` estimates from them what a run has left
+(every stage's, the evaluations and the graph check included). Nothing is written unless every model of the run is there, and each of its stamps says done.
 Prints one JSON line: each file and its size.
 """
 
@@ -28,7 +29,7 @@ from dialfred_sim.metrics import write_text_atomically
 
 from ..paths import REPO
 from .document import stage_times
-from .plan import RL_RUNS, SHIPPED_QUESTIONERS, SHIPPED_RUN, TRAINING
+from .plan import RL_RUNS, SHIPPED_QUESTIONERS, SHIPPED_RUN
 
 SHIPPED_STAGES = ('perception', 'performer', 'pretrain', 'rl')
 
@@ -41,6 +42,16 @@ class ShipConfig:
     dry_run: bool = arg(False, 'check the run and say what would be written, write nothing')
     into: str = arg('', "write et.pt and the questioners side by side into this folder instead of the packages' "
                         "checkpoint folders (a quick run's models may go here, never over the shipped ones)")
+
+
+def finished_times(run: Path) -> dict:
+    """The record `ship` writes: {stage: its time and machine} for each stage of `run` whose stamp says done."""
+    def done(stage: str) -> bool:
+        try:
+            return json.loads((run / 'stamps' / f'{stage}.json').read_text()).get('status') == 'done'
+        except (OSError, ValueError):
+            return False
+    return {stage: t for stage, t in stage_times(run).items() if done(stage)}
 
 
 def ship(cfg: ShipConfig) -> dict:
@@ -75,8 +86,7 @@ def ship(cfg: ShipConfig) -> dict:
         share_visual(source, targets[name], et)
         LearnedQuestioner.from_checkpoint(targets[name])  # loads, with the encoder from et.pt
     record = into / SHIPPED_RUN.name if into else SHIPPED_RUN
-    times = {stage: t for stage, t in stage_times(run).items() if stage in TRAINING}
-    write_text_atomically(record, json.dumps({'stages': times}, indent=1, sort_keys=True) + '\n')
+    write_text_atomically(record, json.dumps({'stages': finished_times(run)}, indent=1, sort_keys=True) + '\n')
     sizes = {str(p): p.stat().st_size for p in (et, *targets.values())}
     return {'files': sizes, 'bytes': sum(sizes.values()), 'times': str(record), 'written': True}
 
