@@ -24,6 +24,7 @@ def run_bench(name: str, *args: str, timeout: float = 240) -> dict:
     return json.loads(out[out.index('{'):])   # pybullet prints a banner line first
 
 
+@pytest.mark.slow   # a benchmark script end to end; culled frames equal full draws: tests/sim/test_culling.py
 def test_render_culling_times_both_draws_and_finds_the_same_frames_and_files():
     report = run_bench('render_culling', '--tasks', '2', '--resolutions', '64', '--demos', '3', '--rounds', '1')
     row = report['resolutions']['64']
@@ -279,6 +280,7 @@ def test_map_pickup_failures_classifies_replayed_failures(tmp_path):
     assert {e['task_id'] for e in report['by_episode']} == {t.task_id for t in picks}
 
 
+@pytest.mark.slow   # a benchmark script end to end; chunked scoring equals one batch: test_questioner_model.py
 def test_rl_update_times_both_ways_of_scoring_and_finds_the_same_numbers():
     report = run_bench('rl_update', '--long', '12', '--repeats', '1', '--threads', '1')
     assert report['synthetic'] is True and report['decisions'] == 63 * 8 + 12
@@ -348,6 +350,7 @@ def test_perception_layout_refuses_a_bad_budget():
     assert proc.returncode == 2 and '--steps must be at least 1' in proc.stderr
 
 
+@pytest.mark.slow   # a benchmark script end to end: three fresh torch processes training; its digests speak across machines
 def test_cpu_arithmetic_gives_each_mode_a_digest_that_repeats():
     first = run_bench('cpu_arithmetic', '--tiny', '--updates', '2', '--modes', 'native,avx2')
     again = run_bench('cpu_arithmetic', '--tiny', '--updates', '2', '--modes', 'native')

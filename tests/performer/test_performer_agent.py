@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 from dialfred_performer.agent import PerformerAgent
@@ -51,6 +52,7 @@ def test_the_agent_plays_steps_of_a_real_task():
     env.close()
 
 
+@pytest.mark.slow   # a benchmark script end to end; the incremental step equals the whole episode's: below
 def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():
     script = Path(__file__).resolve().parents[2] / 'benchmarks' / 'performer_decision.py'
     proc = subprocess.run([sys.executable, str(script), '--repeats', '1', '--last-step', '60'], capture_output=True,

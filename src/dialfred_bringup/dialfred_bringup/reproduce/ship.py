@@ -9,8 +9,8 @@ carrying that copy in every file (`dialfred_questioner.policy.share_visual`, che
 every load), which keeps the shipped checkpoints small. The times and machine of the run's finished
 stages go to `reproduce/shipped_run.json`: the document of `reproduce --shipped` says from them what the
 models cost (the training stages'), and `reproduce --status` estimates from them what a run has left
-(every stage's, the evaluations and the graph check included). Nothing is written unless every model of the run is there, and each of its stamps says done.
-Prints one JSON line: each file and its size.
+(every stage's, the evaluations and the graph check included). Nothing is written unless every model of
+the run is there, and each of its stamps says done. Prints one JSON line: each file and its size.
 """
 
 from __future__ import annotations
