@@ -70,9 +70,10 @@ def _colour(type_name: str) -> str:
 
 
 def distance_at(env, pixel) -> float:
-    """Distance from the camera to the point seen at `pixel` of the current frame."""
+    """Distance from the agent's vertical axis (the reach's measure) to the point seen at `pixel` of the
+    current frame."""
     _, depth, _ = env._frame
-    return env.world.pixel_point(pixel[0], pixel[1], depth)[1]
+    return env.world.axis_distance(env.world.pixel_point(pixel[0], pixel[1], depth)[0])
 
 
 def pixel(env, object_id: str):

@@ -145,6 +145,29 @@ def test_world_statistics_puts_each_figure_beside_ai2thors():
     assert 'reference' not in split['target_visible_at_task_start']
 
 
+def test_expert_poses_replays_the_shipped_episodes_and_counts_the_go_tos_that_end_elsewhere():
+    # the first 6 valid_unseen episodes: 9 go-tos before a put, 3 of which end past the plain pose (one of
+    # them a fridge's, 5 actions away)
+    report = run_bench('expert_poses', '--episodes', '6')
+    assert report['episodes'] == 6 == report['same_as_shipped']
+    assert report['gotos_checked'] == report['gotos_checked_put'] + report['gotos_checked_inside'] > 0
+    assert 0 < report['elsewhere'] <= report['gotos_checked']
+    assert sum(report['gap_actions'].values()) + report['no_plain_pose'] == report['elsewhere']
+    assert report['elsewhere_beyond_4_actions_at_least'] == sum(v for k, v in report['gap_actions'].items() if int(k) > 4)
+    assert sum(report['elsewhere_by_type'].values()) == report['elsewhere']
+
+
+def test_the_gap_between_two_poses_counts_steps_turns_and_looks():
+    import importlib.util     # inline: the bench is a script, not a module of a package
+    spec = importlib.util.spec_from_file_location('expert_poses', REPO / 'benchmarks' / 'expert_poses.py')
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    gap_actions = bench.gap_actions
+    assert gap_actions((3, 4, 90, 30.0), (3, 4, 90, 30.0)) == 0
+    assert gap_actions((3, 4, 0, 30.0), (5, 3, 270, 0.0)) == 3 + 1 + 2       # 3 steps, a quarter turn, 2 looks
+    assert gap_actions((0, 0, 0, 0.0), (0, 0, 180, 0.0)) == 2
+
+
 def test_world_statistics_reads_a_split_file_of_ones_own(tmp_path):
     from dialfred_sim.tasks.splits import write_split
     path = tmp_path / 'sealed.jsonl.gz'

@@ -245,6 +245,7 @@ def test_the_reach_performer_acts_as_it_was_trained_step_by_step(reach_performer
     """Teacher-forced training (`forward`, which points with keys made without gradient at every step),
     the whole-episode decode and the incremental decode_step give the same action and pointer logits."""
     from dialfred_performer.data import DemonstrationDataset, collate
+    from dialfred_performer.model import camera_pitches
     checkpoint, _ = reach_performer
     model, vocab, _ = load_checkpoint(checkpoint)
     model.eval()
@@ -261,11 +262,12 @@ def test_the_reach_performer_acts_as_it_was_trained_step_by_step(reach_performer
     assert torch.allclose(out['pointer_logits'], pointer[batch['target_cells'] >= 0], atol=1e-4)
     cache = model.encoder.empty_cache()
     steps = batch['lang_steps'][0][batch['lang_valid'][0]]
+    pitches = camera_pitches(batch['previous_actions'][0])
     for t in range(T):                                 # the agent's path: each QA's tokens from their step on
         known = int((steps <= t).sum())
         a, ptr, cache = model.decode_step(cache, batch['lang_ids'][0, :known], batch['lang_types'][0, :known],
                                           int((steps <= t - 1).sum()) if t else 0, emb[t], grid[t],
-                                          int(batch['previous_actions'][0, t]), t)
+                                          int(batch['previous_actions'][0, t]), t, float(pitches[t]))
         if t == 0:
             assert torch.allclose(a, actions[0, 0], atol=1e-4) and torch.allclose(ptr, pointer[0, 0], atol=1e-4)
     assert torch.allclose(a, actions[0, T - 1], atol=1e-4)
@@ -380,7 +382,7 @@ def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(rea
 
     def at_cut():
         assert keyless._grids and all(g is None for g in keyless._grids)
-    assert play_side_by_side(keyless, keyed, check, at_cut) == 10          # the whole-episode steps were played too
+    assert play_side_by_side(keyless, keyed, check, at_cut, keep_going=True) == 10          # the whole-episode steps were played too
 
 
 def test_block_order_shows_every_item_once_with_each_batch_inside_its_block():
@@ -474,3 +476,23 @@ def test_perception_training_without_held_out_frames_says_so(prepared, tmp_path,
     assert perception_main(['--demonstrations', str(folder), '--out', str(tmp_path / 'p'), '--frames', '16',
                             '--val-fraction', '0.001', '--no-progress', *TINY]) == 2    # no task hashes that low
     assert '0 held-out frames at --val-fraction 0.001' in capsys.readouterr().err
+
+
+def test_the_reach_features_read_the_distance_from_the_agents_axis_at_the_dead_reckoned_pitch():
+    """The simulator measures reach from the agent's vertical axis; the performer knows its pitch from
+    its own looks (30 down at the start, 15 a look, held at the limits, where the simulator refuses)."""
+    from dialfred_sim.protocol import ACTIONS
+    from dialfred_sim.world.camera import reach_lengths
+    from dialfred_performer.data import START
+    from dialfred_performer.model import axis_factors, camera_pitches
+    from dialfred_performer.nn.enc_perceived import pixel_ray_lengths
+    down, up, ahead = ACTIONS.index('LookDown'), ACTIONS.index('LookUp'), ACTIONS.index('MoveAhead')
+    previous = torch.tensor([[START, down, down, down, ahead, up, up, up, up, up, up, up, up]])
+    assert camera_pitches(previous).tolist() == [[30, 45, 60, 60, 60, 45, 30, 15, 0, -15, -30, -30, -30]]
+    for pitch in (-30.0, 0.0, 30.0, 60.0):
+        factors = axis_factors(torch.tensor(pitch), 16 * 16)
+        expected = torch.from_numpy(reach_lengths(16, 16, pitch)) / pixel_ray_lengths(16)
+        assert torch.allclose(factors, expected.flatten(), atol=1e-5)
+    # Looking down, the bottom row lies nearer the axis than the eye; looking level, the centre as near.
+    assert float(axis_factors(torch.tensor(60.0), 16 * 16)[-1]) < 0.6
+    assert float(axis_factors(torch.tensor(0.0), 2 * 2).max()) < 1.0

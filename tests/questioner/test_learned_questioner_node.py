@@ -38,7 +38,7 @@ from dialfred_bringup.graph import Graph, NodeProcess
 from dialfred_sim.protocol import Observation
 
 REPO = Path(__file__).resolve().parents[2]
-SPLIT, TASK_INDEX = 'valid_seen', 9        # 12 steps, direction and appearance questions (so when withheld)
+SPLIT, TASK_INDEX = 'valid_seen', 78       # 15 steps, direction and appearance questions (so when withheld)
 TIMING = {'mode': 'anytime', 'gap': 2, 'epsilon': 0.5}
 CONFUSION = {'mode': 'confusion', 'gap': 5, 'epsilon': 0.8}     # on this task: questions before some of its actions, not all
 DIRECTION_BIAS = 0.3

@@ -73,6 +73,9 @@ def test_things_are_in_containers_and_on_surfaces(env):
     reset(env, 'FloorPlan1', seed=0)
     fridge, counter = first_of(env, 'Fridge'), first_of(env, 'CounterTop')
     basin = first_of(env, 'SinkBasin')
+    for oid in [o.object_id for o in env.world.objects.values() if o.parent == basin.object_id and not o.fixture]:
+        if oid in env.world.objects:
+            env.world.remove(oid)                  # room in the basin for the washed apple
     cold = spawn_on(env, 'Apple', fridge.object_id)
     shelved = spawn_on(env, 'Apple', counter.object_id)
     kept, _ = spawn_in_a_drawer(env, 'Spoon')

@@ -116,7 +116,7 @@ def test_the_reach_message_never_says_an_object_is_as_far_as_the_reach(env):
     _, depth, seg = env.world.render()
     ys, xs = np.isin(seg, list(env.world.body_to_object)).nonzero()      # a pixel of some object in view
     px, py = int(xs[0]), int(ys[0])
-    _, dist = env.world.pixel_point(px, py, depth)
-    scaled = depth * (REACH + 0.0004) / dist      # the same pixel, just beyond reach
+    point, _ = env.world.pixel_point(px, py, depth)
+    scaled = depth * (REACH + 0.0004) / env.world.axis_distance(point)    # the same pixel, just beyond reach
     _, _, failure = target_at(env.world, px, py, scaled, seg)
     assert failure is not None and 'out of reach (1.51 m away; reach is 1.50 m)' in failure.error

@@ -124,3 +124,22 @@ def test_pixel_point_is_the_point_seen_at_the_pixel(env, horizon):
             assert math.dist(point, expected) < tol, (x, y, point, expected)
 
 
+
+
+@pytest.mark.parametrize('horizon', [-30, 0, 30, 45, 60])
+def test_reach_lengths_give_each_pixels_distance_from_the_agents_axis(env, horizon):
+    from dialfred_sim.world.camera import reach_lengths
+    reset(env, KITCHEN)
+    i, j, rot = free_ahead_pose(env)
+    obs = env.teleport(i, j, rot, horizon)
+    depth = obs['depth']
+    lengths = depth * reach_lengths(depth.shape[1], depth.shape[0], horizon)
+    eye_lengths = []
+    for y in range(0, 64, 7):
+        for x in range(0, 64, 7):
+            point, dist = env.world.pixel_point(x, y, depth)
+            axis = math.hypot(point[0] - env.world.agent.x, point[1] - env.world.agent.y)
+            assert lengths[y, x] == pytest.approx(axis, abs=1e-4), (x, y)
+            eye_lengths.append(dist - axis)
+    # Not the distance from the eye: below or above the eye a point is farther from it than from the axis.
+    assert max(eye_lengths) > 0.3

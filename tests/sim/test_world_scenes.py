@@ -118,3 +118,20 @@ def test_viewed_at_shows_the_state_as_an_env_of_that_resolution_would_and_restor
     finally:
         small.close()
         large.close()
+
+
+def test_small_objects_choose_closed_receptacles_first_less_often_than_open_ones():
+    from types import SimpleNamespace as NS
+    from dialfred_sim.world.scene import CLOSED_HOST_WEIGHT, _host_order
+
+    def host(type_name, closed, n):
+        return NS(type_name=type_name, object_id=f'{type_name}_{n}', otype=NS(openable=closed),
+                  spec=NS(surfaces=(NS(inside=closed),)))
+    shelf, cabinets = host('Shelf', False, 0), [host('Cabinet', True, k) for k in range(5)]
+    rng = np.random.default_rng(0)
+    orders = [_host_order([shelf, *cabinets], rng) for _ in range(4000)]
+    assert all(sorted(h.object_id for h in o) == sorted(h.object_id for h in [shelf, *cabinets]) for o in orders)
+    # Five cabinets count as one type: a cabinet comes first w / (1 + w) of the time, not 5 / 6.
+    first_closed = np.mean([o[0].type_name == 'Cabinet' for o in orders])
+    assert CLOSED_HOST_WEIGHT < 1.0
+    assert first_closed == pytest.approx(CLOSED_HOST_WEIGHT / (1 + CLOSED_HOST_WEIGHT), abs=0.03)

@@ -23,7 +23,7 @@ import torch
 from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observation
 
 from .data import INTERACTION_IDS, START
-from .model import Performer, load_checkpoint
+from .model import Performer, camera_pitches, load_checkpoint
 from .nn import PerceivedFrames
 from .nn.enc_action import failed_id
 from .nn.heads import cell_centre_pixel
@@ -167,11 +167,11 @@ class PerformerAgent:
                 visual = self.model.visual
                 pointer_logits = visual.pointer_logits(perceived, self.model.pointer_head.query(h)[None])[0] * \
                     self.model.pointer_head.scale
-                action_logits = self.model._actions(h, pointer_logits, visual.distances(perceived)[0])
+                action_logits = self.model._actions(h, pointer_logits, visual.distances(perceived)[0], self._pitch())
             elif grid is None:
                 action_logits, pointer_logits = self.model.action_head(h), None
             else:
-                action_logits, pointer_logits = self.model.heads(h, grid[0])
+                action_logits, pointer_logits = self.model.heads(h, grid[0], self._pitch())
             result = StepOutputs(action_logits, pointer_logits, rgb.shape[:2], emb[0], grid, cache, len(lang), h,
                                  frame, encoded, perceived)
         else:
@@ -190,6 +190,10 @@ class PerformerAgent:
                                  len(lang), None, frame, encoded)
         self._pending = (observation, key, result)
         return result
+
+    def _pitch(self) -> torch.Tensor:
+        """The camera's pitch now, dead reckoned from the actions taken (model.camera_pitches)."""
+        return camera_pitches(torch.tensor(self._previous_actions))[-1]
 
     def _note_failure(self, observation: Observation) -> None:
         """With the failure input: the previous action becomes its failed id if it was an interaction and

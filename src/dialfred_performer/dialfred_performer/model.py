@@ -22,8 +22,10 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from dialfred_sim.actions import LOOK_STEP
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.protocol import ACTIONS, MAX_STEPS
+from dialfred_sim.world.camera import FOV_DEG, HORIZON_MAX, HORIZON_MIN, START_HORIZON
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig
@@ -84,9 +86,41 @@ REACH_METRES = 1.5
 REACH_FEATURES = ('expected distance / 2 m', 'pointer mass within reach', 'distance at the best pixel / 2 m')
 
 
+LOOK_UP, LOOK_DOWN = ACTIONS.index('LookUp'), ACTIONS.index('LookDown')
+
+
+def camera_pitches(previous_actions: torch.Tensor) -> torch.Tensor:
+    """Previous action ids [..., T] -> the camera's pitch at each step [..., T] (degrees, down positive),
+    dead reckoned as the simulator moves it: START_HORIZON at the start, LOOK_STEP per LookDown or LookUp,
+    held at the limits, where the simulator refuses a look (so no success flag is needed)."""
+    delta = LOOK_STEP * ((previous_actions == LOOK_DOWN).float() - (previous_actions == LOOK_UP).float())
+    out = torch.empty_like(delta)
+    pitch = torch.full(delta.shape[:-1], START_HORIZON)
+    for t in range(delta.shape[-1]):
+        pitch = (pitch + delta[..., t]).clamp(HORIZON_MIN, HORIZON_MAX)
+        out[..., t] = pitch
+    return out
+
+
+def axis_factors(pitch: torch.Tensor, cells: int) -> torch.Tensor:
+    """Camera pitches [...] (degrees) -> [..., cells]: per pixel of a square grid of `cells`, the
+    distance of the point seen there from the agent's vertical axis over its distance from the eye
+    (the simulator measures reach from the axis, as AI2-THOR does; the network predicts along the ray)."""
+    size = round(cells ** 0.5)
+    t = torch.tan(torch.tensor(FOV_DEG / 2).deg2rad())
+    u = ((torch.arange(size) + 0.5) / size * 2 - 1) * t
+    v = (1 - (torch.arange(size) + 0.5) / size * 2) * t
+    p = pitch.float().deg2rad()[..., None, None]
+    along = torch.cos(p) + v[:, None] * torch.sin(p)
+    axis = torch.sqrt(along ** 2 + u[None, :] ** 2)
+    ray = torch.sqrt(1 + u[None, :] ** 2 + v[:, None] ** 2)
+    return (axis / ray).flatten(-2)
+
+
 def reach_features(pointer_logits: torch.Tensor, distances: torch.Tensor) -> torch.Tensor:
-    """Pointer logits [..., C] and each pixel's predicted distance [..., C] (metres) -> [..., 3]
-    (REACH_FEATURES): how far away what the pointer points at is, and how much of it lies within reach."""
+    """Pointer logits [..., C] and each pixel's predicted distance from the agent's axis [..., C] (metres)
+    -> [..., 3] (REACH_FEATURES): how far away what the pointer points at is, and how much of it lies
+    within reach."""
     p = torch.softmax(pointer_logits, -1)
     best = distances.gather(-1, pointer_logits.argmax(-1, keepdim=True))[..., 0]
     return torch.stack([(p * distances).sum(-1) / 2, (p * (distances < REACH_METRES)).sum(-1), best / 2], -1)
@@ -115,16 +149,21 @@ class Performer(nn.Module):
             nn.init.zeros_(self.reach_head[2].weight)      # starts as the action head alone
             nn.init.zeros_(self.reach_head[2].bias)
 
-    def heads(self, h: torch.Tensor, grid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def heads(self, h: torch.Tensor, grid: torch.Tensor, pitch: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The step outputs h [..., d] over their frames' grids [..., C, k] (with reach_input, [..., C, k + 1]:
-        the last channel is each pixel's predicted distance) -> (action logits [..., 13], pointer logits [..., C])."""
+        the last channel is each pixel's predicted distance along its ray), taken at camera pitches [...]
+        (`camera_pitches`) -> (action logits [..., 13], pointer logits [..., C])."""
         if not self.config.reach_input:
             return self.action_head(h), self.pointer_head(h, grid)
         pointer = self.pointer_head(h, grid[..., :-1])
-        return self._actions(h, pointer, grid[..., -1]), pointer
+        return self._actions(h, pointer, grid[..., -1], pitch), pointer
 
-    def _actions(self, h: torch.Tensor, pointer: torch.Tensor, distances: torch.Tensor) -> torch.Tensor:
-        return self.action_head(h) + self.reach_head(reach_features(pointer.detach(), distances))
+    def _actions(self, h: torch.Tensor, pointer: torch.Tensor, distances: torch.Tensor,
+                 pitch: torch.Tensor) -> torch.Tensor:
+        """The action logits from h, where the pointer points and each pixel's distance along its ray at
+        camera `pitch` (the reach features read the distance from the agent's axis)."""
+        axis = distances * axis_factors(torch.as_tensor(pitch), distances.shape[-1])
+        return self.action_head(h) + self.reach_head(reach_features(pointer.detach(), axis))
 
     def encode_frames(self, frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """frames [N, 3, R, R] -> (embedding [N, d], grid [N, C, k]: a key per pointer cell)."""
@@ -141,17 +180,18 @@ class Performer(nn.Module):
         """Language [B, L], frame embeddings [B, T, d] with grids [B, T, C, k], previous actions
         [B, T] and valid steps [B, T] -> (action logits [B, T, 13], pointer logits [B, T, C])."""
         h = self.hidden(lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions, step_valid)
-        return self.heads(h, grid)
+        return self.heads(h, grid, camera_pitches(previous_actions))
 
     @torch.no_grad()
     def decode_step(self, cache, lang_ids: torch.Tensor, lang_types: torch.Tensor, first_new: int,
-                    frame_embedding: torch.Tensor, grid: torch.Tensor, previous_action: int, t: int):
+                    frame_embedding: torch.Tensor, grid: torch.Tensor, previous_action: int, t: int,
+                    pitch: float):
         """Step t of one episode, incrementally (the agent's path; see MultimodalEncoder.step): the
         language so far (lang_ids, lang_types [L]; the tokens from `first_new` on became known at
-        step t), the frame's embedding [d] and grid [C, d], the previous action. Returns (action
-        logits [13], pointer logits [C], the extended cache)."""
+        step t), the frame's embedding [d] and grid [C, d], the previous action, the camera's pitch
+        (`camera_pitches`). Returns (action logits [13], pointer logits [C], the extended cache)."""
         h, cache = self.step_output(cache, lang_ids, lang_types, first_new, frame_embedding, previous_action, t)
-        return (*self.heads(h, grid), cache)
+        return (*self.heads(h, grid, torch.tensor(pitch)), cache)
 
     @torch.no_grad()
     def step_output(self, cache, lang_ids: torch.Tensor, lang_types: torch.Tensor, first_new: int,
@@ -185,7 +225,7 @@ class Performer(nn.Module):
             queries = self.pointer_head.query(h).reshape(B * T, -1)
             pointer_all = self.visual.pointer_logits(out, queries).view(B, T, -1) * self.pointer_head.scale
             distances = self.visual.distances(out).view(B, T, -1)
-        return {'action_logits': self._actions(h, pointer_all, distances),
+        return {'action_logits': self._actions(h, pointer_all, distances, camera_pitches(batch['previous_actions'])),
                 'pointer_logits': self.pointer_head(h[has_target], keys)}
 
 

@@ -20,7 +20,7 @@ from .world.camera import HORIZON_MAX, HORIZON_MIN
 from .world.objects import COLD, HOT, WorldObject
 from .world.scene import SLICES_PER_OBJECT, DEFAULT_SLICES, World
 
-REACH = 1.5            # metres from the camera to the point under the target pixel
+REACH = 1.5            # metres from the agent's vertical axis to the point under the target pixel (AI2-THOR's)
 LOOK_STEP = 15.0       # degrees per LookUp / LookDown
 
 
@@ -127,7 +127,8 @@ def target_at(world: World, px: int, py: int, depth: np.ndarray, seg: np.ndarray
     if object_id is None:
         what = world.structure_bodies.get(body, 'nothing')
         return None, None, _fail(f'no object at pixel ({px}, {py}) ({what.lower()} is there)')
-    point, dist = world.pixel_point(px, py, depth)
+    point, _ = world.pixel_point(px, py, depth)
+    dist = world.axis_distance(point)
     if dist > REACH:
         away = math.ceil(dist * 100) / 100      # rounded up: 1.5004 m reads 1.51, never the reach itself
         return None, None, _fail(f'{object_id} is out of reach ({away:.2f} m away; reach is {REACH:.2f} m)', object_id)

@@ -14,7 +14,10 @@ import numpy as np
 
 from .world.catalog import load_catalog
 
-REACH = 1.4   # stay a little inside the simulator's 1.5 m
+# Stay a little inside the simulator's 1.5 m. The explorer measures from the eye (it does not track its
+# pitch); the simulator measures from the agent's vertical axis, which is never farther: what it finds
+# in reach is in reach, and low things near by it may miss.
+REACH = 1.4
 
 
 @dataclass(frozen=True)
@@ -41,7 +44,7 @@ class ExplorerPolicy:
     def _reachable(self, depth, segmentation, instances):
         """(object id, type, pixel) for each instance with enough pixels within reach, largest first."""
         h, w = depth.shape
-        # Distance along each pixel's ray (the camera has a 90 degree field of view: tan 45 = 1).
+        # Distance along each pixel's ray from the eye (the camera has a 90 degree field of view: tan 45 = 1).
         u = (np.arange(w) + 0.5) / w * 2 - 1
         v = (np.arange(h) + 0.5) / h * 2 - 1
         within = depth * np.sqrt(1 + u[None, :] ** 2 + v[:, None] ** 2) < REACH

@@ -94,9 +94,16 @@ def to_map_frame(points: np.ndarray, pose: Pose) -> np.ndarray:
 
 
 def ray_distance(depth: np.ndarray) -> np.ndarray:
-    """Distance from the camera to each cell's point (what the simulator's reach is measured on)."""
+    """Distance from the eye to each cell's point (how far out the map takes points)."""
     u, v = pixel_rays(depth.shape[0])
     return depth * np.sqrt(1 + u ** 2 + v ** 2)
+
+
+def axis_distance(depth: np.ndarray, horizon: float) -> np.ndarray:
+    """Distance of each cell's point from the agent's vertical axis, for a camera pitched `horizon`
+    degrees down (what the simulator's reach is measured on, as AI2-THOR's)."""
+    points = points_in_agent_frame(depth, horizon)
+    return np.hypot(points[..., 0], points[..., 1])
 
 
 def estimate_horizon(depth: np.ndarray, floor: np.ndarray, default: float = 30.0) -> float:

@@ -3,7 +3,7 @@
 `SemanticMap` is a top-down grid of CELL_M cells in the agent's own frame (see geometry). Every frame
 votes: floor points for free space, points between OBSTACLE_MIN_M and OBSTACLE_MAX_M above the floor
 that are not floor for obstacles, and each object class predicted at a point for that class there
-(with the point's height, which decides from how far the object can be reached). A MoveAhead that
+(with the point's height, which decides how far to pitch the camera to it). A MoveAhead that
 failed marks the grid point ahead as blocked, whatever the map says.
 
 Paths: the agent moves on the grid of STEP_M points; a point is free when no obstacle cell lies
@@ -21,9 +21,9 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.actions import REACH as REACH_M          # the simulator's reach, from the camera
+from dialfred_sim.actions import REACH as REACH_M          # the simulator's reach, from the agent's axis
 
-from .geometry import CAMERA_HEIGHT_M, HEADING_STEPS, STEP_M, Pose
+from .geometry import HEADING_STEPS, STEP_M, Pose
 
 CELL_M = 0.125                 # map cell
 NODE_CELLS = int(round(STEP_M / CELL_M))
@@ -80,7 +80,7 @@ class SemanticMap:
     def update(self, points: np.ndarray, labels: np.ndarray, confidence: np.ndarray, ray: np.ndarray,
                floor_class: int, structure_classes: int) -> None:
         """One frame: points [S, S, 3] in the map frame, the predicted class of each [S, S] with its
-        probability, and the distance from the camera [S, S]."""
+        probability, and the distance from the eye [S, S]."""
         ok = (ray < MAX_RANGE_M) & np.isfinite(points).all(-1)
         cx, cy = self.cell_of(points[..., 0], points[..., 1])
         ok &= (cx >= 0) & (cx < self.n) & (cy >= 0) & (cy < self.n)
@@ -211,16 +211,16 @@ def next_move(dist: np.ndarray, pose: Pose, offset: int) -> Optional[str]:
     return 'RotateRight' if turn == 270 else 'RotateLeft'
 
 
-def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray, height: np.ndarray,
+def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray,
                 margin_m: float = 0.3, facing_deg: Optional[float] = None) -> np.ndarray:
-    """[nodes, nodes] bool: grid points from which one of the cells (cx, cy) at `height` above the
-    floor is within reach (REACH_M from the camera less `margin_m`), and not nearer than one step."""
+    """[nodes, nodes] bool: grid points from which one of the cells (cx, cy) is within reach (REACH_M
+    from the agent's vertical axis less `margin_m`, at any height, as in AI2-THOR), and not nearer than
+    one step."""
     goals = np.zeros((smap.nodes, smap.nodes), bool)
     if len(cx) == 0:
         return goals
     xs, ys = smap.cell_centre(cx, cy)
-    drop = np.clip(CAMERA_HEIGHT_M - height, 0.0, None)
-    horizontal = np.sqrt(np.clip((REACH_M - margin_m) ** 2 - drop ** 2, 0.0, None))
+    horizontal = np.full(len(cx), REACH_M - margin_m)
     off = smap.node_offset()
     ii = (np.arange(smap.nodes) - off) * STEP_M
     for x, y, r in zip(xs.tolist(), ys.tolist(), horizontal.tolist()):

@@ -13,7 +13,7 @@ import torch
 from dialfred_sim.protocol import Observation
 
 from ..preprocess import frame_tensor
-from .geometry import estimate_horizon, points_in_agent_frame, ray_distance, to_map_frame
+from .geometry import axis_distance, estimate_horizon, points_in_agent_frame, ray_distance, to_map_frame
 from .rules import FLOOR, STRUCTURE, carried_volume, hand_cell
 
 
@@ -43,21 +43,21 @@ class Sensing:
         else:
             self._dead_reckon(observation.last_action_success)
         self.labels, self.conf = labels, conf
-        self.ray = ray_distance(depth)
+        self.ray = axis_distance(depth, self.pose.horizon)    # how far from the agent's axis: its reach
         local = points_in_agent_frame(depth, self.pose.horizon)
         points = to_map_frame(local, self.pose)
         self.points = points
         if self._just_put is not None and before is not None and before.shape == self.rgb.shape:
             self._where_put(self._just_put, before)
         self._just_put = None
-        mapped = self.ray
+        mapped = ray_distance(depth)                  # the map takes points out to a range from the eye
         if self.held is not None:
-            ray = self.ray.copy()
-            ray[self.hand_window()] = np.inf          # the object in hand is not part of the room
-            self.ray = ray
+            hand = self.hand_window()                 # the object in hand is not part of the room
+            self.ray = self.ray.copy()
+            self.ray[hand] = np.inf
             # Nor is it an obstacle: what is seen where the hand carries things is left off the map
             # (else it walls the agent in, a step ahead in every direction it turns to).
-            mapped = ray.copy()
+            mapped[hand] = np.inf
             mapped[carried_volume(local)] = np.inf
         self.map.update(points, labels, conf, mapped, FLOOR, STRUCTURE)
         self.map.visited.add((self.pose.i, self.pose.j))

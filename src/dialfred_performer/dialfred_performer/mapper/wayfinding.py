@@ -8,8 +8,11 @@ for the object it acts on there (the free grid point nearest the object's centre
 the eye at least 0.5 m from that centre and the object within reach, facing it along the axis it lies
 most along, the camera pitched at its base: `dialfred_sim.tasks.expert.Expert.find_pose`). Before
 every Stop the agent walks to that pose as its own map places the object it acted on (or went to)
-last. The agent is not told whether its task has a go-to (an instruction may leave it unsaid: "Open
-the box."); where it has none, the stand costs a few actions and changes no outcome."""
+last. The expert passes over that pose where a put from it would land out of view or a closed
+container's contents would be out of reach (dialfred_sim/tasks/expert.py); there the stand aims at the
+plain pose and can end more than 4 actions from the expert's (`./dialfred bench expert_poses` counts
+how often). The agent is not told whether its task has a go-to (an instruction may leave it unsaid:
+"Open the box."); where it has none, the stand costs a few actions and changes no outcome."""
 
 from __future__ import annotations
 
@@ -56,7 +59,7 @@ class Navigation:
         """The next move towards where the cells (cx, cy) of class k can be reached; None when there
         is no way."""
         off = self.map.node_offset()
-        goals = reach_goals(self.map, cx, cy, height)
+        goals = reach_goals(self.map, cx, cy)
         at = (self.pose.i + off, self.pose.j + off)
         dist = distance_field(free, goals, until=at)
         here = dist[at]
@@ -122,10 +125,10 @@ class Navigation:
                     x, y = self.map.cell_centre(cx, cy)
                     keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
                     if keep.any():
-                        goals = reach_goals(self.map, cx[keep], cy[keep], height[keep])
+                        goals = reach_goals(self.map, cx[keep], cy[keep])
                         if f.inside and f.receptacle in self.opened:
                             # opened to be searched: stand where it lies ahead, so its inside is in view
-                            facing = reach_goals(self.map, cx[keep], cy[keep], height[keep], facing_deg=25.0)
+                            facing = reach_goals(self.map, cx[keep], cy[keep], facing_deg=25.0)
                             if (facing & free).any():
                                 goals = facing
                         dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
@@ -249,8 +252,7 @@ class Navigation:
         gi, gj = (ni - off) * STEP_M, (nj - off) * STEP_M
         dx, dy = centre[0] - gi, centre[1] - gj
         eye_to_centre = np.sqrt(dx ** 2 + dy ** 2 + (CAMERA_HEIGHT_M - centre[2]) ** 2)
-        reach = np.sqrt((xs[None, :] - gi[:, None]) ** 2 + (ys[None, :] - gj[:, None]) ** 2
-                        + (CAMERA_HEIGHT_M - hs[None, :]) ** 2).min(1)
+        reach = np.sqrt((xs[None, :] - gi[:, None]) ** 2 + (ys[None, :] - gj[:, None]) ** 2).min(1)   # from the axis
         ok = (eye_to_centre >= PULL_BACK_M) & (reach <= DESIGNATED_REACH_M)
         if not ok.any():
             return None

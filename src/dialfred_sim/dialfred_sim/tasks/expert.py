@@ -3,6 +3,12 @@
 The expert acts on a `World` directly, rendering only when it must look (to choose a pose from which
 its targets are in view and within reach, and to pick the pixel of an interaction). Every action goes
 through the same `actions.execute` an agent's does, so what the expert records replays exactly.
+
+As ALFRED's expert, it never walks inside an interaction: a go-to ends where the whole of what follows
+can be done with at most a look up or down (the contents of a closed container included, once it is
+open), and a put lands where the agent can see and reach what it put (AI2-THOR places a put object only
+at spots in the agent's view and reach). Where that cannot be, the expert fails and the generator draws
+another episode, as ALFRED discards the trajectories its expert cannot finish.
 """
 
 from __future__ import annotations
@@ -27,6 +33,8 @@ MARGIN = 0.08          # the expert keeps its targets this far inside the reach 
 MAX_POSE_RENDERS = 40  # candidate poses looked at per navigation goal
 PREVIEW = 64           # pixels of the cheap first look at a candidate pose
 PULL_BACK = 0.5        # metres: a designated pose keeps the eye at least this far from its target's centre
+PUT_TRIES = 8          # pixels of a receptacle tried for where a put lands in view ...
+PUT_STRIDE = 7         # ... taking every this-many-th in order of nearness to its middle
 
 
 class ExpertFailed(RuntimeError):
@@ -104,6 +112,27 @@ class Expert:
         _, depth, seg = self.world.render(size, size)
         return all(is_reachable(self.world, f, depth, seg, MARGIN) for f in focus)
 
+    def _ready_inside(self, focus: Sequence[str], inside: Sequence[str], put: Optional[str]) -> bool:
+        """Whether, once the closed openables of `focus` stand open (opened for the look and closed
+        again), `inside` is in view and within reach, and the held `put` would land in view and within
+        reach if put into `focus[0]`."""
+        if not inside and put is None:
+            return True
+        closed = [self.world.objects[f] for f in focus
+                  if self.world.objects[f].otype.openable and not self.world.objects[f].is_open]
+        try:
+            for obj in closed:
+                self.world.set_open(obj, True)
+            if inside and not (self._sees(inside, preview=True) and self._sees(inside)):
+                return False
+            if put is not None:
+                _, depth, seg = self.world.render()
+                return self._put_pixel(put, focus[0], depth, seg, strict=True) is not None
+            return True
+        finally:
+            for obj in closed:
+                self.world.set_open(obj, False)
+
     def _aabb(self, object_id: str) -> tuple[np.ndarray, np.ndarray]:
         obj = self.world.objects[object_id]
         c = self.world.client
@@ -113,9 +142,12 @@ class Expert:
             lo, hi = np.minimum(lo, a), np.maximum(hi, b)
         return lo, hi
 
-    def find_pose(self, focus: Sequence[str]) -> tuple[Pose, list[Action]]:
+    def find_pose(self, focus: Sequence[str], inside: Sequence[str] = (),
+                  put: Optional[str] = None) -> tuple[Pose, list[Action]]:
         """The designated pose for `focus` (ALFRED's rule for where its planner's go-to ends) and the
-        shortest actions to it.
+        shortest actions to it. `inside`: objects in a closed container of `focus` that must be in view
+        and within reach too, once it is open; `put`: the held object, which a put into `focus[0]`
+        (opened if closed) must land in view and within reach.
 
         The pose depends on the world, never on where the agent stands: the free grid point nearest the
         first target's centre (L1 distance, as ALFRED's `get_obj_coords`), but not so near that the eye
@@ -138,8 +170,8 @@ class Expert:
             eye = np.array([i * GRID, j * GRID, CAMERA_HEIGHT])
             if np.linalg.norm(eye - centre) < PULL_BACK:
                 continue
-            # Every target's nearest point must be within reach, or no view of it can be.
-            if any(np.linalg.norm(eye - np.clip(eye, lo, hi)) > 1.5 - MARGIN for lo, hi in boxes):
+            # Every target's nearest point must be within reach of the agent's axis, or no view of it can be.
+            if any(np.linalg.norm(eye[:2] - np.clip(eye[:2], lo[:2], hi[:2])) > 1.5 - MARGIN for lo, hi in boxes):
                 continue
             if not self._clear_to_open(focus, i, j):
                 continue
@@ -155,7 +187,7 @@ class Expert:
             for *_, pose in candidates[:MAX_POSE_RENDERS]:
                 self._set_pose(pose)
                 # A cheap low-resolution look first; the full frame decides.
-                if self._sees(focus, preview=True) and self._sees(focus):
+                if self._sees(focus, preview=True) and self._sees(focus) and self._ready_inside(focus, inside, put):
                     path = self._path(parent, pose[:3])
                     return pose, path + self._look_actions(here[3], pose[3])
         finally:
@@ -167,10 +199,11 @@ class Expert:
         n = round((h_to - h_from) / LOOK_STEP)
         return [Action.LookDown] * n if n > 0 else [Action.LookUp] * (-n)
 
-    def goto(self, landmark: str, focus: Sequence[str]) -> None:
-        """Walk to where `focus` can be acted on; a `goto landmark` primitive if any action was needed."""
+    def goto(self, landmark: str, focus: Sequence[str], inside: Sequence[str] = (), put: Optional[str] = None) -> None:
+        """Walk to where `focus` can be acted on (see find_pose for `inside` and `put`); a `goto landmark`
+        primitive if any action was needed."""
         start = len(self.actions)
-        _, actions = self.find_pose(list(dict.fromkeys(focus)))
+        _, actions = self.find_pose(list(dict.fromkeys(focus)), list(inside), put)
         for act in actions:
             self._nav(act)
         if len(self.actions) > start:
@@ -178,21 +211,51 @@ class Expert:
 
     # ------------------------------------------------------------------ interaction
 
-    def _pixel(self, object_id: str, depth: np.ndarray, seg: np.ndarray) -> Optional[tuple[int, int]]:
+    def _pixels(self, object_id: str, depth: np.ndarray, seg: np.ndarray) -> list[tuple[int, int]]:
+        """The pixels of `object_id` within reach, nearest the middle of all its pixels first."""
         near = reachable_mask(self.world, object_id, depth, seg, 1.5 - MARGIN)
         ys, xs = np.nonzero(near)
         if len(xs) == 0:
-            return None
+            return []
         whole_y, whole_x = np.nonzero(seg == self.world.objects[object_id].body)
-        k = int(np.argmin((xs - whole_x.mean()) ** 2 + (ys - whole_y.mean()) ** 2))
-        return int(xs[k]), int(ys[k])
+        order = np.argsort((xs - whole_x.mean()) ** 2 + (ys - whole_y.mean()) ** 2, kind='stable')
+        return [(int(xs[k]), int(ys[k])) for k in order]
+
+    def _pixel(self, object_id: str, depth: np.ndarray, seg: np.ndarray) -> Optional[tuple[int, int]]:
+        pixels = self._pixels(object_id, depth, seg)
+        return pixels[0] if pixels else None
+
+    def _put_pixel(self, oid: str, rid: str, depth: np.ndarray, seg: np.ndarray,
+                   strict: bool = False) -> Optional[tuple[int, int]]:
+        """The pixel of receptacle `rid` to put the held `oid` at: the first (in `_pixels`' order, every
+        PUT_STRIDE-th) from which `oid` would land where the agent sees and reaches it; else the first
+        pixel (None if `strict`). Each try places `oid` as the put would, looks, and takes it back into
+        the hand."""
+        pixels = self._pixels(rid, depth, seg)
+        if not pixels:
+            return None
+        fallback = None if strict else pixels[0]
+        w = self.world
+        obj, receptacle = w.objects[oid], w.objects[rid]
+        kept = (obj.surface, obj.local, obj.local_yaw)
+        for px, py in pixels[::PUT_STRIDE][:PUT_TRIES]:
+            point, _ = w.pixel_point(px, py, depth)
+            if not w.place(obj, receptacle, near=point):
+                return fallback             # nowhere to put it: the put itself will say so
+            try:
+                if self._sees([oid], preview=True) and self._sees([oid]):
+                    return px, py
+            finally:
+                w.hold(obj)
+                obj.surface, obj.local, obj.local_yaw = kept
+        return fallback
 
     def act(self, kind: str, target: str, receptacle: str = '') -> None:
         """One interaction primitive (plus the look up/down it needs to see its target)."""
         start = len(self.actions)
         clicked = receptacle if kind == 'put' else target
         _, depth, seg = self.world.render()
-        pixel = self._pixel(clicked, depth, seg)
+        pixel = self._put_pixel(target, receptacle, depth, seg) if kind == 'put' else self._pixel(clicked, depth, seg)
         if pixel is None:
             here = self.pose()
             for dh in (LOOK_STEP, -LOOK_STEP, 2 * LOOK_STEP, -2 * LOOK_STEP):
@@ -207,13 +270,8 @@ class Expert:
                     for a in self._look_actions(here[3], h):
                         self._nav(a)
                     break
-            if pixel is None:   # walk again (a drawer's contents show only from closer by)
-                for a in self.find_pose([clicked])[1]:
-                    self._nav(a)
-                _, depth, seg = self.world.render()
-                pixel = self._pixel(clicked, depth, seg)
-            if pixel is None:
-                raise ExpertFailed(f'{kind}: {clicked} is not in reach')
+            if pixel is None:   # no walking inside an interaction (see the module's docstring)
+                raise ExpertFailed(f'{kind}: {clicked} is not in reach from where the go-to ended')
         action = KIND_TO_ACTION[kind]
         point, _ = self.world.pixel_point(pixel[0], pixel[1], depth)
         self.poses.append(self.pose())

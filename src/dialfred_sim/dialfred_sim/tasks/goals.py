@@ -13,8 +13,6 @@ view and within reach, and only of the Move and Pick & Move tasks (`rule_goal`).
 
 from __future__ import annotations
 
-import functools
-import math
 from dataclasses import replace
 from typing import Optional, Sequence
 
@@ -22,7 +20,7 @@ import numpy as np
 
 from ..actions import REACH
 from .navigation import Pose, actions_to_pose
-from ..world.camera import FOV_DEG
+from ..world.camera import reach_lengths
 from ..world.objects import COLD, HOT
 from ..world.scene import World
 from .schema import Condition, Primitive, Task
@@ -55,25 +53,16 @@ def check_goal_rule(rule: str) -> str:
     return rule
 
 
-@functools.lru_cache(maxsize=8)
-def _ray_lengths(width: int, height: int) -> np.ndarray:
-    """Per pixel, the length of the camera ray whose component along the view axis is 1."""
-    t = math.tan(math.radians(FOV_DEG) / 2)
-    u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
-    v = (1 - (np.arange(height) + 0.5) / height * 2) * t
-    return np.sqrt(1.0 + u[None, :] ** 2 + v[:, None] ** 2).astype(np.float32)
-
-
 def reachable_mask(world: World, object_id: str, depth: np.ndarray, seg: np.ndarray,
                    reach: float = REACH) -> np.ndarray:
-    """Pixels of `object_id` in the frame that lie within `reach` of the camera."""
+    """Pixels of `object_id` in the frame that lie within `reach` of the agent's vertical axis."""
     obj = world.objects.get(object_id)
     if obj is None:
         return np.zeros(seg.shape, bool)
     mask = seg == obj.body
     if not mask.any():
         return mask
-    dist = depth * _ray_lengths(seg.shape[1], seg.shape[0])
+    dist = depth * reach_lengths(seg.shape[1], seg.shape[0], world.agent.horizon)
     return mask & (dist <= reach)
 
 
@@ -193,9 +182,9 @@ def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, 
     conds = _object_goal(task_type, prims, world_types)
     gotos = [p for p in prims if p.kind == 'goto']
     if gotos:
-        # ALFRED's expert never walks inside an interaction, so there the go-to's end pose is where the
-        # task ends. Ours sometimes steps closer to reach into a container: the pose wanted is where
-        # the task's steps end (Task.expert_end_pose, which the direction answers point to).
+        # Neither ALFRED's expert nor ours walks inside an interaction, so the pose where the task's
+        # steps end is the go-to's end pose, give or take the looks of the actions after it
+        # (Task.expert_end_pose, which the direction answers point to).
         conds.append(Condition('near', gotos[-1].target, pose_arg(poses[prims[-1].end])))
     return conds
 

@@ -7,6 +7,7 @@ projection and pybullet client. The constants here are the one place of the came
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Optional
 
@@ -19,6 +20,22 @@ HORIZON_MIN, HORIZON_MAX = -30.0, 60.0   # look up / down limits (positive = dow
 START_HORIZON = 30.0         # ALFRED starts every episode looking 30 degrees down
 LIGHT_DIRECTION = (0.3, 0.5, 1.0)
 EYE_SHIFT = 0.0007           # metres the drawn eye sits behind the true one (see AgentView.view_matrix)
+
+
+@functools.lru_cache(maxsize=32)
+def reach_lengths(width: int, height: int, horizon: float) -> np.ndarray:
+    """Per pixel of a `width` x `height` frame taken at camera pitch `horizon` (degrees, down positive),
+    the horizontal distance from the agent's vertical axis of the point seen there, per metre of depth
+    along the view axis. Reach is measured so, as AI2-THOR measures its `visibilityDistance`: from the
+    agent's central vertical axis, whatever the point's height, not from the eye."""
+    t = math.tan(math.radians(FOV_DEG) / 2)
+    u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
+    v = (1 - (np.arange(height) + 0.5) / height * 2) * t
+    pitch = math.radians(horizon)
+    along = math.cos(pitch) + v[:, None] * math.sin(pitch)     # along the heading, per metre of depth
+    lengths = np.sqrt(along ** 2 + u[None, :] ** 2).astype(np.float32)
+    lengths.flags.writeable = False     # shared by every caller (cached)
+    return lengths
 
 
 class AgentView:
@@ -81,3 +98,7 @@ class AgentView:
         z = float(depth[py, px])
         point = tuple(eye[k] + z * ray[k] for k in range(3))
         return point, z * math.sqrt(sum(r * r for r in ray))
+
+    def axis_distance(self, point) -> float:
+        """How far `point` lies from the agent's central vertical axis (the distance reach is measured by)."""
+        return math.hypot(point[0] - self.agent.x, point[1] - self.agent.y)
