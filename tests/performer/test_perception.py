@@ -491,7 +491,7 @@ def test_the_reach_features_read_the_distance_from_the_agents_axis_at_the_dead_r
     assert camera_pitches(previous).tolist() == [[30, 45, 60, 60, 60, 45, 30, 15, 0, -15, -30, -30, -30]]
     for pitch in (-30.0, 0.0, 30.0, 60.0):
         factors = axis_factors(torch.tensor(pitch), 16 * 16)
-        expected = torch.from_numpy(reach_lengths(16, 16, pitch)) / pixel_ray_lengths(16)
+        expected = torch.from_numpy(reach_lengths(16, 16, pitch).copy()) / pixel_ray_lengths(16)   # (a cached, read-only array)
         assert torch.allclose(factors, expected.flatten(), atol=1e-5)
     # Looking down, the bottom row lies nearer the axis than the eye; looking level, the centre as near.
     assert float(axis_factors(torch.tensor(60.0), 16 * 16)[-1]) < 0.6
