@@ -61,6 +61,14 @@ def children(pid: int) -> list[int]:
     return found
 
 
+def cmdline(pid: int) -> str:
+    """What a process runs ('' once it is gone), for error messages."""
+    try:
+        return Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ').decode(errors='replace')[:200]
+    except OSError:
+        return ''
+
+
 def alive(pid: int) -> bool:
     try:
         stat = Path(f'/proc/{pid}/stat').read_text()
@@ -136,7 +144,8 @@ def test_a_killed_launcher_leaves_no_node_and_the_same_command_resumes(checkpoin
     deadline = time.monotonic() + 20
     while any(alive(p) for p in nodes) and time.monotonic() < deadline:
         time.sleep(0.2)
-    assert not any(alive(p) for p in nodes), 'nodes outlived their launcher'
+    left = {p: cmdline(p) for p in nodes if alive(p)}
+    assert not left, f'nodes outlived their launcher by 20 s: {left}'
     first = len(results(out))
     assert first < TASKS
     proc = subprocess.run(command(checkpoint, out), capture_output=True, text=True, timeout=900)
