@@ -69,7 +69,7 @@ def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():
         assert a.y + math.sin(yaw) * f + math.cos(yaw) * l == pytest.approx(world[1], abs=1e-4)
         assert h == pytest.approx(world[2], abs=1e-4)
         assert ray_distance(depth)[py, px] == pytest.approx(dist, abs=1e-4)
-        assert axis_distance(depth, a.horizon)[py, px] == pytest.approx(env.world.axis_distance(world), abs=1e-4)
+        assert axis_distance(points)[py, px] == pytest.approx(env.world.axis_distance(world), abs=1e-4)
 
 
 def test_dead_reckoning_follows_the_actions():

@@ -99,10 +99,9 @@ def ray_distance(depth: np.ndarray) -> np.ndarray:
     return depth * np.sqrt(1 + u ** 2 + v ** 2)
 
 
-def axis_distance(depth: np.ndarray, horizon: float) -> np.ndarray:
-    """Distance of each cell's point from the agent's vertical axis, for a camera pitched `horizon`
-    degrees down (what the simulator's reach is measured on, as AI2-THOR's)."""
-    points = points_in_agent_frame(depth, horizon)
+def axis_distance(points: np.ndarray) -> np.ndarray:
+    """Distance of each point in the agent's frame [..., 3] (`points_in_agent_frame`) from the agent's
+    vertical axis (what the simulator's reach is measured on, as AI2-THOR's)."""
     return np.hypot(points[..., 0], points[..., 1])
 
 

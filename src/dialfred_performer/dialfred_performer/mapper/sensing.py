@@ -43,8 +43,8 @@ class Sensing:
         else:
             self._dead_reckon(observation.last_action_success)
         self.labels, self.conf = labels, conf
-        self.ray = axis_distance(depth, self.pose.horizon)    # how far from the agent's axis: its reach
         local = points_in_agent_frame(depth, self.pose.horizon)
+        self.ray = axis_distance(local)               # how far from the agent's axis: its reach
         points = to_map_frame(local, self.pose)
         self.points = points
         if self._just_put is not None and before is not None and before.shape == self.rgb.shape:
