@@ -7,11 +7,13 @@ the loss and backward pass; the optimiser step. Prints JSON.
 
     ./dialfred bench performer_update --perception out/reproduce/perception/perception.pt \
         [--demonstrations ~/.cache/dialfred/demonstrations/train_64] [--updates 40] [--skip 5] [--threads 2] \
-        [--precision bf16]
+        [--precision bf16] [--no-channels-last] [--block-tasks 8 --block-items 2 --block-bucket 32]
 
 The model is the one `./dialfred reproduce` trains (its performer stage's config: batch 16, the reach
 input); its weights are fresh (the time of an update does not depend on them). The batches timed are
-spread evenly over the first epoch's; the first `--skip` warm the allocator and are not counted.
+spread evenly over the first epoch's (in block order: the epoch's first batches, each block's network pass
+timed when the block is loaded and spread over its batches); the first `--skip` warm the allocator and are
+not counted.
 
 An update's time grows with its frames (the frozen network runs on every one), and a few dozen batches
 can average many more or fewer frames than the epoch's. So the figure to multiply by a stage's updates is
@@ -30,6 +32,7 @@ from collections import defaultdict
 
 import torch
 
+from dialfred_performer.blocks import block_of
 from dialfred_performer.data import collate
 from dialfred_performer.distributed import Ranks
 from dialfred_performer.model import PerformerConfig, performer_loss
@@ -64,7 +67,11 @@ def main() -> None:
     ap.add_argument('--threads', type=int, default=2)
     ap.add_argument('--batch-size', type=int, default=16)
     ap.add_argument('--block-tasks', type=int, default=0,
-                    help='time the block order (the network run once per frame of the first block) instead')
+                    help='time the block order (the network run once per frame of each block) instead')
+    ap.add_argument('--block-items', type=int, default=0, help="TrainConfig.block_items (a task's items a visit)")
+    ap.add_argument('--block-bucket', type=int, default=1, help='TrainConfig.block_bucket (blocks sorted by length)')
+    ap.add_argument('--no-channels-last', action='store_true',
+                    help='the frozen network on contiguous tensors (TrainConfig.perception_channels_last off)')
     ap.add_argument('--precision', choices=('fp32', 'bf16'), default='fp32',
                     help="the frozen network's arithmetic (TrainConfig.perception_precision; bf16 is native only on "
                          'CPUs with AVX512-BF16 or AMX, emulated and slow elsewhere)')
@@ -74,7 +81,8 @@ def main() -> None:
     cfg = TrainConfig(demonstrations=args.demonstrations, perception=args.perception, out=out, epochs=1,
                       max_updates=args.updates + args.skip, batch_size=args.batch_size, threads=args.threads,
                       progress=False, model=PerformerConfig(reach_input=True),
-                      block_tasks=args.block_tasks, perception_precision=args.precision)
+                      block_tasks=args.block_tasks, block_items=args.block_items, block_bucket=args.block_bucket,
+                      perception_precision=args.precision, perception_channels_last=not args.no_channels_last)
     t0 = time.perf_counter()
     training = Training(cfg, Ranks())
     setup_s = time.perf_counter() - t0
@@ -92,17 +100,21 @@ def main() -> None:
     epoch_frames = statistics.fmean(sum(lengths[p] for p in b) for b in batches)
     n = args.updates + args.skip
     if blocks is None:
-        chosen = batches[::max(1, len(batches) // n)][:n]      # spread over the epoch: lengths as the run meets them
+        positions = list(range(0, len(batches), max(1, len(batches) // n)))[:n]   # spread: lengths as the run meets them
     else:
-        chosen = batches[:blocks[1].first_batch if len(blocks) > 1 else len(batches)][:n]   # the first block's
+        positions = list(range(min(n, len(batches))))     # in plan order, each block loaded when its first batch comes
     model.train()
-    rows, frames, block_load_s, block_batches_n = [], [], 0.0, 0
-    if blocks is not None:
-        t0 = time.perf_counter()
-        training.features.load(blocks[0].tasks)
-        block_load_s = time.perf_counter() - t0
-        block_batches_n = (blocks[1].first_batch if len(blocks) > 1 else len(batches))
-    for k, b in enumerate(chosen):
+    rows, frames, block_load_s, block_batches_n, loaded = [], [], 0.0, 0, None
+    for k, position in enumerate(positions):
+        b = batches[position]
+        if blocks is not None and block_of(blocks, position) != loaded:
+            loaded = block_of(blocks, position)
+            t0 = time.perf_counter()
+            training.features.load(blocks[loaded].tasks)
+            end = blocks[loaded + 1].first_batch if loaded + 1 < len(blocks) else len(batches)
+            if end > args.skip:          # a block with timed batches: its load is spread over all of its batches
+                block_load_s += time.perf_counter() - t0
+                block_batches_n += end - blocks[loaded].first_batch
         clock.now.clear()
         t0 = time.perf_counter()
         batch = collate([data.train[items[p]] for p in b])
@@ -134,7 +146,8 @@ def main() -> None:
         'frames_per_update': round(statistics.fmean(frames), 1),
         'seconds_per_update': {p: round(v, 4) for p, v in mean.items()},
         'share_of_update': {p: round(mean[p] / mean['update'], 3) for p in pieces if p != 'update'},
-        'block_tasks': args.block_tasks, 'precision': args.precision, 'block_load_s': round(block_load_s, 2),
+        'block_tasks': args.block_tasks, 'block_items': args.block_items, 'block_bucket': args.block_bucket,
+        'channels_last': not args.no_channels_last, 'precision': args.precision, 'block_load_s': round(block_load_s, 2),
         'block_batches': block_batches_n,
         'seconds_per_update_with_block_load': round(mean['update'] + block_load_s / max(block_batches_n, 1), 4),
         'frames_per_s': round(sum(frames) / sum(r['update'] for r in rows), 1),

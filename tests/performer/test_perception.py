@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
@@ -410,6 +411,64 @@ def test_block_order_shows_every_item_once_with_each_batch_inside_its_block():
     first_round = [b for b in blocks if b.first_batch < blocks[3].first_batch]      # 7 tasks in blocks of 3
     assert sorted(t for b in first_round for t in b.tasks) == list(range(tasks))
 
+
+
+def test_blocks_of_one_batch_sorted_by_length_pad_as_little_as_buckets_and_show_every_item_once():
+    """Blocks of 4 tasks x 2 items (one batch of 8 each): with task_bucket the round's tasks are sorted by
+    length within groups of blocks, so a batch holds tasks of about one length; every item still shows once,
+    two items of each task in each of its visits, the same plan for the same seed and epoch."""
+    from dialfred_performer.blocks import block_batches, block_of
+    combos, tasks = 8, 64
+    steps = np.random.default_rng(5).integers(2, 40, tasks)
+    items = [t * combos + c for t in range(tasks) for c in range(combos)]
+    lengths = [int(steps[i // combos]) for i in items]
+
+    def padding(plan):
+        return sum(len(b) * max(lengths[p] for p in b) - sum(lengths[p] for p in b) for b in plan[0])
+
+    plain = block_batches(items, lengths, combos, 8, 0, 0, 1, 4, per_visit=2)
+    grouped = block_batches(items, lengths, combos, 8, 0, 0, 1, 4, per_visit=2, task_bucket=8)
+    for batches, blocks in (plain, grouped):
+        assert sorted(p for b in batches for p in b) == list(range(len(items)))
+        assert all(len(b) == 8 for b in batches) and len(blocks) == len(batches) == tasks * combos // 8
+        for position, batch in enumerate(batches):
+            shown = [items[p] // combos for p in batch]
+            assert set(shown) == set(blocks[block_of(blocks, position)].tasks)
+            assert all(shown.count(t) == 2 for t in shown), position
+    assert padding(grouped) * 3 < padding(plain)
+    assert grouped == block_batches(items, lengths, combos, 8, 0, 0, 1, 4, per_visit=2, task_bucket=8)
+    assert grouped != block_batches(items, lengths, combos, 8, 0, 1, 1, 4, per_visit=2, task_bucket=8)
+    with pytest.raises(ValueError, match='task_bucket must be at least 1'):
+        block_batches(items, lengths, combos, 8, 0, 0, 1, 4, task_bucket=0)
+
+
+def test_the_frozen_network_on_channels_last_tensors_gives_the_same_output_up_to_rounding(reach_performer, prepared):
+    from dialfred_performer.blocks import BlockFeatures
+    from dialfred_performer.data import DemonstrationDataset
+    from dialfred_performer.preprocess import frame_tensor
+    checkpoint, _ = reach_performer
+    model, vocab, _ = load_checkpoint(checkpoint)
+    ds = DemonstrationDataset(prepared[0], vocab, 32, model.config.max_tokens, seed=0, grid_size=32)
+    ids = BlockFeatures(model.visual, ds).frame_ids([0, 1])
+    batch = frame_tensor(np.asarray(ds.demo.frames[ids]), ds.resolution)
+    plain = model.visual.outputs(batch)
+    model.visual.channels_last = True
+    model.visual.net.to(memory_format=torch.channels_last)
+    last = model.visual.outputs(batch)
+    assert last.fine.is_contiguous(memory_format=torch.channels_last)
+    for a, b in zip(plain, last):
+        assert a.shape == b.shape and torch.allclose(a, b, atol=1e-4)
+
+
+def test_perception_precision_auto_is_bf16_only_where_the_cpu_does_bfloat16(monkeypatch):
+    from dialfred_performer import perception
+    assert perception.PerceptionConfig(precision='fp32').arithmetic == 'fp32'
+    assert perception.PerceptionConfig(precision='bf16').arithmetic == 'bf16'
+    for native, expected in ((True, 'bf16'), (False, 'fp32')):
+        monkeypatch.setattr(perception, 'native_bf16', lambda native=native: native)
+        assert perception.PerceptionConfig(precision='auto').arithmetic == expected
+    with pytest.raises(ValueError, match='fp32, bf16 or auto'):
+        perception.PerceptionConfig(precision='fp16')
 
 def test_a_block_s_gathered_features_give_the_numbers_of_perceiving_each_batch(reach_performer, prepared):
     """The frozen network run once on a block's frames, its output gathered per batch, gives the performer's

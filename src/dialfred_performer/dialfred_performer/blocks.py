@@ -58,16 +58,22 @@ class Block:
 
 
 def block_batches(items: Sequence[int], lengths: Sequence[int], combinations: int, batch_size: int, seed: int,
-                  epoch: int, bucket: int, block_tasks: int, per_visit: int = 0) -> tuple[list[list[int]], list[Block]]:
+                  epoch: int, bucket: int, block_tasks: int, per_visit: int = 0,
+                  task_bucket: int = 1) -> tuple[list[list[int]], list[Block]]:
     """Positions into `items` (dataset indices, `lengths` their steps) in batches for one epoch in block
     order. Each task's items are shuffled and cut into visits of `per_visit` items (0: all of them, one
     visit); the epoch goes in rounds, round r showing every task's r-th visit: its tasks shuffled and cut
-    into blocks of `block_tasks`, each block's items batched among themselves (`bucketed`). Seeded by
-    (seed, epoch). Returns (the batches, the blocks); every position is in exactly one batch."""
+    into blocks of `block_tasks`, each block's items batched among themselves (`bucketed`). With
+    `task_bucket` > 1 the round's shuffled tasks are sorted by length within groups of task_bucket x
+    block_tasks before they are cut, and the round's blocks shuffled: a block as small as one batch
+    then pads as little as random order's buckets do. Seeded by (seed, epoch). Returns (the batches, the
+    blocks); every position is in exactly one batch."""
     if block_tasks < 1:
         raise ValueError(f'block_tasks must be at least 1, got {block_tasks}')
     if per_visit < 0:
         raise ValueError(f'per_visit must be at least 0, got {per_visit}')
+    if task_bucket < 1:
+        raise ValueError(f'task_bucket must be at least 1, got {task_bucket}')
     by_task: dict[int, list[int]] = {}
     for p, item in enumerate(items):
         by_task.setdefault(item // combinations, []).append(p)
@@ -84,8 +90,14 @@ def block_batches(items: Sequence[int], lengths: Sequence[int], combinations: in
     for r in range(max((len(v) for v in visits.values()), default=0)):
         here = [t for t in tasks if len(visits[t]) > r]
         order = [here[k] for k in rng.permutation(len(here))]
-        for start in range(0, len(order), block_tasks):
-            block = tuple(order[start:start + block_tasks])
+        if task_bucket > 1:
+            group, steps = task_bucket * block_tasks, {t: lengths[visits[t][r][0]] for t in here}
+            for g in range(0, len(order), group):
+                order[g:g + group] = sorted(order[g:g + group], key=steps.__getitem__)     # stable
+        cut = [tuple(order[s:s + block_tasks]) for s in range(0, len(order), block_tasks)]
+        if task_bucket > 1:
+            cut = [cut[k] for k in np.random.default_rng([seed, epoch, 4, r]).permutation(len(cut))]
+        for block in cut:
             positions = [p for t in block for p in visits[t][r]]
             inner = bucketed([lengths[p] for p in positions], batch_size,
                              np.random.default_rng([seed, epoch, 2, len(blocks)]), bucket)
@@ -113,6 +125,7 @@ class BlockFeatures:
         self.ids = np.zeros(0, dtype=np.int64)       # the block's frame ids, sorted
         self.out = None                              # PerceptionOutput [F + 1, ...]: row F is a blank frame's
         self.frames_computed = 0
+        self._blank = None                           # the blank (padding) frame's output: the network is frozen
 
     def frame_ids(self, tasks: Sequence[int]) -> np.ndarray:
         """The sorted frame ids (rows of the demonstrations' frames) that the items of `tasks` show."""
@@ -138,7 +151,9 @@ class BlockFeatures:
         for start in range(0, len(ids), self.chunk):
             frames = frame_tensor(np.asarray(ds.demo.frames[ids[start:start + self.chunk]]), size).to(device)
             parts.append(visual.outputs(frames, pooled=True))
-        parts.append(visual.outputs(torch.zeros(1, 3, size, size, device=device), pooled=True))    # padding
+        if self._blank is None:
+            self._blank = visual.outputs(torch.zeros(1, 3, size, size, device=device), pooled=True)
+        parts.append(self._blank)                                                                # padding
         self.out = type(parts[0])(*(torch.cat(maps) for maps in zip(*parts)))
         self.ids, self.tasks = ids, tasks
         self.frames_computed += len(ids)

@@ -241,8 +241,9 @@ class PerceptionConfig:
     validate_every: int = arg(500, 'updates between validations (and last.pt)')
     seed: int = arg(0, 'the seed of the initial weights and of the frames drawn')
     threads: int = arg(2, 'torch threads')
-    precision: str = arg('fp32', "the training steps' arithmetic: fp32, or bf16 (autocast: the convolutions in "
-                                 'bfloat16, the weights and the validation in fp32)')
+    precision: str = arg('fp32', "the training steps' arithmetic: fp32, bf16 (autocast: the convolutions in "
+                                 'bfloat16, the weights and the validation in fp32), or auto: bf16 where the CPU '
+                                 'does bfloat16 natively (AMX or AVX512-BF16, `native_bf16`), else fp32')
     resume: bool = arg(False, 'go on from --out/last.pt')
     progress: bool = arg(True, 'a progress bar on stderr')
 
@@ -254,8 +255,26 @@ class PerceptionConfig:
             raise ValueError(f'--val-fraction must be in (0, 1), got {self.val_fraction}')
         if not math.isfinite(self.lr) or self.lr <= 0:
             raise ValueError(f'--lr must be a positive number, got {self.lr}')
-        if self.precision not in ('fp32', 'bf16'):
-            raise ValueError(f'--precision takes fp32 or bf16, got {self.precision!r}')
+        if self.precision not in ('fp32', 'bf16', 'auto'):
+            raise ValueError(f'--precision takes fp32, bf16 or auto, got {self.precision!r}')
+
+    @property
+    def arithmetic(self) -> str:
+        """The precision the steps run in on this machine: fp32 or bf16 (`auto` resolved)."""
+        if self.precision == 'auto':
+            return 'bf16' if native_bf16() else 'fp32'
+        return self.precision
+
+
+def native_bf16() -> bool:
+    """Whether this CPU computes bfloat16 natively (AMX or AVX512-BF16 in /proc/cpuinfo's flags). Where it
+    does not, PyTorch emulates it, about ten times slower than fp32 (docs/figures.md)."""
+    try:
+        text = Path('/proc/cpuinfo').read_text()
+    except OSError:
+        return False
+    flags = next((line.split(':', 1)[1].split() for line in text.splitlines() if line.startswith('flags')), [])
+    return 'amx_bf16' in flags or 'avx512_bf16' in flags
 
 
 def frame_split(demo, fraction: float) -> tuple[np.ndarray, np.ndarray]:
@@ -324,6 +343,7 @@ def train_perception(cfg: PerceptionConfig) -> dict:
     scheduler = torch.optim.lr_scheduler.LambdaLR(
         optimizer, lambda u: min(1.0, (u + 1) / warmup) * 0.5 * (1 + math.cos(math.pi * min(u, updates) / updates)))
     update, best = 0, float('inf')
+    arithmetic = cfg.arithmetic
     if cfg.resume and (out / 'last.pt').exists():
         try:
             state = torch.load(out / 'last.pt', map_location='cpu', weights_only=True)
@@ -336,6 +356,7 @@ def train_perception(cfg: PerceptionConfig) -> dict:
         optimizer.load_state_dict(state['optimizer'])
         scheduler.load_state_dict(state['scheduler'])
         update, best = int(state['update']), float(state['best'])
+        arithmetic = state.get('arithmetic', arithmetic)      # auto resolved where the run began, kept
         torch.set_rng_state(state['torch_rng'])
     log = open(out / 'metrics.jsonl', 'a')
     total: dict = {}
@@ -348,7 +369,7 @@ def train_perception(cfg: PerceptionConfig) -> dict:
             frames, classes, depth = load_batch(demo, train_rows[rng.integers(len(train_rows), size=cfg.batch_size)])
             if rng.random() < 0.5:                                  # a mirrored room is a room too
                 frames, classes, depth = frames.flip(-1), classes.flip(-1), depth.flip(-1)
-            with torch.autocast('cpu', dtype=torch.bfloat16, enabled=cfg.precision == 'bf16'):
+            with torch.autocast('cpu', dtype=torch.bfloat16, enabled=arithmetic == 'bf16'):
                 loss, stats = perception_loss(net, net(frames), frames, classes, depth, cfg.object_weight,
                                               cfg.small_objects)
             optimizer.zero_grad(set_to_none=True)
@@ -362,7 +383,8 @@ def train_perception(cfg: PerceptionConfig) -> dict:
             if update % cfg.validate_every == 0 or update == updates:
                 val = validate(net, demo, val_rows, cfg)
                 row = {'update': update, 'frames': update * cfg.batch_size, 'train': finish_stats(total),
-                       'val': val, 'lr': scheduler.get_last_lr()[0], 'seconds': round(time.monotonic() - t0, 1)}
+                       'val': val, 'lr': scheduler.get_last_lr()[0], 'seconds': round(time.monotonic() - t0, 1),
+                       'precision': arithmetic}
                 total = {}
                 log.write(json.dumps(row) + '\n')
                 log.flush()
@@ -374,12 +396,13 @@ def train_perception(cfg: PerceptionConfig) -> dict:
                 tmp = out / 'last.pt.tmp'
                 torch.save({'state_dict': net.state_dict(), 'optimizer': optimizer.state_dict(),
                             'scheduler': scheduler.state_dict(), 'update': update, 'best': best,
-                            'torch_rng': torch.get_rng_state(), 'train_config': dataclasses.asdict(cfg)}, tmp)
+                            'torch_rng': torch.get_rng_state(), 'train_config': dataclasses.asdict(cfg),
+                            'arithmetic': arithmetic}, tmp)
                 tmp.replace(out / 'last.pt')
     log.close()
     _, extra = load_perception(out / 'perception.pt')
     return {'perception': str(out / 'perception.pt'), 'updates': update, 'best': extra.get('val'),
-            'train_frames': len(train_rows), 'val_frames': len(val_rows),
+            'train_frames': len(train_rows), 'val_frames': len(val_rows), 'precision': arithmetic,
             'seconds': round(time.monotonic() - t0, 1)}
 
 

@@ -99,6 +99,9 @@ class TrainConfig:
     block_items: int = arg(0, 'with --block-tasks: how many of a task\'s items (question-type combinations) a block '
                               'shows together; the epoch visits each task in rounds, this many items a visit (0: all '
                               'of them in one visit)')
+    block_bucket: int = arg(1, 'with --block-tasks: a round\'s shuffled tasks are sorted by length within groups of '
+                               'this many blocks before they are cut, and the blocks shuffled (a block of one batch '
+                               'then pads as little as random order\'s buckets); 1: no grouping')
     validate_every: int = arg(0, 'also validate every this many updates (0: at the end of each epoch and of the run only)')
     lr: float = arg(1e-3, 'peak learning rate (AdamW)')
     final_lr_fraction: float = arg(0.01, 'the cosine decays to lr x this')
@@ -109,6 +112,9 @@ class TrainConfig:
     perception_precision: str = arg('fp32', "the frozen perception network's arithmetic while training (with "
                                             "--perception): fp32, or bf16 (its convolutions in bfloat16, about "
                                             "half its time; the agent's steps stay fp32)")
+    perception_channels_last: bool = arg(True, 'with --perception: the frozen network runs on channels-last tensors '
+                                               '(oneDNN\'s faster layout on a CPU, as the agent runs it; the same '
+                                               'numbers up to rounding)')
     recovery: float = arg(0.0, 'the share of training items with a failed click inserted before an interaction '
                                '(data.insert_failed_interaction; needs --failure-input)')
     seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
@@ -135,6 +141,8 @@ class TrainConfig:
         for name in at_least_zero:
             if getattr(self, name) < 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if self.block_bucket < 1:
+            raise ValueError(f'block_bucket must be at least 1, got {self.block_bucket}')
         if self.block_items and not self.block_tasks:
             raise ValueError('--block-items needs --block-tasks (it says how a block shows a task\'s items)')
         if not (self.lr > 0 and math.isfinite(self.lr)):
@@ -459,6 +467,9 @@ class Training:
             warm_start(model, self.vocab, Path(cfg.init))
         if isinstance(model.visual, PerceivedFrames):
             model.visual.precision = cfg.perception_precision
+            if cfg.perception_channels_last:
+                model.visual.channels_last = True
+                model.visual.net.to(memory_format=torch.channels_last)
         return model.to(self.device)
 
     def checkpoint(self, name: str = 'last.pt', full: bool = True) -> None:
@@ -495,7 +506,7 @@ class Training:
         if not cfg.block_tasks:
             return items, epoch_batches(lengths, cfg.batch_size, cfg.seed, epoch, cfg.bucket), None
         batches, blocks = block_batches(items, lengths, len(data.train.combinations), cfg.batch_size, cfg.seed, epoch,
-                                        cfg.bucket, cfg.block_tasks, cfg.block_items)
+                                        cfg.bucket, cfg.block_tasks, cfg.block_items, cfg.block_bucket)
         return items, batches, blocks
 
     def update(self, batch, stand_in: bool) -> None:

@@ -46,6 +46,10 @@ class PerceivedFrames(nn.Module):
         # bfloat16 (autocast; about half the time on a CPU with AVX512-BF16), its outputs back in fp32.
         # The agent's steps stay in fp32. Not saved: a training setting (TrainConfig.perception_precision).
         self.precision = 'fp32'
+        # Whether `outputs` runs the network on channels-last tensors (oneDNN's faster layout on a CPU: the same
+        # numbers up to rounding, as the agent runs it). Not saved either (TrainConfig.perception_channels_last);
+        # the network's weights must be in that layout too (`to(memory_format=torch.channels_last)`).
+        self.channels_last = False
 
     def train(self, mode: bool = True):
         super().train(mode)
@@ -70,6 +74,8 @@ class PerceivedFrames(nn.Module):
         """The frozen network's output for `frames` (PerceptionOutput, without gradient, fp32), in the
         arithmetic of `precision`. With `pooled`, its coarse map comes pooled to the embedding's cells
         (what `read` makes the embedding from, the same numbers; a quarter of the memory for a 64 px frame's)."""
+        if self.channels_last:
+            frames = frames.contiguous(memory_format=torch.channels_last)
         with torch.no_grad(), torch.autocast(frames.device.type, dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
             out = self.net(frames)
         if self.precision == 'bf16':
