@@ -1,4 +1,4 @@
-"""Worker pools end with the process that started them, however it dies (dialfred_sim.processes)."""
+"""Worker pools and launched nodes end with the process that started them, however it dies (dialfred_sim.processes)."""
 
 from __future__ import annotations
 
@@ -63,3 +63,59 @@ def test_a_killed_parent_leaves_no_worker_running(tmp_path: Path, kind: str, sig
     finally:
         parent.kill()
         parent.wait()
+
+
+NODE = textwrap.dedent('''
+    import os, signal, sys, time
+    from pathlib import Path
+    from dialfred_sim.ros_util import exit_with_launcher
+
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)     # deaf to SIGTERM, as a node stuck in a callback is
+    watching = exit_with_launcher(grace_s=1.0)
+    Path(sys.argv[1]).write_text(f'{os.getpid()} {int(watching)}')
+    time.sleep(120)
+''')
+
+LAUNCHER = textwrap.dedent('''
+    import os, subprocess, sys, time
+    from dialfred_sim.ros_util import LAUNCHER_ENV
+
+    node, path, how = sys.argv[1:4]
+    env = dict(os.environ)
+    env.pop(LAUNCHER_ENV, None)
+    if how == 'launched':
+        env[LAUNCHER_ENV] = str(os.getpid())
+    subprocess.Popen([sys.executable, node, path], env=env, start_new_session=True)
+    time.sleep(120)
+''')
+
+
+@pytest.mark.parametrize('how', ['launched', 'by-hand'])
+def test_a_node_deaf_to_sigterm_ends_soon_after_its_launcher_dies_unless_started_by_hand(tmp_path: Path, how: str):
+    node_script, launcher_script, pid_file = tmp_path / 'node.py', tmp_path / 'launcher.py', tmp_path / 'node.pid'
+    node_script.write_text(NODE)
+    launcher_script.write_text(LAUNCHER)
+    launcher = subprocess.Popen([sys.executable, str(launcher_script), str(node_script), str(pid_file), how])
+    node = None
+    try:
+        deadline = time.monotonic() + 60
+        while not (pid_file.exists() and pid_file.read_text()) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        node, watching = map(int, pid_file.read_text().split())
+        assert watching == (how == 'launched')
+        launcher.kill()
+        launcher.wait(timeout=10)
+        time.sleep(0.4)
+        assert alive(node), 'the node was given no grace to end in its own way'
+        deadline = time.monotonic() + (10 if how == 'launched' else 3)    # the grace is 1 s
+        while alive(node) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        if how == 'launched':
+            assert not alive(node), 'the node outlived its launcher'
+        else:
+            assert alive(node), 'a node started by hand ended with the process that started it'
+    finally:
+        launcher.kill()
+        launcher.wait()
+        if node is not None and alive(node):
+            os.kill(node, signal.SIGKILL)

@@ -28,7 +28,7 @@ import rclpy
 from rclpy.signals import SignalHandlerOptions
 
 from dialfred_sim import ros_util
-from dialfred_sim.ros_util import SERVICE_QOS, SETTLE_S
+from dialfred_sim.ros_util import LAUNCHER_ENV, SERVICE_QOS, SETTLE_S
 
 from .paths import REPO
 
@@ -162,7 +162,8 @@ class NodeProcess:
         out = subprocess.PIPE if self.capture_output else None
         self.proc = subprocess.Popen(self.command(), stdin=self.stdin, stdout=out,
                                      stderr=subprocess.STDOUT if self.capture_output else None, text=True,
-                                     start_new_session=True, preexec_fn=_die_with_parent)
+                                     start_new_session=True, preexec_fn=_die_with_parent,
+                                     env={**os.environ, LAUNCHER_ENV: str(os.getpid())})
         if self.capture_output:
             threading.Thread(target=self._drain, daemon=True).start()
 

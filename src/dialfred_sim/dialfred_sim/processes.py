@@ -18,14 +18,16 @@ from typing import Callable, Optional
 PARENT_POLL_S = 0.25
 
 
-def watch_parent(poll_s: float = PARENT_POLL_S) -> None:
+def watch_parent(poll_s: float = PARENT_POLL_S, grace_s: float = 0.0) -> None:
     """In a worker: end this process (exit status 143, as SIGTERM) within `poll_s` seconds of its parent's
-    death (the worker is then re-parented, so its parent id changes)."""
+    death (the worker is then re-parented, so its parent id changes), or `grace_s` seconds after it: time
+    to end in its own way first (a node told by SIGTERM)."""
     parent = os.getppid()
 
     def watch() -> None:
         while os.getppid() == parent:
             time.sleep(poll_s)
+        time.sleep(grace_s)
         os._exit(143)
 
     threading.Thread(target=watch, name='watch-parent', daemon=True).start()

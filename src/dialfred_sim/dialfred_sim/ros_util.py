@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import sys
 import traceback
 from dataclasses import dataclass
@@ -12,6 +13,8 @@ from typing import Any, Optional
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from .processes import watch_parent
 
 # Services that never drop a request. ROS's default service QoS keeps the last 10 requests: of 500
 # sent at once, 12 were executed and the rest vanished without a reply (measured on /sim/step). With
@@ -85,9 +88,29 @@ def error_reply(field: str = 'error', flag: str = 'ok'):
     return wrap
 
 
+# The launcher (dialfred_bringup.graph) names itself in its nodes' environment. A node it started ends
+# within LAUNCHER_GRACE_S of the launcher's death even if a callback never returns: the SIGTERM the
+# launcher's death sends (PR_SET_PDEATHSIG) reaches rclpy only when the executor gets control back, and a
+# callback waiting on a peer that died with the launcher may never give it back (measured: a node stuck
+# in a callback outlived SIGTERM indefinitely). A node started by hand does not watch its parent.
+LAUNCHER_ENV = 'DIALFRED_LAUNCHER_PID'
+LAUNCHER_GRACE_S = 5.0
+
+
+def exit_with_launcher(grace_s: float = LAUNCHER_GRACE_S) -> bool:
+    """In a node process started by the launcher (LAUNCHER_ENV names its parent): end the process
+    `grace_s` seconds after the launcher dies. Whether the watch started."""
+    if os.environ.get(LAUNCHER_ENV) != str(os.getppid()):
+        return False
+    watch_parent(grace_s=grace_s)
+    return True
+
+
 def run_node(make_node, args=None, executor_factory=None) -> None:
     """The whole life of a node process: init, build the node (`make_node()`), serve until Ctrl-C
-    or shutdown, then tear down in Jazzy's order. `executor_factory`: default `make_executor`."""
+    or shutdown, then tear down in Jazzy's order. `executor_factory`: default `make_executor`. A node
+    the launcher started ends soon after the launcher does (`exit_with_launcher`)."""
+    exit_with_launcher()
     rclpy.init(args=args)
     node, refused = None, None
     executor = (executor_factory or make_executor)()
