@@ -462,7 +462,8 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
 
 
 def stage_times(run: Path) -> dict:
-    """{stage: {'seconds', 'runs', 'reused', 'items', 'machine'}} from a run's stamps (the stages with one)."""
+    """{stage: {'seconds', 'runs', 'reused', 'items', 'machine', 'done'}} from a run's stamps (the stages with
+    one; `done`: whether the stamp says the stage finished)."""
     out = {}
     for stage in STAGES[:-1]:
         try:
@@ -476,7 +477,7 @@ def stage_times(run: Path) -> dict:
         seconds = sum(i.get('seconds', 0) for i in items.values()) if items else s.get('seconds', 0)
         out[stage] = {'seconds': round(seconds, 1), 'runs': s.get('runs', 1),
                       'reused': sum(1 for i in items.values() if i.get('reused')), 'items': len(items),
-                      'machine': s.get('machine')}
+                      'machine': s.get('machine'), 'done': s.get('status') == 'done'}
     return out
 
 

@@ -46,12 +46,7 @@ class ShipConfig:
 
 def finished_times(run: Path) -> dict:
     """The record `ship` writes: {stage: its time and machine} for each stage of `run` whose stamp says done."""
-    def done(stage: str) -> bool:
-        try:
-            return json.loads((run / 'stamps' / f'{stage}.json').read_text()).get('status') == 'done'
-        except (OSError, ValueError):
-            return False
-    return {stage: t for stage, t in stage_times(run).items() if done(stage)}
+    return {stage: {k: v for k, v in t.items() if k != 'done'} for stage, t in stage_times(run).items() if t['done']}
 
 
 def ship(cfg: ShipConfig) -> dict:
