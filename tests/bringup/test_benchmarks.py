@@ -250,6 +250,13 @@ def test_eval_local_times_every_path_and_finds_the_same_episodes():
     assert set(report['speedup_of_local']) == {'in-process', 'graph'}
 
 
+@pytest.mark.slow   # a benchmark script end to end; what it measures has fast tests (test_silent)
+def test_silent_replay_replays_the_silent_episodes_and_finds_the_same_ones():
+    report = run_bench('silent_replay', '--limit', '6', '--workers', '1', '--questioner', 'random')
+    assert report['same_episodes'] is True and report['replayed'] == report['silent_episodes']
+    assert set(report['wall_s']) == {'alone_recorded', 'questioner_played', 'questioner_replayed'}
+
+
 @pytest.mark.slow   # a benchmark script end to end; the map performer has fast tests of its own
 def test_map_decision_times_real_steps():
     report = run_bench('map_decision', '--tasks', '1', '--signal')

@@ -113,12 +113,14 @@ def runs_path(run: EvalRun) -> Path:
     return run.results_path.with_suffix('.runs.jsonl')
 
 
-def run_baseline(config: EvalConfig, progress: bool) -> None:
+def run_baseline(config: EvalConfig, progress: bool, silent: Optional[tuple[str, Path]] = None) -> None:
+    """Evaluate one (split, baseline) (`run_eval`; `silent` as there) and add a line for this run's time to
+    its `runs_path`."""
     run = EvalRun(config)
-    report = run_eval(run, progress=progress)
+    report = run_eval(run, progress=progress, silent=silent)
     if report.ran:
         line = {'episodes': report.ran, 'wall_s': round(report.wall_s, 3), 'startup_s': round(report.startup_s, 3),
-                'workers': config.workers, 'through': report.to_json()['through']}
+                'workers': config.workers, 'through': report.to_json()['through'], 'replayed': report.replayed}
         with open(runs_path(run), 'a') as f:
             f.write(json.dumps(line) + '\n')
 

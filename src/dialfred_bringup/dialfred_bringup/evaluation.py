@@ -61,6 +61,7 @@ class EvalReport:
     summary: dict
     restarts: int = 0       # workers restarted after a node died or hung (their episodes replayed)
     code: str = ''          # the commit the run started at ('+dirty': an edited checkout)
+    replayed: int = 0       # episodes of this run taken from the silent episodes of a no-question run (silent.py)
 
     def to_json(self) -> dict:
         run, c = self.run, self.run.options
@@ -78,7 +79,7 @@ class EvalReport:
             'played_at': played_at(self.results),
             'this_run': {'episodes': self.ran, 'startup_s': round(self.startup_s, 3), 'wall_s': round(self.wall_s, 3),
                          'episodes_per_s': round(self.ran / loop_s, 3) if self.ran and loop_s > 0 else None,
-                         'restarts': self.restarts,
+                         'restarts': self.restarts, 'replayed': self.replayed,
                          'code': self.code},
             'summary': self.summary,
             'failures': [{'task_id': r.task_id, 'task_type': r.task_type, 'end_reason': r.end_reason,
@@ -200,7 +201,8 @@ def progress_bar(total: int, done: int, enabled: bool):
                 smoothing=0.05)
 
 
-def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Optional[dict] = None) -> EvalReport:
+def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Optional[dict] = None,
+             silent: Optional[tuple[str, Path]] = None) -> EvalReport:
     """Evaluate the agent of `config` (options, or a run made of them) on the split's tasks through its
     `workers` simulator nodes (or, with `local`, processes).
 
@@ -208,15 +210,21 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
     Writes the summary JSON next to it and returns the report of every selected task. `traces`: a
     dict to fill with each played task's actions, {task_id: [(name, x, y), ...]} (the performer path
     takes them from the goals' feedback). The results file is this run's alone while it runs
-    (`metrics.results_lock`: a second run into it is refused, naming this one).
+    (`metrics.results_lock`: a second run into it is refused, naming this one). `silent` (the local path
+    only): ('record', folder) keeps this no-question run's episodes in folder; ('replay', folder) takes an
+    episode from there whenever the run's questioner would ask nothing in it (`dialfred_bringup.silent`).
     """
     # An unknown agent or questioner, or a bad setting, fails here before any node starts.
     run = config if isinstance(config, EvalRun) else EvalRun(config)
+    if silent is not None and (not run.options.local or silent[0] not in ('record', 'replay')):
+        raise ValueError(f"silent episodes are ('record' | 'replay', folder) of a local run, got {silent!r}")
+    if silent is not None and silent[0] == 'record' and run.asks:
+        raise ValueError('silent episodes are recorded by a run without questions')
     with results_lock(run.results_path):
-        return _run_eval(run, progress, traces)
+        return _run_eval(run, progress, traces, silent)
 
 
-def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalReport:
+def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None) -> EvalReport:
     t0 = time.monotonic()
     config = run.options
     tasks = run.split_tasks()[:config.limit]
@@ -228,7 +236,7 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalRepor
     if done:
         print(f'resuming: {len(done)} of {len(tasks)} tasks are already in {run.results_path}; '
               f'{len(jobs)} to play', file=sys.stderr)
-    ran, startup_s, restarts = 0, 0.0, 0
+    ran, startup_s, restarts, replayed = 0, 0.0, 0, 0
     code = git_commit()
     warn_of_other_code(run.results_path, done.values(), code)
 
@@ -246,7 +254,7 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalRepor
 
     if jobs and config.local:
         with progress_bar(len(tasks), len(done), progress) as bar:
-            play_local(run, jobs, recorder(bar))
+            replayed = play_local(run, jobs, recorder(bar), silent)
     elif jobs:
         n = max(1, min(config.workers, len(jobs)))
         namespaces = [f'{run_namespace()}/w{k}' for k in range(n)]
@@ -279,7 +287,8 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict]) -> EvalRepor
                 for w in workers:
                     traces.update(w.traces)
     results = [done[t.task_id] for t in tasks]
-    report = EvalReport(run, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts, code)
+    report = EvalReport(run, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts, code,
+                        replayed)
     write_text_atomically(run.summary_path, json.dumps(report.to_json(), indent=1) + '\n')
     return report
 

@@ -17,7 +17,8 @@ tables this way and checks a slice of every setting through the graph.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from pathlib import Path
+from typing import Callable, Optional
 
 import torch
 
@@ -33,12 +34,16 @@ from dialfred_sim.metrics import episode_result as result_line
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.protocol import episode_seed, is_privileged
 
+from .silent import SeenBeforeActions, SilentEpisodes, replayable, silent_key, silent_throughout
+
 _W: dict = {}
 
 
-def _init_worker(run) -> None:
+def _init_worker(run, silent: Optional[tuple[str, str]] = None) -> None:
     torch.set_num_threads(1)
     o = _W['run'] = run
+    # (mode, folder): 'record' keeps each episode of this no-question run; 'replay' reuses them (silent.py)
+    _W['silent'] = (silent[0], SilentEpisodes(Path(silent[1]), silent_key(run))) if silent else None
     # the sim node's defaults: protocol.MAX_STEPS, MAX_FAILURES
     _W['env'] = DialfredEnv(resolution=o.options.resolution, goal_rule=o.options.goal_rule)
     _W['agent'] = run.make_agent()
@@ -49,18 +54,30 @@ def _init_worker(run) -> None:
 
 
 def _play_job(job: tuple):
+    """(the EpisodeResult of (index, task), whether it was replayed from the silent episodes)."""
     index, task = job
-    return play_episode(_W['run'], _W['env'], _W['agent'], _W['perturbation'], index, task, _W['swap'])
-
-
-def play_episode(run, env, agent, perturbation, index: int, task, swap=None):
-    """One episode of `task` (at `index` in the split) in `env` with `agent`, for `run` (an eval_run.EvalRun):
-    its EpisodeResult. `swap`: a dialfred_oracle.swap.AnswerSwap for --answers swapped."""
+    run, agent, silent = _W['run'], _W['agent'], _W['silent']
     started = time.monotonic()
+    if silent is not None and silent[0] == 'replay':
+        questioner = replayable(agent)
+        kept = silent[1].load(task.task_id) if questioner is not None else None
+        if kept is not None and silent_throughout(questioner, task_view(agent, task),
+                                                  episode_seed(run.options.seed, index), kept[0]):
+            return state_result(run, task, agent, kept[1], time.monotonic() - started), True
+    seen = SeenBeforeActions() if silent is not None and silent[0] == 'record' else None
+    state = play_state(run, _W['env'], agent, _W['perturbation'], index, task, _W['swap'],
+                       observers=[seen] if seen else ())
+    if seen is not None:
+        silent[1].save(task.task_id, seen.before_actions, state)
+    return state_result(run, task, agent, state, time.monotonic() - started), False
+
+
+def play_state(run, env, agent, perturbation, index: int, task, swap=None, observers=()):
+    """One episode of `task` (at `index` in the split) in `env` with `agent`, for `run` (an eval_run.EvalRun):
+    the episode loop's final EpisodeState. `swap`: a dialfred_oracle.swap.AnswerSwap for --answers swapped."""
     episode = play(agent, seed=episode_seed(run.options.seed, index), told=task_view(agent, task), asks=run.asks,
-                   max_questions=run.options.max_questions)
-    state = run_episode(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
-    return state_result(run, task, agent, state, time.monotonic() - started)
+                   max_questions=run.options.max_questions, observers=observers)
+    return run_episode(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
 
 
 def state_result(run, task, agent, state, wall_s: float):
@@ -71,12 +88,18 @@ def state_result(run, task, agent, state, wall_s: float):
                        wall_s=wall_s, privileged=is_privileged(agent), **run.identity)
 
 
-def play_local(run, jobs: list, on_result: Callable) -> None:
+def play_local(run, jobs: list, on_result: Callable, silent: Optional[tuple[str, Path]] = None) -> int:
     """Play every (index, task) of `jobs` in `run.options.workers` processes; `on_result(result)` as each
-    episode ends (in the order they end)."""
+    episode ends (in the order they end). `silent`: ('record', folder) keeps the episodes of a run without
+    questions there; ('replay', folder) takes an episode from there whenever the questioner would ask
+    nothing in it (silent.py). Returns how many episodes were replayed."""
     if not jobs:
-        return
+        return 0
     workers = max(1, min(run.options.workers, len(jobs)))
-    with worker_pool(workers, initializer=_init_worker, initargs=(run,)) as pool:
-        for result in pool.imap_unordered(_play_job, jobs, chunksize=1):
+    replayed = 0
+    initargs = (run, (silent[0], str(silent[1])) if silent else None)
+    with worker_pool(workers, initializer=_init_worker, initargs=initargs) as pool:
+        for result, was_replayed in pool.imap_unordered(_play_job, jobs, chunksize=1):
+            replayed += was_replayed
             on_result(result)
+    return replayed

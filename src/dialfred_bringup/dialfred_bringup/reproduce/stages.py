@@ -130,8 +130,8 @@ MODEL_CODE = {name: model.sources for name, model in PERFORMER_MODELS.items()}
 # The learned questioner as it plays (its network, its inputs, its timing and rewards), and as it is trained.
 QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/model.py', f'{QUES}/data.py', f'{QUES}/rollout.py', f'{QUES}/rl.py')
 RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/checkpoint.py', f'{SIM}/episode.py', *QUESTIONER_CODE)
-EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{SIM}/episode.py', f'{QUES}/baselines.py',
-             f'{QUES}/questioners.py', *QUESTIONER_CODE, f'{SIM}/metrics.py')
+EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/silent.py', f'{SIM}/episode.py',
+             f'{QUES}/baselines.py', f'{QUES}/questioners.py', *QUESTIONER_CODE, f'{SIM}/metrics.py')
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -430,9 +430,14 @@ class Runner:
             # the results file and its companions (summary, runs, lock, tasks record): <split>_<key>.*
             outputs = sorted(p.eval_dir.glob(f'{s.split}_{s.key}.*'))
 
-            def run(resume: bool, config=config) -> dict:
-                run_baseline(config, self.cfg.progress)     # resumes a cut-off results file; its wall time in
-                return {}                                   # <results>.runs.jsonl
+            # The no-question setting of each performer and split keeps its episodes; the other settings take
+            # an episode from there when their questioner would ask nothing in it (dialfred_bringup.silent).
+            silent = ('replay' if s.questioner else 'record', p.eval_dir / 'silent' / f'{s.split}_{s.performer}') \
+                if p.eval_path == 'local' else None
+
+            def run(resume: bool, config=config, silent=silent) -> dict:
+                run_baseline(config, self.cfg.progress, silent)    # resumes a cut-off results file; its wall time
+                return {}                                          # in <results>.runs.jsonl
             items[f'{s.split}/{s.key}'] = self.run_item('eval', f'{s.split}/{s.key}', inputs,
                                                         (*EVAL_CODE, *MODEL_CODE[s.performer]), outputs, run)
         return {'items': items}
