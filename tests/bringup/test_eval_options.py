@@ -94,7 +94,7 @@ def test_launch_nodes_starts_the_camera_the_shipped_performer_was_trained_at():
 def test_max_questions_ends_an_episode_whose_questioner_asks_more_in_a_row(tmp_path):
     """The option reaches the episode loop of the local path (the graph's reaches the performer node's
     max_questions parameter, in worker_nodes)."""
-    from dialfred_bringup.local import play_episode
+    from dialfred_bringup.local import play_state
     from dialfred_bringup.workers import worker_nodes
     from dialfred_sim.env import DialfredEnv
     from dialfred_sim.tasks import load_split
@@ -102,10 +102,10 @@ def test_max_questions_ends_an_episode_whose_questioner_asks_more_in_a_row(tmp_p
                              out=tmp_path / 'capped.jsonl'))
     env = DialfredEnv(resolution=run.options.resolution)
     try:
-        result = play_episode(run, env, run.make_agent(), None, 0, load_split('valid_unseen')[0])
+        state = play_state(run, env, run.make_agent(), None, 0, load_split('valid_unseen')[0])
     finally:
         env.close()
-    assert result.end_reason == 'error' and 'asked more than 2 questions without acting' in result.error
+    assert state.end_reason == 'error' and 'asked more than 2 questions without acting' in state.error
     node = EvalRun(EvalConfig(split='valid_unseen', performer='et', questioner='all', max_questions=7))
     performer = next(n for n in worker_nodes(node, '/w0') if n.package == 'dialfred_performer')
     assert performer.parameters['max_questions'] == 7

@@ -80,6 +80,13 @@ def play_state(run, env, agent, perturbation, index: int, task, swap=None, obser
     return run_episode(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
 
 
+def play_episode(run, env, agent, perturbation, index: int, task, swap=None):
+    """`play_state`'s episode as its EpisodeResult (benchmarks/map_perception_ceiling.py plays so)."""
+    started = time.monotonic()
+    state = play_state(run, env, agent, perturbation, index, task, swap)
+    return state_result(run, task, agent, state, time.monotonic() - started)
+
+
 def state_result(run, task, agent, state, wall_s: float):
     """The results line of an episode played by `run` (an eval_run.EvalRun) to `state` (the episode loop's
     EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker)."""
