@@ -15,7 +15,7 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 |---|---|---|
 | demos | the performer's demonstrations of train (`dialfred_performer.prepare --annotate --labels`): the expert's frames with each pixel's class and depth (labels for perception only), and while each task is played the oracle's QAs at its start and middle and the synthetic annotators' row at its start (no second or third replay of train) | `~/.cache/dialfred/demonstrations/train_64` (quick: `cache/demonstrations`) |
 | perception | the perception network trained on those frames and labels (`dialfred_performer.perception`: 400,000 frames, in bfloat16 where the CPU computes it natively) | `perception/perception.pt` |
-| performer | performer training on the frozen perception network (`dialfred_performer.train --perception`: 12,000 updates of 16 episodes, each 8 tasks with 2 of their dialogue combinations, the network run once for both) | `performer/best.pt` |
+| performer | performer training on the frozen perception network (`dialfred_performer.train --perception`: 12,000 updates of 16 episodes) | `performer/best.pt` |
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |

@@ -38,15 +38,13 @@ RESOLUTION = 64
 # bf16 took 25% less time at the same validation loss on such a CPU, but on one with AVX2 alone each update
 # took 10 times as long (docs/figures.md), so a CPU without it keeps fp32 and its time.
 PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_objects=0.5, precision='auto')
-# The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch. The frozen perception
-# network is most of an update in random order (it runs on every frame of every item). Here each batch shows
-# 8 tasks with 2 of their question-type combinations each (blocks of one batch, dialfred_performer/blocks.py,
-# tasks grouped by length), so the network runs once for both: 0.29 against 0.46 s an update. After 1,000
-# updates that cost 5.7% more validation loss than random order (1.633 against 1.545, docs/performer.md);
-# visits of 4 items cost 21% (1.865). The network runs in fp32 and channels-last, as the agent perceives
-# (bf16 would train on features the agent never sees).
+# The performer's updates (batches of 16 episodes): 12,000 is three quarters of an epoch, in random order. The
+# frozen perception network runs on every frame of every item. Batches of 8 tasks x 2 items (the network once for
+# both: --block-tasks 8 --block-items 2 --block-bucket 32) cost 5.7% more validation loss after 1,000 updates
+# (1.633 against 1.545) and, in the whole run, were not faster: 0.486 s an update against random order's 0.359 in
+# the run before (docs/performer.md), so the pipeline keeps random order. The network runs in fp32 and
+# channels-last, as the agent perceives (bf16 would train on features the agent never sees).
 PERFORMER_UPDATES = 12_000
-PERFORMER_ORDER = dict(block_tasks=8, block_items=2, block_bucket=32)
 PERFORMER_PERCEPTION_PRECISION = 'fp32'
 # Actor-critic updates of every RL fine-tuning: the second 32 of 64 moved RL anytime's SR by -0.1 point.
 RL_UPDATES = 32
@@ -254,9 +252,9 @@ class Plan:
         base = dict(demonstrations=str(self.demos), out=str(self.performer_dir), seed=self.cfg.seed,
                     progress=self.cfg.progress, epochs=1, max_updates=PERFORMER_UPDATES, validation='',
                     val_fraction=0.05, perception=str(self.perception_checkpoint), model=dict(reach_input=True),
-                    perception_precision=PERFORMER_PERCEPTION_PRECISION, **PERFORMER_ORDER)
+                    perception_precision=PERFORMER_PERCEPTION_PRECISION)
         if self.cfg.quick:
-            base.update(epochs=8, max_updates=200, batch_size=8, block_tasks=4, warmup_updates=10, log_every=10,
+            base.update(epochs=8, max_updates=200, batch_size=8, warmup_updates=10, log_every=10,
                         checkpoint_every=30, val_fraction=0.2,
                         model=dict(resolution=RESOLUTION, d_model=32, heads=2, layers=1, ff=64, reach_input=True))
         return base
