@@ -339,6 +339,7 @@ def test_performer_update_times_each_piece_in_random_and_block_order(tmp_path):
     assert blocks['block_batches'] >= 1
 
 
+@pytest.mark.slow   # a benchmark script end to end; the layouts' equal outputs have a fast test (test_perception)
 def test_perception_layout_times_both_layouts_and_finds_the_same_outputs_up_to_rounding():
     report = run_bench('perception_layout', '--steps', '1', '--skip', '0', '--batch', '4', '--forward-batch', '4',
                        '--threads', '1', '--rounds', '2')

@@ -81,6 +81,16 @@ def test_a_questioner_that_watches_the_performer_is_played(tmp_path):
     assert replayable(EvalRun(EvalConfig(**BASE)).make_agent()) is None      # no questioner: nothing to replay
 
 
+def test_run_eval_refuses_silent_episodes_it_cannot_keep_or_replay(tmp_path):
+    folder = tmp_path / 'silent'
+    with pytest.raises(ValueError, match='without questions'):
+        run_eval(EvalConfig(**BASE, limit=1, questioner='random', out=tmp_path / 'x.jsonl'), silent=('record', folder))
+    with pytest.raises(ValueError, match='of a local run'):
+        run_eval(EvalConfig(**{**BASE, 'local': False}, limit=1, out=tmp_path / 'y.jsonl'), silent=('replay', folder))
+    assert not folder.exists()
+
+
+@pytest.mark.slow   # worker processes end to end; the replay itself has fast tests above
 def test_run_eval_records_then_replays_and_counts_them(tmp_path):
     folder = tmp_path / 'silent'
     run_eval(EvalConfig(**BASE, limit=4, workers=1, out=tmp_path / 'alone.jsonl'), progress=False,
@@ -90,7 +100,3 @@ def test_run_eval_records_then_replays_and_counts_them(tmp_path):
     report = run_eval(EvalConfig(**BASE, limit=4, workers=1, questioner='rl-anytime', out=tmp_path / 'rl.jsonl'),
                       progress=False, silent=('replay', folder))
     assert report.replayed == sum(not r.questions for r in report.results) and report.to_json()['this_run']['replayed']
-    with pytest.raises(ValueError, match='without questions'):
-        run_eval(EvalConfig(**BASE, limit=1, questioner='random', out=tmp_path / 'x.jsonl'), silent=('record', folder))
-    with pytest.raises(ValueError, match='of a local run'):
-        run_eval(EvalConfig(**{**BASE, 'local': False}, limit=1, out=tmp_path / 'y.jsonl'), silent=('replay', folder))
