@@ -107,8 +107,9 @@ def main() -> None:
     rows, frames, block_load_s, block_batches_n, loaded = [], [], 0.0, 0, None
     for k, position in enumerate(positions):
         b = batches[position]
-        if blocks is not None and block_of(blocks, position) != loaded:
-            loaded = block_of(blocks, position)
+        block = block_of(blocks, position) if blocks is not None else None
+        if block is not None and block != loaded:
+            loaded = block
             t0 = time.perf_counter()
             training.features.load(blocks[loaded].tasks)
             end = blocks[loaded + 1].first_batch if loaded + 1 < len(blocks) else len(batches)

@@ -452,9 +452,7 @@ def test_the_frozen_network_on_channels_last_tensors_gives_the_same_output_up_to
     ids = BlockFeatures(model.visual, ds).frame_ids([0, 1])
     batch = frame_tensor(np.asarray(ds.demo.frames[ids]), ds.resolution)
     plain = model.visual.outputs(batch)
-    model.visual.channels_last = True
-    model.visual.net.to(memory_format=torch.channels_last)
-    last = model.visual.outputs(batch)
+    last = model.visual.to_channels_last().outputs(batch)
     assert last.fine.is_contiguous(memory_format=torch.channels_last)
     for a, b in zip(plain, last):
         assert a.shape == b.shape and torch.allclose(a, b, atol=1e-4)

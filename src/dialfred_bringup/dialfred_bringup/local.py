@@ -59,10 +59,9 @@ def _play_job(job: tuple):
     run, agent, silent = _W['run'], _W['agent'], _W['silent']
     started = time.monotonic()
     if silent is not None and silent[0] == 'replay':
-        questioner = replayable(agent)
-        kept = silent[1].load(task.task_id) if questioner is not None else None
-        if kept is not None and silent_throughout(questioner, task_view(agent, task),
-                                                  episode_seed(run.options.seed, index), kept[0]):
+        kept = silent[1].load(task.task_id) if replayable(agent) is not None else None
+        if kept is not None and silent_throughout(agent, task_view(agent, task), episode_seed(run.options.seed, index),
+                                                  kept[0]):
             return state_result(run, task, agent, kept[1], time.monotonic() - started), True
     seen = SeenBeforeActions() if silent is not None and silent[0] == 'record' else None
     state = play_state(run, _W['env'], agent, _W['perturbation'], index, task, _W['swap'],

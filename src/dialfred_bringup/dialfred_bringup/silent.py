@@ -37,7 +37,6 @@ import numpy as np
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
 from dialfred_questioner.baselines import QuestioningAgent
-from dialfred_sim.agents import public_view
 from dialfred_sim.episode import EpisodeObserver, EpisodeState
 from dialfred_sim.protocol import GapQuestioner, Observation, PerformerAware
 
@@ -90,12 +89,12 @@ def silent_key(run) -> dict:
             'resolution': o.resolution, 'goal_rule': o.goal_rule}
 
 
-def silent_throughout(questioner, told, seed: int, observations: Sequence[Observation]) -> bool:
-    """Whether `questioner`, reset to the task its agent is `told` with `seed` (as QuestioningAgent resets
-    it), asks nothing before any of the actions taken on `observations`. It is left reset: the episode
-    loop resets it again before a played episode."""
-    questioner.reset(public_view(told), seed)
-    return all(questioner.ask(observation, step) is None for step, observation in enumerate(observations))
+def silent_throughout(agent: QuestioningAgent, told, seed: int, observations: Sequence[Observation]) -> bool:
+    """Whether the questioner of `agent` (a `replayable` one), reset as the agent resets it for the task it
+    is `told` with `seed`, asks nothing before any of the actions taken on `observations`. It is left
+    reset: the episode loop resets it again before a played episode."""
+    agent.reset_questioner(told, seed)
+    return all(agent.questioner.ask(observation, step) is None for step, observation in enumerate(observations))
 
 
 class SilentEpisodes:
@@ -103,7 +102,6 @@ class SilentEpisodes:
 
     def __init__(self, folder: Path, key: dict):
         self.folder, self.key = Path(folder), key
-        self.replayed = 0
 
     def _path(self, task_id: str) -> Path:
         return self.folder / (task_id.replace('/', '__') + '.npz')

@@ -66,7 +66,7 @@ class PerformerAgent:
         self.config = model.config
         self.incremental = incremental
         if self.channels_last:
-            self.model.visual.net.to(memory_format=torch.channels_last)
+            self.model.visual.to_channels_last()
         self.reset_state()
 
     @classmethod

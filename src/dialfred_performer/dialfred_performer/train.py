@@ -468,8 +468,7 @@ class Training:
         if isinstance(model.visual, PerceivedFrames):
             model.visual.precision = cfg.perception_precision
             if cfg.perception_channels_last:
-                model.visual.channels_last = True
-                model.visual.net.to(memory_format=torch.channels_last)
+                model.visual.to_channels_last()
         return model.to(self.device)
 
     def checkpoint(self, name: str = 'last.pt', full: bool = True) -> None:

@@ -174,9 +174,13 @@ class QuestioningAgent:
 
     def reset(self, task: Any, seed: int) -> None:
         self.performer.reset(task_view(self.performer, task), seed)
-        self.questioner.reset(public_view(task), seed)     # a questioner is never privileged
+        self.reset_questioner(task, seed)
         self.dialogue = []
         self._steps = 0
+
+    def reset_questioner(self, task: Any, seed: int) -> None:
+        """The questioner's part of `reset` (dialfred_bringup.silent runs the questioner alone so)."""
+        self.questioner.reset(public_view(task), seed)     # a questioner is never privileged
 
     def ask(self, observation: Any) -> Optional[Question]:
         return self.questioner.ask(observation, self._steps)

@@ -46,10 +46,16 @@ class PerceivedFrames(nn.Module):
         # bfloat16 (autocast; about half the time on a CPU with AVX512-BF16), its outputs back in fp32.
         # The agent's steps stay in fp32. Not saved: a training setting (TrainConfig.perception_precision).
         self.precision = 'fp32'
-        # Whether `outputs` runs the network on channels-last tensors (oneDNN's faster layout on a CPU: the same
-        # numbers up to rounding, as the agent runs it). Not saved either (TrainConfig.perception_channels_last);
-        # the network's weights must be in that layout too (`to(memory_format=torch.channels_last)`).
+        # Whether `outputs` runs the network on channels-last tensors (`to_channels_last`). Not saved either.
         self.channels_last = False
+
+    def to_channels_last(self) -> 'PerceivedFrames':
+        """Run the frozen network in oneDNN's faster layout on a CPU (the same numbers up to rounding): its
+        weights and, in `outputs`, its input frames channels-last. The agent and training both do
+        (TrainConfig.perception_channels_last)."""
+        self.channels_last = True
+        self.net.to(memory_format=torch.channels_last)
+        return self
 
     def train(self, mode: bool = True):
         super().train(mode)
