@@ -127,6 +127,7 @@ def test_ctrl_c_before_the_first_episode_says_nothing_was_written(tmp_path, monk
     assert 'before the first episode ended: nothing was written' in err.getvalue() and not out.exists()
 
 
+@pytest.mark.slow   # three launcher subprocesses; fast: the oracle node's human mode (test_oracle_node)
 def test_eval_with_human_puts_the_questions_to_a_person_on_standard_input(tmp_path):
     """`launch eval --human`: the oracle node asks a person in the terminal; what they type is the answer the
     agent hears and the results record (oracle 'human'). Not --local, and one worker."""

@@ -387,6 +387,7 @@ def set_filter(page, select: str, value: str) -> dict:
     return page.evaluate(SET_FILTER.format(select=select, value=json.dumps(value)))
 
 
+@pytest.mark.slow   # a headless browser; fast: the page tests above
 @needs_chromium
 def test_chromiums_screenshot_of_the_page_is_not_blank(run, tmp_path):
     path, bags, _ = run

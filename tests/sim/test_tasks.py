@@ -132,7 +132,8 @@ def test_unseen_rooms_never_appear_in_train_and_seen_rooms_do(valid_tasks):
     assert len(train) == 108
 
 
-@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', 'train'])
+# train with the slow tier: the same generator as the two valid splits, on bigger rooms' episodes
+@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', pytest.param('train', marks=pytest.mark.slow)])
 def test_a_split_regenerates_identically_from_its_seeds(split):
     with gzip.open(packaged_path(split), 'rt') as f:
         shipped = [json.loads(next(f)) for _ in range(3)]
