@@ -336,21 +336,30 @@ def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_ev
     assert unmade[0] >= 1 and all(g is not None for g in lazy._grids[:6])     # made on demand for the fallback
 
 
-def test_the_performer_may_train_through_the_frozen_network_in_bf16_and_act_in_fp32(prepared, reach_performer,
-                                                                                 tmp_path):
+def test_a_performer_trained_through_the_frozen_network_in_bf16_perceives_in_bf16_where_the_cpu_does_it(
+        prepared, reach_performer, tmp_path, monkeypatch):
     """--perception-precision bf16 runs the frozen network's convolutions in bfloat16 while training (the
-    training loss within rounding of fp32's); the checkpoint's agent perceives in fp32."""
+    training loss within rounding of fp32's) and records it in the model's config; the checkpoint's agent
+    (and a questioner's copy of its encoder) perceive in bfloat16 where the CPU does it natively, in fp32
+    elsewhere. Every path through the network (whole, encoder then decoder, encoder alone) is in it."""
+    from dialfred_performer import model as model_module
+    from dialfred_performer.train import TrainConfig
     checkpoint, _ = tiny_performer(prepared, tmp_path / 'bf16', '--reach-input', '--lr', '0.05', '--warmup-updates',
                                    '1', '--perception-precision', 'bf16')
     rows = [json.loads(line) for name in (checkpoint, reach_performer[0])
             for line in (name.parent / 'metrics.jsonl').read_text().splitlines()[:1]]
     assert rows[0]['loss'] == pytest.approx(rows[1]['loss'], rel=0.02) and rows[0]['loss'] != rows[1]['loss']
-    model, _, _ = load_checkpoint(checkpoint)
-    assert model.visual.precision == 'fp32'
+    assert load_checkpoint(reach_performer[0])[0].config.frozen_arithmetic == 'fp32'
+    for native, expected in ((True, 'bf16'), (False, 'fp32')):
+        monkeypatch.setattr(model_module, 'native_bf16', lambda native=native: native)
+        model, _, _ = load_checkpoint(checkpoint)
+        assert model.config.frozen_arithmetic == 'bf16' and model.visual.precision == expected
     frames = torch.rand(2, 3, 32, 32, generator=torch.Generator().manual_seed(0))
-    emb, keys, out = model.visual.perceive(frames)
-    model.visual.precision = 'bf16'
-    emb16, keys16, out16 = model.visual.perceive(frames)
+    visual = model.visual
+    emb, keys, out = visual.perceive(frames)
+    coarse32, encoded32 = visual.embedding(frames), visual.encode(frames)
+    visual.precision = 'bf16'
+    emb16, keys16, out16 = visual.perceive(frames)
     assert out16.fine.dtype == torch.float32 and not torch.equal(out16.fine, out.fine)
 
     def relative_error(a, b):
@@ -359,9 +368,15 @@ def test_the_performer_may_train_through_the_frozen_network_in_bf16_and_act_in_f
     # maps' size: a few conv layers give ~1.5-2.5% (L2, relative) whatever the weights and frames; an
     # absolute bound would depend on how large the trained network's maps happen to be (up to ~5 here).
     assert relative_error(out16.fine, out.fine) < 0.05 and relative_error(emb16, emb) < 0.05
-    from dialfred_performer.train import TrainConfig
-    with pytest.raises(ValueError, match='--perception-precision takes fp32 or bf16'):
+    encoded16 = visual.encode(frames)
+    assert all(t.dtype == torch.float32 for t in encoded16)
+    assert not torch.equal(encoded16[3], encoded32[3]) and relative_error(encoded16[3], encoded32[3]) < 0.05
+    assert not torch.equal(visual.embedding(frames), coarse32)
+    assert torch.allclose(visual.keys_of(encoded16), keys16, atol=1e-2)     # encoder then decoder: the same path
+    with pytest.raises(ValueError, match='--perception-precision takes fp32, bf16 or auto'):
         TrainConfig(perception_precision='fp16')
+    with pytest.raises(ValueError, match='--frozen-arithmetic is recorded from --perception-precision'):
+        TrainConfig(model=dataclasses.replace(TrainConfig().model, frozen_arithmetic='bf16'))
 
 
 def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(reach_performer):

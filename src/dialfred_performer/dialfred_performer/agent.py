@@ -129,7 +129,7 @@ class PerformerAgent:
             if self.keyless_pointer:
                 self._grids[t] = self.model.encode_frames(self._frames[t])[1][0]
             else:
-                self._grids[t] = self.model.visual.keys_of(self.model.visual.net.encode(self._frames[t]))[0]
+                self._grids[t] = self.model.visual.keys_of(self.model.visual.encode(self._frames[t]))[0]
         return self._grids[t]
 
     @torch.inference_mode()

@@ -28,7 +28,7 @@ from dialfred_sim.protocol import ACTIONS, MAX_STEPS
 from dialfred_sim.world.camera import FOV_DEG, HORIZON_MAX, HORIZON_MIN, START_HORIZON
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
-from .perception import Perception, PerceptionNetConfig
+from .perception import Perception, PerceptionNetConfig, native_bf16
 from .preprocess import N_TOKEN_TYPES, Vocabulary
 from .shipped import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 
@@ -58,10 +58,16 @@ class PerformerConfig:
     failure_input: bool = False    # an interaction that failed in the world (the observation's
                                    # last_action_success) is a previous action of its own (`failed_id`),
                                    # learnt from recovery examples (data.insert_failed_interaction)
+    frozen_arithmetic: str = 'fp32'   # visual='perception': the frozen network's arithmetic while the performer
+                                   # trained ('fp32' or 'bf16', from the training's --perception-precision); the
+                                   # agent and the questioner's copy run it so where the CPU does bfloat16
+                                   # natively, else in fp32 (`build_visual`)
 
     def __post_init__(self):
         if self.visual not in ('cnn', 'perception'):
             raise ValueError(f"visual must be 'cnn' or 'perception', got {self.visual!r}")
+        if self.frozen_arithmetic not in ('fp32', 'bf16'):
+            raise ValueError(f"frozen_arithmetic must be 'fp32' or 'bf16', got {self.frozen_arithmetic!r}")
         if self.visual == 'perception' and not self.perception_net:
             raise ValueError("visual='perception' needs perception_net (train with --perception PATH)")
 
@@ -73,11 +79,15 @@ class PerformerConfig:
 
 def build_visual(config: PerformerConfig) -> nn.Module:
     """The frame encoder of a performer with `config` (untrained): a VisualEncoder, or PerceivedFrames
-    around a perception network. The questioner builds its frozen copy of a performer's encoder here too."""
+    around a perception network. The questioner builds its frozen copy of a performer's encoder here too.
+    The network runs in the arithmetic the performer trained with (`frozen_arithmetic`) where this CPU does
+    it natively; a bf16-trained performer runs it in fp32 elsewhere (emulated bfloat16 is about ten times
+    slower; the features differ by bfloat16's rounding)."""
     if config.visual == 'perception':
+        precision = config.frozen_arithmetic if native_bf16() else 'fp32'
         return PerceivedFrames(config.d_model, config.pointer_key,
                                Perception(PerceptionNetConfig(**json.loads(config.perception_net))),
-                               distance=config.reach_input)
+                               distance=config.reach_input, precision=precision)
     return VisualEncoder(config.d_model, config.resolution)
 
 

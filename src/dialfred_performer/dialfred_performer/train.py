@@ -62,7 +62,7 @@ from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
 from .model import Performer, PerformerConfig, load_checkpoint, performer_loss, save_checkpoint
 from .nn import PerceivedFrames
-from .perception import load_perception
+from .perception import load_perception, native_bf16
 from .prepare import VOCABULARY_FILE, oracle_texts
 from .preprocess import Vocabulary
 
@@ -109,9 +109,11 @@ class TrainConfig:
     weight_decay: float = arg(0.01, 'AdamW weight decay (matrices only; not biases, norms)')
     grad_clip: float = arg(1.0, 'clip the gradient norm to this (0: no clipping)')
     pointer_weight: float = arg(1.0, 'weight of the pointer loss')
-    perception_precision: str = arg('fp32', "the frozen perception network's arithmetic while training (with "
-                                            "--perception): fp32, or bf16 (its convolutions in bfloat16, about "
-                                            "half its time; the agent's steps stay fp32)")
+    perception_precision: str = arg('fp32', "the frozen perception network's arithmetic (with --perception): fp32, "
+                                            "bf16 (its convolutions in bfloat16, about half its time), or auto: bf16 "
+                                            "where the CPU does bfloat16 natively (AMX or AVX512-BF16), else fp32. "
+                                            "Recorded in the model's config: the agent perceives so too where the "
+                                            "CPU does bfloat16 natively")
     perception_channels_last: bool = arg(True, 'with --perception: the frozen network runs on channels-last tensors '
                                                '(oneDNN\'s faster layout on a CPU, as the agent runs it; the same '
                                                'numbers up to rounding)')
@@ -156,6 +158,8 @@ class TrainConfig:
         m = self.model
         if m.visual != 'cnn' or m.perception_net:
             raise ValueError('--visual and --perception-net come from the perception checkpoint: give --perception PATH')
+        if m.frozen_arithmetic != 'fp32':
+            raise ValueError('--frozen-arithmetic is recorded from --perception-precision: give that instead')
         if m.resolution < 8 or m.resolution % 8:
             raise ValueError(f'resolution must be a positive multiple of 8, got {m.resolution}')
         if m.d_model < 8 or m.d_model % 8 or m.heads < 1 or m.d_model % m.heads:
@@ -165,8 +169,8 @@ class TrainConfig:
                 raise ValueError(f'{name} must be at least 1, got {getattr(m, name)}')
         if not 0 <= m.dropout < 1:
             raise ValueError(f'dropout must be in [0, 1), got {m.dropout}')
-        if self.perception_precision not in ('fp32', 'bf16'):
-            raise ValueError(f'--perception-precision takes fp32 or bf16, got {self.perception_precision!r}')
+        if self.perception_precision not in ('fp32', 'bf16', 'auto'):
+            raise ValueError(f'--perception-precision takes fp32, bf16 or auto, got {self.perception_precision!r}')
         if not 0 <= self.recovery <= 1:
             raise ValueError(f'recovery must be in [0, 1], got {self.recovery}')
         if self.block_tasks and not self.perception:
@@ -218,6 +222,14 @@ class Data:
         combos = len(ds.combinations)
         tasks = ds.demo.tasks
         return [len(tasks[ds.task_indices[i // combos]]['actions']) + 1 for i in items]
+
+
+def frozen_arithmetic(cfg: TrainConfig) -> str:
+    """The frozen perception network's arithmetic on this machine, fp32 or bf16 (--perception-precision with
+    auto resolved); a resumed run keeps the one it began with (`Trainer`)."""
+    if cfg.perception_precision == 'auto':
+        return 'bf16' if native_bf16() else 'fp32'
+    return cfg.perception_precision
 
 
 def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:
@@ -420,7 +432,12 @@ class Training:
         init(ranks, device)
         out.mkdir(parents=True, exist_ok=True)
 
-        self.vocab = load_checkpoint(out / 'last.pt')[1] if cfg.resume else load_vocabulary(cfg)
+        self.arithmetic = frozen_arithmetic(cfg)
+        if cfg.resume:
+            _, self.vocab, info = load_checkpoint(out / 'last.pt')
+            self.arithmetic = info['config'].frozen_arithmetic      # auto as resolved where the run began
+        else:
+            self.vocab = load_vocabulary(cfg)
         self.data = load_data(cfg, self.vocab)
         self.model = model = self._model()
         self.features = self.val_features = None           # blocks.BlockFeatures with --block-tasks
@@ -460,13 +477,15 @@ class Training:
         """The model of the run's config on its device: the perception network's weights, --init's."""
         cfg = self.cfg
         model_cfg, perception_weights = model_config(cfg)
+        if model_cfg.visual == 'perception':                # the agent perceives as the performer trained
+            model_cfg = dataclasses.replace(model_cfg, frozen_arithmetic=self.arithmetic)
         model = Performer(model_cfg, len(self.vocab))
         if perception_weights is not None:
             model.visual.net.load_state_dict(perception_weights)
         if cfg.init and not cfg.resume:
             warm_start(model, self.vocab, Path(cfg.init))
         if isinstance(model.visual, PerceivedFrames):
-            model.visual.precision = cfg.perception_precision
+            model.visual.precision = self.arithmetic
             if cfg.perception_channels_last:
                 model.visual.to_channels_last()
         return model.to(self.device)

@@ -42,10 +42,11 @@ PERCEPTION = dict(c1=32, c2=64, c3=128, decoder=48, frames=400_000, small_object
 # frozen perception network runs on every frame of every item. Batches of 8 tasks x 2 items (the network once for
 # both: --block-tasks 8 --block-items 2 --block-bucket 32) cost 5.7% more validation loss after 1,000 updates
 # (1.633 against 1.545) and, in the whole run, were not faster: 0.486 s an update against random order's 0.359 in
-# the run before (docs/performer.md), so the pipeline keeps random order. The network runs in fp32 and
-# channels-last, as the agent perceives (bf16 would train on features the agent never sees).
+# the run before (docs/performer.md), so the pipeline keeps random order. The network runs channels-last, in
+# bfloat16 where the CPU does it natively (auto: half the network's time, which is most of an update's), else in
+# fp32; the precision goes into the performer's config, and the agent and the questioners perceive so too.
 PERFORMER_UPDATES = 12_000
-PERFORMER_PERCEPTION_PRECISION = 'fp32'
+PERFORMER_PERCEPTION_PRECISION = 'auto'
 # Actor-critic updates of every RL fine-tuning: the second 32 of 64 moved RL anytime's SR by -0.1 point.
 RL_UPDATES = 32
 

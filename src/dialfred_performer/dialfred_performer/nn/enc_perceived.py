@@ -30,10 +30,11 @@ def pixel_ray_lengths(size: int) -> torch.Tensor:
 
 
 class PerceivedFrames(nn.Module):
-    def __init__(self, d_model: int, d_key: int, net: nn.Module, distance: bool = False):
+    def __init__(self, d_model: int, d_key: int, net: nn.Module, distance: bool = False, precision: str = 'fp32'):
         """`net`: a dialfred_performer.perception.Perception (its weights are loaded into it later).
         With `distance`, each pixel's key carries one more channel, last: the network's predicted
-        distance to what the pixel shows (metres along its ray), for the performer's reach input."""
+        distance to what the pixel shows (metres along its ray), for the performer's reach input.
+        `precision`: the frozen network's arithmetic (`precision` below)."""
         super().__init__()
         self.net = net
         self.net.requires_grad_(False)
@@ -42,10 +43,13 @@ class PerceivedFrames(nn.Module):
         self.distance = distance
         self.embed = nn.Sequential(nn.Linear(c.c3 * POOLED * POOLED, d_model), nn.LayerNorm(d_model))
         self.key = nn.Conv2d(c.decoder + c.c1, d_key, 1)
-        # The frozen network's arithmetic in `perceive` (the training path): 'bf16' runs its convolutions in
-        # bfloat16 (autocast; about half the time on a CPU with AVX512-BF16), its outputs back in fp32.
-        # The agent's steps stay in fp32. Not saved: a training setting (TrainConfig.perception_precision).
-        self.precision = 'fp32'
+        # The frozen network's arithmetic wherever it runs (training, the agent's steps, the questioner's
+        # embeddings): 'bf16' runs its convolutions in bfloat16 (autocast; about half the time on a CPU with
+        # AMX or AVX512-BF16), its outputs back in fp32. A runtime setting, not saved: `build_visual` sets it
+        # from PerformerConfig.perception_precision and this CPU, training from TrainConfig.perception_precision.
+        if precision not in ('fp32', 'bf16'):
+            raise ValueError(f"precision must be 'fp32' or 'bf16', got {precision!r}")
+        self.precision = precision
         # Whether `outputs` runs the network on channels-last tensors (`to_channels_last`). Not saved either.
         self.channels_last = False
 
@@ -82,11 +86,25 @@ class PerceivedFrames(nn.Module):
         (what `read` makes the embedding from, the same numbers; a quarter of the memory for a 64 px frame's)."""
         if self.channels_last:
             frames = frames.contiguous(memory_format=torch.channels_last)
-        with torch.no_grad(), torch.autocast(frames.device.type, dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
-            out = self.net(frames)
-        if self.precision == 'bf16':
-            out = type(out)(*(t.float() for t in out))
+        out = self._run(self.net, frames)
         return out._replace(coarse=F.adaptive_avg_pool2d(out.coarse, POOLED)) if pooled else out
+
+    def _run(self, part, inputs):
+        """`part` of the frozen network (the network, its `encode`, `decode` or `coarse`) on `inputs`, without
+        gradient, in the arithmetic of `precision`; tensors out in fp32 (a tensor, or a tuple of them)."""
+        device = inputs[0].device if isinstance(inputs, tuple) else inputs.device
+        with torch.no_grad(), torch.autocast(device.type, dtype=torch.bfloat16, enabled=self.precision == 'bf16'):
+            out = part(inputs)
+        if self.precision != 'bf16':
+            return out
+        if isinstance(out, torch.Tensor):
+            return out.float()
+        floats = [t.float() for t in out]
+        return type(out)(*floats) if hasattr(out, '_fields') else tuple(floats)
+
+    def encode(self, frames: torch.Tensor) -> tuple:
+        """The network's encoder maps of `frames` (what `keys_of` reads), in the arithmetic of `precision`."""
+        return self._run(self.net.encode, frames)
 
     def read(self, out, keys_for: Optional[torch.Tensor] = None):
         """`perceive` of frames whose network output (`outputs`, pooled or not) is `out`."""
@@ -102,8 +120,7 @@ class PerceivedFrames(nn.Module):
     def embedding_and_encoded(self, frames: torch.Tensor) -> tuple[torch.Tensor, tuple]:
         """(the frame embeddings [N, d], the network's encoder maps): `keys_of` the maps gives the frames'
         keys later, without running the encoder again (the same numbers as `forward`)."""
-        with torch.no_grad():
-            encoded = self.net.encode(frames)
+        encoded = self.encode(frames)
         return self._embed(encoded[3]), encoded
 
     def embedding_and_output(self, frames: torch.Tensor) -> tuple[torch.Tensor, object]:
@@ -119,8 +136,7 @@ class PerceivedFrames(nn.Module):
 
     def keys_of(self, encoded: tuple) -> torch.Tensor:
         """The keys [N, R*R, k] (no distance channel) of the frames whose encoder maps are `encoded`."""
-        with torch.no_grad():
-            out = self.net.decode(encoded)
+        out = self._run(self.net.decode, encoded)
         return self._keys(out.fine, out.stem)
 
     @torch.no_grad()
@@ -148,9 +164,7 @@ class PerceivedFrames(nn.Module):
 
     def embedding(self, frames: torch.Tensor) -> torch.Tensor:
         """The frame embeddings [N, d] alone (the network's encoder only: no decoder, no pointer keys)."""
-        with torch.no_grad():
-            coarse = self.net.coarse(frames)
-        return self._embed(coarse)
+        return self._embed(self._run(self.net.coarse, frames))
 
     def _embed(self, coarse: torch.Tensor) -> torch.Tensor:
         return self.embed(F.adaptive_avg_pool2d(coarse, POOLED).flatten(1))
