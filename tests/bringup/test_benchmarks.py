@@ -145,6 +145,7 @@ def test_world_statistics_puts_each_figure_beside_ai2thors():
     assert 'reference' not in split['target_visible_at_task_start']
 
 
+@pytest.mark.slow   # the bench end to end (12 s); its pose arithmetic is tested fast below
 def test_expert_poses_replays_the_shipped_episodes_and_counts_the_go_tos_that_end_elsewhere():
     # the first 6 valid_unseen episodes: 9 go-tos before a put, 3 of which end past the plain pose (one of
     # them a fridge's, 5 actions away)
