@@ -288,6 +288,9 @@ def test_a_resumed_stage_counts_the_time_of_its_cut_off_run(tmp_path, monkeypatc
     done = json.loads((tmp_path / 'run' / 'stamps' / 'frames.json').read_text())
     assert done['runs'] == 2 and done['report'] == {'resumed': True}
     assert 30.0 <= done['seconds'] < 40.0 and done['seconds_this_run'] < 5.0
+    # the machine's speed at the start of each run and at the end: the cut-off run's start kept
+    assert len(done['speed_probe_s']) == 3 and done['speed_probe_s'][0] == stamp['speed_probe_s'][0]
+    assert all(0 < p < 5 for p in done['speed_probe_s'])
 
 
 def test_a_cache_stage_is_timed_by_the_files_it_writes_and_never_cleared(tmp_path, monkeypatch):
@@ -498,6 +501,10 @@ def test_the_run_times_count_the_reused_items_time(tmp_path):
         'a': {'seconds': 40.0, 'reused': False}, 'b': {'seconds': 300.0, 'reused': True}}}}))
     assert 'rl: 340 s (over 2 runs: it was resumed; 1 of its 2 items' in '\n'.join(run_times(plan))
     assert 'demos: not run here' in times and times[-1] == 'total of the stages: 7.3 min'
+    # the machine's speed probes beside a stage's time, and what they are
+    (stamps / 'perception.json').write_text(json.dumps({'seconds': 100.0, 'speed_probe_s': [0.0212, 0.0405, 0.0233]}))
+    times = run_times(plan)
+    assert 'perception: 100 s (speed probe 21.2-40.5 ms)' in times and times[-1].startswith('speed probe: a fixed')
 
 
 def test_the_shipped_runs_document_gives_the_training_times_of_the_run_that_made_the_models(tmp_path, monkeypatch):

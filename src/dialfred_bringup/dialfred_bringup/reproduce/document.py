@@ -462,8 +462,9 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
 
 
 def stage_times(run: Path) -> dict:
-    """{stage: {'seconds', 'runs', 'reused', 'items', 'machine', 'done'}} from a run's stamps (the stages with
-    one; `done`: whether the stamp says the stage finished)."""
+    """{stage: {'seconds', 'runs', 'reused', 'items', 'machine', 'speed_probe_s', 'done'}} from a run's stamps
+    (the stages with one; `done`: whether the stamp says the stage finished; `speed_probe_s`: the machine's
+    speed probe at each run's start and end, [] in stamps from before it was kept)."""
     out = {}
     for stage in STAGES[:-1]:
         try:
@@ -477,7 +478,8 @@ def stage_times(run: Path) -> dict:
         seconds = sum(i.get('seconds', 0) for i in items.values()) if items else s.get('seconds', 0)
         out[stage] = {'seconds': round(seconds, 1), 'runs': s.get('runs', 1),
                       'reused': sum(1 for i in items.values() if i.get('reused')), 'items': len(items),
-                      'machine': s.get('machine'), 'done': s.get('status') == 'done'}
+                      'machine': s.get('machine'), 'speed_probe_s': s.get('speed_probe_s', []),
+                      'done': s.get('status') == 'done'}
     return out
 
 
@@ -506,9 +508,13 @@ def run_times(plan: Plan) -> list[str]:
         total += t['seconds']
         notes = ([f'over {t["runs"]} runs: it was resumed'] if t['runs'] > 1 else []) + \
             ([f'{t["reused"]} of its {t["items"]} items done by an earlier run of the same inputs, their '
-              'time included'] if t['reused'] else [])
+              'time included'] if t['reused'] else []) + \
+            ([f'speed probe {min(t["speed_probe_s"]) * 1000:.1f}-{max(t["speed_probe_s"]) * 1000:.1f} ms'] if t['speed_probe_s'] else [])
         times.append(f'{stage}: {t["seconds"]:.0f} s' + (f' ({"; ".join(notes)})' if notes else ''))
     times.append(f'total of the stages: {total / 60:.1f} min')
+    if any(t['speed_probe_s'] for t in here.values()):
+        times.append('speed probe: a fixed convolution timed at each stage run\'s start and end (machine.speed_probe); '
+                     'the same machine gives it up to 2x apart in different hours, and a stage\'s time moves with it')
     if total_shipped:
         times.append(f'with the shipped models\' training stages: {(total + total_shipped) / 60:.1f} min')
     return times

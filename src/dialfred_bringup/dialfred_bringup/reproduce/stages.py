@@ -30,7 +30,7 @@ from dialfred_sim.tasks import load_split
 
 from ..baseline_runs import run_baseline
 from ..evaluation import EvalRun, resumable_results
-from ..machine import machine
+from ..machine import machine, speed_probe
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)
 from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, settings)
@@ -299,18 +299,23 @@ class Runner:
             self.discard(stage, outputs, old)
         why = 'resuming' if resume else ('forced' if self.forced else ('inputs changed' if old else 'no stamp'))
         before, runs = time_before(old, outputs) if resume else (0.0, 1)
-        self.log(f'{stage}: running ({why}, {digest[:12]})')
+        # the machine's speed beside the stage's time: a fixed convolution's seconds at each run's start and end
+        probes = [*((old or {}).get('speed_probe_s', []) if resume else []), speed_probe()]
+        self.log(f'{stage}: running ({why}, {digest[:12]}; speed probe {probes[-1] * 1000:.1f} ms)')
         self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'running', 'inputs': inputs,
-                                 'started_at': time.time(), 'seconds_before': round(before, 1), 'runs': runs})
+                                 'started_at': time.time(), 'seconds_before': round(before, 1), 'runs': runs,
+                                 'speed_probe_s': probes})
         t0 = time.monotonic()
         report = action(resume) or {}
         this_run = time.monotonic() - t0
         seconds = round(before + this_run, 1)
+        probes.append(speed_probe())
         self.write_stamp(stage, {'stage': stage, 'hash': digest, 'status': 'done', 'inputs': inputs,
                                  'world_code': world,
                                  'seconds': seconds, 'seconds_this_run': round(this_run, 1), 'runs': runs,
-                                 'report': report})
-        self.log(f'{stage}: ran in {this_run:.1f} s' + (f' ({seconds:.1f} s over {runs} runs)' if runs > 1 else ''))
+                                 'speed_probe_s': probes, 'report': report})
+        self.log(f'{stage}: ran in {this_run:.1f} s' + (f' ({seconds:.1f} s over {runs} runs)' if runs > 1 else '')
+                 + f'; speed probe {probes[-1] * 1000:.1f} ms')
         self.summary[stage] = {'status': 'ran', 'hash': digest, 'seconds': seconds, 'runs': runs, 'report': report}
 
     # ---- the stages
