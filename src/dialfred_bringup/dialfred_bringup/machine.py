@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import platform
+import statistics
+import time
 from pathlib import Path
 
 
@@ -27,9 +29,6 @@ def speed_probe(repeats: int = 7, threads: int = 2) -> float:
     channels-last, fp32, in `threads` torch threads (at most the cores), the median of `repeats` after one
     warm-up. The same machine gives it up to 2x apart in different hours (docs/figures.md), so a stage's
     time is read beside it (the stamps of `reproduce` keep it from each run's start and end)."""
-    import statistics
-    import time
-
     import torch     # inline: the rest of this module is for callers without torch
     generator = torch.Generator().manual_seed(0)
     conv = torch.nn.Conv2d(32, 32, 3, padding=1).to(memory_format=torch.channels_last)
