@@ -28,12 +28,11 @@ def comparable(results) -> list:
     return [dataclasses.replace(r, wall_s=0.0) for r in results]
 
 
-# One case in the fast tier: a learned questioner takes every path of the loop (its chances, questions,
-# answers); the rest with --all.
-FAST = ('performer + RL anytime (learned)',)
-
-
-@pytest.mark.parametrize('case', [c if c in FAST else pytest.param(c, marks=pytest.mark.slow) for c in CASES])
+# Every case with --all (slow). The fast tier plays a learned questioner's episode, every path of the loop
+# (its chances, questions, answers), in process, locally and through the graph:
+# tests/questioner/test_learned_questioner_node.py::test_the_same_episode_in_process_in_the_eval_and_through_the_graph.
+@pytest.mark.slow
+@pytest.mark.parametrize('case', list(CASES))
 def test_local_episodes_equal_the_graphs(tmp_path, case):
     settings = {'split': 'valid_unseen', 'limit': 3, 'workers': 2, 'resolution': 64, 'seed': 3, **CASES[case]}
     n = settings['limit']
