@@ -34,7 +34,7 @@ def comparable(results) -> list:
 @pytest.mark.slow
 @pytest.mark.parametrize('case', list(CASES))
 def test_local_episodes_equal_the_graphs(tmp_path, case):
-    settings = {'split': 'valid_unseen', 'limit': 3, 'workers': 2, 'resolution': 64, 'seed': 3, **CASES[case]}
+    settings = {'split': 'valid_unseen', 'limit': 5, 'workers': 2, 'resolution': 64, 'seed': 3, **CASES[case]}
     n = settings['limit']
     graph = run_eval(EvalConfig(**settings, out=tmp_path / 'graph.jsonl'), progress=False)
     local = run_eval(EvalConfig(**settings, out=tmp_path / 'local.jsonl', local=True), progress=False)
