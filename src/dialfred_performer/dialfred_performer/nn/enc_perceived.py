@@ -46,7 +46,7 @@ class PerceivedFrames(nn.Module):
         # The frozen network's arithmetic wherever it runs (training, the agent's steps, the questioner's
         # embeddings): 'bf16' runs its convolutions in bfloat16 (autocast; about half the time on a CPU with
         # AMX or AVX512-BF16), its outputs back in fp32. A runtime setting, not saved: `build_visual` sets it
-        # from PerformerConfig.perception_precision and this CPU, training from TrainConfig.perception_precision.
+        # from PerformerConfig.frozen_arithmetic and this CPU, training from TrainConfig.perception_precision.
         if precision not in ('fp32', 'bf16'):
             raise ValueError(f"precision must be 'fp32' or 'bf16', got {precision!r}")
         self.precision = precision
