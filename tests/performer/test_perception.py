@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 
 import numpy as np
 import pytest
@@ -554,17 +555,25 @@ def test_the_reach_features_read_the_distance_from_the_agents_axis_at_the_dead_r
     """The simulator measures reach from the agent's vertical axis; the performer knows its pitch from
     its own looks (30 down at the start, 15 a look, held at the limits, where the simulator refuses)."""
     from dialfred_sim.protocol import ACTIONS
-    from dialfred_sim.world.camera import reach_lengths
     from dialfred_performer.data import START
     from dialfred_performer.model import axis_factors, camera_pitches
-    from dialfred_performer.nn.enc_perceived import pixel_ray_lengths
     down, up, ahead = ACTIONS.index('LookDown'), ACTIONS.index('LookUp'), ACTIONS.index('MoveAhead')
     previous = torch.tensor([[START, down, down, down, ahead, up, up, up, up, up, up, up, up]])
     assert camera_pitches(previous).tolist() == [[30, 45, 60, 60, 60, 45, 30, 15, 0, -15, -30, -30, -30]]
+    # A point on a pixel's ray at unit depth along the view axis, by hand: its distance from the axis
+    # over its distance from the eye.
+    t = math.tan(math.radians(45))
+    c = (torch.arange(16) + 0.5) / 16 * 2 - 1
+    u, v = (c * t)[None, :].expand(16, 16), (-c * t)[:, None].expand(16, 16)
     for pitch in (-30.0, 0.0, 30.0, 60.0):
-        factors = axis_factors(torch.tensor(pitch), 16 * 16)
-        expected = torch.from_numpy(reach_lengths(16, 16, pitch).copy()) / pixel_ray_lengths(16)   # (a cached, read-only array)
-        assert torch.allclose(factors, expected.flatten(), atol=1e-5)
+        p = math.radians(pitch)
+        forward = math.cos(p) + v * math.sin(p)
+        expected = torch.sqrt(forward ** 2 + u ** 2) / torch.sqrt(1 + u ** 2 + v ** 2)
+        assert torch.allclose(axis_factors(torch.tensor(pitch), 16 * 16), expected.flatten(), atol=1e-5)
+    # A batch of pitches, each on its own row.
+    batch = axis_factors(torch.tensor([[60.0, 0.0], [0.0, -30.0]]), 16 * 16)
+    assert batch.shape == (2, 2, 256)
+    assert torch.equal(batch[0, 1], batch[1, 0]) and torch.equal(batch[0, 0], axis_factors(torch.tensor(60.0), 256))
     # Looking down, the bottom row lies nearer the axis than the eye; looking level, the centre as near.
     assert float(axis_factors(torch.tensor(60.0), 16 * 16)[-1]) < 0.6
     assert float(axis_factors(torch.tensor(0.0), 2 * 2).max()) < 1.0

@@ -25,7 +25,7 @@ from torch import nn
 from dialfred_sim.actions import LOOK_STEP
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.protocol import ACTIONS, MAX_STEPS
-from dialfred_sim.world.camera import FOV_DEG, HORIZON_MAX, HORIZON_MIN, START_HORIZON
+from dialfred_sim.world.camera import HORIZON_MAX, HORIZON_MIN, START_HORIZON, ray_lengths, reach_lengths
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig, native_bf16
@@ -115,16 +115,15 @@ def camera_pitches(previous_actions: torch.Tensor) -> torch.Tensor:
 def axis_factors(pitch: torch.Tensor, cells: int) -> torch.Tensor:
     """Camera pitches [...] (degrees) -> [..., cells]: per pixel of a square grid of `cells`, the
     distance of the point seen there from the agent's vertical axis over its distance from the eye
-    (the simulator measures reach from the axis, as AI2-THOR does; the network predicts along the ray)."""
+    (the simulator measures reach from the axis, as AI2-THOR does; the network predicts along the ray).
+    The camera's own geometry (`reach_lengths`, `ray_lengths`), once per distinct pitch: the looks take
+    the pitch through a few values only."""
     size = round(cells ** 0.5)
-    t = torch.tan(torch.tensor(FOV_DEG / 2).deg2rad())
-    u = ((torch.arange(size) + 0.5) / size * 2 - 1) * t
-    v = (1 - (torch.arange(size) + 0.5) / size * 2) * t
-    p = pitch.float().deg2rad()[..., None, None]
-    along = torch.cos(p) + v[:, None] * torch.sin(p)
-    axis = torch.sqrt(along ** 2 + u[None, :] ** 2)
-    ray = torch.sqrt(1 + u[None, :] ** 2 + v[:, None] ** 2)
-    return (axis / ray).flatten(-2)
+    pitches, index = torch.unique(pitch.float(), return_inverse=True)
+    rays = ray_lengths(size, size)
+    table = torch.stack([torch.from_numpy(reach_lengths(size, size, p) / rays).float().flatten()
+                         for p in pitches.tolist()])
+    return table[index]
 
 
 def reach_features(pointer_logits: torch.Tensor, distances: torch.Tensor) -> torch.Tensor:

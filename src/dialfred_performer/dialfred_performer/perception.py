@@ -261,9 +261,14 @@ class PerceptionConfig:
     @property
     def arithmetic(self) -> str:
         """The precision the steps run in on this machine: fp32 or bf16 (`auto` resolved)."""
-        if self.precision == 'auto':
-            return 'bf16' if native_bf16() else 'fp32'
-        return self.precision
+        return resolve_precision(self.precision)
+
+
+def resolve_precision(precision: str) -> str:
+    """fp32 or bf16 on this machine: `auto` is bf16 where the CPU does bfloat16 natively, else fp32."""
+    if precision == 'auto':
+        return 'bf16' if native_bf16() else 'fp32'
+    return precision
 
 
 def native_bf16() -> bool:

@@ -62,7 +62,7 @@ from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
 from .metrics import STAT_KEYS, MetricsLog, batch_stats, evaluate, summarize, to_device
 from .model import Performer, PerformerConfig, load_checkpoint, performer_loss, save_checkpoint
 from .nn import PerceivedFrames
-from .perception import load_perception, native_bf16
+from .perception import load_perception, resolve_precision
 from .prepare import VOCABULARY_FILE, oracle_texts
 from .preprocess import Vocabulary
 
@@ -227,9 +227,7 @@ class Data:
 def frozen_arithmetic(cfg: TrainConfig) -> str:
     """The frozen perception network's arithmetic on this machine, fp32 or bf16 (--perception-precision with
     auto resolved); a resumed run keeps the one it began with (`Trainer`)."""
-    if cfg.perception_precision == 'auto':
-        return 'bf16' if native_bf16() else 'fp32'
-    return cfg.perception_precision
+    return resolve_precision(cfg.perception_precision)
 
 
 def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:

@@ -21,7 +21,7 @@ import numpy as np
 from dialfred_sim.actions import LOOK_STEP as LOOK_DEG       # LookDown (+) / LookUp (-): positive looks down
 from dialfred_sim.world.rooms import GRID as STEP_M          # MoveAhead
 from dialfred_sim.world.camera import CAMERA_HEIGHT as CAMERA_HEIGHT_M
-from dialfred_sim.world.camera import FOV_DEG, HORIZON_MAX, HORIZON_MIN
+from dialfred_sim.world.camera import HORIZON_MAX, HORIZON_MIN, pixel_rays, ray_lengths
 
 TURN_DEG = 90                  # RotateLeft (+) / RotateRight (-)
 HORIZONS = tuple(float(h) for h in range(int(HORIZON_MIN), int(HORIZON_MAX) + 1, int(LOOK_DEG)))
@@ -65,17 +65,10 @@ class Pose:
 HEADING_STEPS = {0: (1, 0), 90: (0, 1), 180: (-1, 0), 270: (0, -1)}
 
 
-def pixel_rays(size: int) -> tuple[np.ndarray, np.ndarray]:
-    """(u, v) [size, size]: each cell centre's offset on the image plane at unit depth (right, up)."""
-    t = math.tan(math.radians(FOV_DEG) / 2)
-    c = ((np.arange(size) + 0.5) / size * 2 - 1) * t
-    return np.broadcast_to(c[None, :], (size, size)), np.broadcast_to(-c[:, None], (size, size))
-
-
 def points_in_agent_frame(depth: np.ndarray, horizon: float) -> np.ndarray:
     """depth [S, S] (metres along the optical axis) -> points [S, S, 3] (forward, left, height above
     the floor) for a camera pitched `horizon` degrees down."""
-    u, v = pixel_rays(depth.shape[0])
+    u, v = pixel_rays(depth.shape[0], depth.shape[0])
     pitch = math.radians(-horizon)
     cp, sp = math.cos(pitch), math.sin(pitch)
     forward = depth * (cp - v * sp)
@@ -95,8 +88,7 @@ def to_map_frame(points: np.ndarray, pose: Pose) -> np.ndarray:
 
 def ray_distance(depth: np.ndarray) -> np.ndarray:
     """Distance from the eye to each cell's point (how far out the map takes points)."""
-    u, v = pixel_rays(depth.shape[0])
-    return depth * np.sqrt(1 + u ** 2 + v ** 2)
+    return depth * ray_lengths(depth.shape[0], depth.shape[0])
 
 
 def axis_distance(points: np.ndarray) -> np.ndarray:

@@ -13,20 +13,18 @@ from __future__ import annotations
 
 from typing import Optional
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
+
+from dialfred_sim.world.camera import ray_lengths
 
 POOLED = 4          # the coarse map is pooled to POOLED x POOLED cells for the frame embedding
 
 
 def pixel_ray_lengths(size: int) -> torch.Tensor:
-    """[size, size]: the length of each pixel's ray per metre of view-axis depth (the camera's rays:
-    mapper.geometry.pixel_rays)."""
-    from ..mapper.geometry import pixel_rays  # lazy: pybullet, which the rest of this module does without
-    u, v = pixel_rays(size)
-    return torch.from_numpy(np.sqrt(1 + u ** 2 + v ** 2)).float()
+    """[size, size]: the length of each pixel's ray per metre of view-axis depth (the camera's rays)."""
+    return torch.from_numpy(ray_lengths(size, size)).float()
 
 
 class PerceivedFrames(nn.Module):

@@ -22,18 +22,31 @@ LIGHT_DIRECTION = (0.3, 0.5, 1.0)
 EYE_SHIFT = 0.0007           # metres the drawn eye sits behind the true one (see AgentView.view_matrix)
 
 
+def pixel_rays(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) [height, width]: each pixel centre's offset on the image plane at unit depth along the view
+    axis (right, up), for a `width` x `height` frame with FOV_DEG across its height."""
+    t = math.tan(math.radians(FOV_DEG) / 2)
+    u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
+    v = (1 - (np.arange(height) + 0.5) / height * 2) * t
+    return np.broadcast_to(u[None, :], (height, width)), np.broadcast_to(v[:, None], (height, width))
+
+
+def ray_lengths(width: int, height: int) -> np.ndarray:
+    """[height, width]: the length of each pixel's ray per metre of depth along the view axis."""
+    u, v = pixel_rays(width, height)
+    return np.sqrt(1 + u ** 2 + v ** 2)
+
+
 @functools.lru_cache(maxsize=32)
 def reach_lengths(width: int, height: int, horizon: float) -> np.ndarray:
     """Per pixel of a `width` x `height` frame taken at camera pitch `horizon` (degrees, down positive),
     the horizontal distance from the agent's vertical axis of the point seen there, per metre of depth
     along the view axis. Reach is measured so, as AI2-THOR measures its `visibilityDistance`: from the
     agent's central vertical axis, whatever the point's height, not from the eye."""
-    t = math.tan(math.radians(FOV_DEG) / 2)
-    u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
-    v = (1 - (np.arange(height) + 0.5) / height * 2) * t
+    u, v = pixel_rays(width, height)
     pitch = math.radians(horizon)
-    along = math.cos(pitch) + v[:, None] * math.sin(pitch)     # along the heading, per metre of depth
-    lengths = np.sqrt(along ** 2 + u[None, :] ** 2).astype(np.float32)
+    along = math.cos(pitch) + v * math.sin(pitch)     # along the heading, per metre of depth
+    lengths = np.sqrt(along ** 2 + u ** 2).astype(np.float32)
     lengths.flags.writeable = False     # shared by every caller (cached)
     return lengths
 
