@@ -123,7 +123,7 @@ def axis_factors(pitch: torch.Tensor, cells: int) -> torch.Tensor:
     rays = ray_lengths(size, size)
     table = torch.stack([torch.from_numpy(reach_lengths(size, size, p) / rays).float().flatten()
                          for p in pitches.tolist()])
-    return table[index]
+    return table.to(pitch.device)[index]     # the camera's tables are numpy; the pitch may live on a GPU
 
 
 def reach_features(pointer_logits: torch.Tensor, distances: torch.Tensor) -> torch.Tensor:
