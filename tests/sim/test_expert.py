@@ -7,7 +7,7 @@ import pytest
 
 from dialfred_sim.env import DialfredEnv
 from dialfred_sim.tasks import load_split
-from dialfred_sim.tasks.expert import MARGIN, Expert, ExpertFailed
+from dialfred_sim.tasks.expert import MARGIN, TILT, Expert, ExpertFailed
 from dialfred_sim.tasks.goals import is_reachable
 
 from helpers import first_of, reset, spawn_held, spawn_on
@@ -41,6 +41,28 @@ def test_no_interaction_of_the_expert_walks_or_turns(split):
             if any(a not in LOOKS for a in actions[:-1]) or actions[-1] in LOOKS:
                 walking.append((task.task_id, p.kind, actions))
     assert walking == [], f'{len(walking)} interactions walk, the first: {walking[:3]}'
+
+
+@pytest.mark.parametrize('split', ['valid_seen', 'valid_unseen'])
+def test_every_go_to_walks_as_alfreds_planner_does(split):
+    """Each go-to of each episode tilts the camera to 45 degrees down, walks (moves and turns only) and
+    then looks to its end pitch, as ALFRED's `Graph.navigate_to_goal` does."""
+    wrong, gotos = [], 0
+    episodes = {id(t.episode): t.episode for t in load_split(split)}.values()
+    for episode in episodes:
+        for p in episode.primitives:
+            if p.kind != 'goto':
+                continue
+            gotos += 1
+            actions = [a.action for a in episode.actions[p.start:p.end]]
+            pitch = episode.poses[p.start][3]
+            n = round(abs(TILT - pitch) / 15)
+            tilt, walk = actions[:n], actions[n:]
+            while walk and walk[-1] in LOOKS:
+                walk.pop()
+            if tilt != ['LookDown' if pitch < TILT else 'LookUp'] * n or any(a in LOOKS for a in walk):
+                wrong.append((episode.episode_id, pitch, actions))
+    assert gotos > 700 and wrong == [], f'{len(wrong)} of {gotos} go-tos are not tilt, walk, look: {wrong[:3]}'
 
 
 def test_a_go_to_for_a_put_into_the_fridge_ends_where_the_put_lands_in_view(env):

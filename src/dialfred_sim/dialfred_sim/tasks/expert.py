@@ -4,6 +4,11 @@ The expert acts on a `World` directly, rendering only when it must look (to choo
 its targets are in view and within reach, and to pick the pixel of an interaction). Every action goes
 through the same `actions.execute` an agent's does, so what the expert records replays exactly.
 
+A go-to is ALFRED's planner's (`Graph.navigate_to_goal` in ALFRED's `gen/graph/graph_obj.py`): the
+camera tilts to 45 degrees down first (unless it is there), the agent walks the shortest path to the
+designated pose, and the camera then looks to the designated pitch. So the walk is the shortest, and the
+looks are ALFRED's, not the fewest.
+
 As ALFRED's expert, it never walks inside an interaction: a go-to ends where the whole of what follows
 can be done with at most a look up or down (the contents of a closed container included, once it is
 open), and a put lands where the agent can see and reach what it put (AI2-THOR places a put object only
@@ -29,6 +34,7 @@ from .schema import ExpertAction, Primitive
 
 KIND_TO_ACTION = {'pickup': Action.Pickup, 'put': Action.Put, 'open': Action.Open, 'close': Action.Close,
                   'toggle_on': Action.ToggleOn, 'toggle_off': Action.ToggleOff, 'slice': Action.Slice}
+TILT = 45.0           # degrees down: ALFRED's planner walks every go-to with the camera at this pitch
 MARGIN = 0.08          # the expert keeps its targets this far inside the reach limit
 MAX_POSE_RENDERS = 40  # candidate poses looked at per navigation goal
 PREVIEW = 64           # pixels of the cheap first look at a candidate pose
@@ -145,7 +151,7 @@ class Expert:
     def find_pose(self, focus: Sequence[str], inside: Sequence[str] = (),
                   put: Optional[str] = None) -> tuple[Pose, list[Action]]:
         """The designated pose for `focus` (ALFRED's rule for where its planner's go-to ends) and the
-        shortest actions to it. `inside`: objects in a closed container of `focus` that must be in view
+        shortest walk to it (moves and turns; `goto` adds the looks). `inside`: objects in a closed container of `focus` that must be in view
         and within reach too, once it is open; `put`: the held object, which a put into `focus[0]`
         (opened if closed) must land in view and within reach.
 
@@ -188,8 +194,7 @@ class Expert:
                 self._set_pose(pose)
                 # A cheap low-resolution look first; the full frame decides.
                 if self._sees(focus, preview=True) and self._sees(focus) and self._ready_inside(focus, inside, put):
-                    path = self._path(parent, pose[:3])
-                    return pose, path + self._look_actions(here[3], pose[3])
+                    return pose, self._path(parent, pose[:3])
         finally:
             self._set_pose(here)
         raise ExpertFailed(f'no pose in {self.world.layout.scene} sees {", ".join(focus)} within reach')
@@ -200,10 +205,15 @@ class Expert:
         return [Action.LookDown] * n if n > 0 else [Action.LookUp] * (-n)
 
     def goto(self, landmark: str, focus: Sequence[str], inside: Sequence[str] = (), put: Optional[str] = None) -> None:
-        """Walk to where `focus` can be acted on (see find_pose for `inside` and `put`); a `goto landmark`
-        primitive if any action was needed."""
+        """Walk to where `focus` can be acted on (see find_pose for `inside` and `put`) as ALFRED's
+        planner does: tilt to `TILT`, walk, look to the designated pitch. A `goto landmark` primitive
+        if the agent was not at that pose already."""
         start = len(self.actions)
-        _, actions = self.find_pose(list(dict.fromkeys(focus)), list(inside), put)
+        here = self.pose()
+        pose, walk = self.find_pose(list(dict.fromkeys(focus)), list(inside), put)
+        if pose == here:
+            return
+        actions = self._look_actions(here[3], TILT) + walk + self._look_actions(TILT, pose[3])
         for act in actions:
             self._nav(act)
         if len(self.actions) > start:
