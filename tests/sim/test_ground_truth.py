@@ -284,7 +284,7 @@ def test_cached_close_ups_equal_fresh_renders_along_expert_episodes(make_env, va
     _counting_closeups(monkeypatch)
     fresh = lambda w, o, m=gt.MIN_APPEARANCE_PIXELS: gt._search_closeup(w, o, m)
     compared = 0
-    for task in valid_unseen[:8]:
+    for task in valid_unseen[:12]:
         env.reset(options={'task': task})
         plan = task.expert_actions
         for step in range(len(plan) // 2 + 1):
