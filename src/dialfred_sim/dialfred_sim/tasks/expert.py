@@ -151,9 +151,9 @@ class Expert:
     def find_pose(self, focus: Sequence[str], inside: Sequence[str] = (),
                   put: Optional[str] = None) -> tuple[Pose, list[Action]]:
         """The designated pose for `focus` (ALFRED's rule for where its planner's go-to ends) and the
-        shortest walk to it (moves and turns; `goto` adds the looks). `inside`: objects in a closed container of `focus` that must be in view
-        and within reach too, once it is open; `put`: the held object, which a put into `focus[0]`
-        (opened if closed) must land in view and within reach.
+        shortest walk to it (moves and turns; `goto` adds the looks). `inside`: objects in a closed
+        container of `focus` that must be in view and within reach too, once it is open; `put`: the held
+        object, which a put into `focus[0]` (opened if closed) must land in view and within reach.
 
         The pose depends on the world, never on where the agent stands: the free grid point nearest the
         first target's centre (L1 distance, as ALFRED's `get_obj_coords`), but not so near that the eye
