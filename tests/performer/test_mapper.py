@@ -410,13 +410,14 @@ def test_the_ground_truth_sight_of_the_ceiling_benchmark_labels_cells_from_the_s
     class_id = {name: k for k, name in enumerate(label_classes())}
     body_class = {b: class_id.get(env.world.objects[n].type_name if n in env.world.objects else n, 0)
                   for b, n in zip(ids, names)}
-    pixels = np.vectorize(lambda b: body_class.get(int(b), 0))(obs.segmentation).reshape(32, 4, 32, 4)
+    pixel_class = np.vectorize(lambda b: body_class.get(int(b), 0))(obs.segmentation)
+    pixels = pixel_class.reshape(32, 4, 32, 4)
     pixels = pixels.transpose(0, 2, 1, 3).reshape(32, 32, 16)
     whole = (pixels == pixels[..., :1]).all(-1)
     assert whole.sum() > 100 and (labels[whole] == pixels[whole][:, 0]).all()
     majority = np.array([[np.bincount(cell, minlength=len(class_id)).argmax() for cell in row] for row in pixels])
     assert (labels == majority).all()
-    centre = np.vectorize(lambda b: body_class.get(int(b), 0))(obs.segmentation)[2::4, 2::4]   # where clicks land
+    centre = pixel_class[2::4, 2::4]                     # where clicks on the cells land
     objects = labels >= 4
     assert objects.sum() > 20 and (centre[objects] == labels[objects]).mean() > 0.8
     assert depth == pytest.approx(obs.depth.reshape(32, 4, 32, 4).mean(axis=(1, 3)), abs=1e-5)
