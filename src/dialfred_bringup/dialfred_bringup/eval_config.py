@@ -16,7 +16,7 @@ from dialfred_performer.model_registry import PERFORMER_MODELS, SHIPPED_CHECKPOI
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
-from dialfred_sim.protocol import MAX_QUESTIONS, QUESTION_TYPES
+from dialfred_sim.protocol import DEFAULT_PROTOCOL, MAX_QUESTIONS, PROTOCOLS, QUESTION_TYPES
 from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
@@ -93,6 +93,11 @@ class EvalConfig:
     goal_rule: str = arg(DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
                          "expert's end pose (DialFRED's rule); visible = the target in view and within reach "
                          '(results are named ..._goal-visible)', choices=GOAL_RULES)
+    protocol: str = arg(DEFAULT_PROTOCOL, "how the tasks are played: expert = each from the expert's state at its first "
+                        'action (the paper\'s tables); chained = each episode\'s tasks in order, every task from the '
+                        'state the agent\'s own actions left, ended only by the agent\'s Stop or its limits and judged '
+                        "then (DialFRED's challenge test; a task whose goal held at its start scores as not done; "
+                        'results are named ..._chained; dialfred_sim/chained.py)', choices=PROTOCOLS)
     limit: Optional[int] = arg(None, 'only the first N tasks of the split (none: all)', metavar='N')
     shard: Optional[tuple] = arg(None, 'only shard K of N (0 <= K < N) of the selected tasks (after --limit): those '
                                  'whose index in the split is K modulo N, seeded as in a whole run; results go to '

@@ -31,7 +31,7 @@ from dialfred_questioner.baselines import with_questioner
 from dialfred_questioner.questioners import make_questioner
 from dialfred_sim.agents import make_agent as make_reference_agent
 from dialfred_sim.bag import IMAGE_FORMATS
-from dialfred_sim.protocol import QUESTION_TYPES, DialogueAgent
+from dialfred_sim.protocol import DEFAULT_PROTOCOL, PROTOCOLS, QUESTION_TYPES, DialogueAgent
 from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE
 from dialfred_sim import tasks as task_sets
 from dialfred_sim.tasks.splits import read_tasks_file
@@ -84,6 +84,11 @@ def check_ranges(o: EvalConfig) -> None:
     if o.performer and o.performer not in PERFORMER_MODELS:
         raise ValueError(f'--performer must be one of {", ".join(PERFORMER_MODELS)} (the performer node\'s model), '
                          f'got {o.performer!r}')
+    if o.protocol not in PROTOCOLS:
+        raise ValueError(f'--protocol must be one of {", ".join(PROTOCOLS)}, got {o.protocol!r}')
+    if o.protocol == 'chained' and not o.local:
+        raise ValueError('--protocol chained plays --local (without ROS) for now; the graph\'s workers play the '
+                         'expert protocol only')
     if o.answers not in SWAP_MODES:
         raise ValueError(f'--answers must be one of {", ".join(SWAP_MODES)}, got {o.answers!r}')
     if o.perturb_type and o.perturb_type not in QUESTION_TYPES:
@@ -218,7 +223,7 @@ class EvalRun:
     def identity(self) -> dict:
         """What every results line of this run carries (metrics.episode_result's keywords)."""
         return {'agent': self.agent_name, 'oracle': self.oracle, 'seed': self.options.seed,
-                'goal_rule': self.options.goal_rule}
+                'goal_rule': self.options.goal_rule, 'protocol': self.options.protocol}
 
     # ------------------------------------------------------------------ tasks and files
     @functools.cached_property
@@ -238,6 +243,7 @@ class EvalRun:
         perturbed = f'_withhold-{o.perturb_type}-{o.perturb_probability:g}' if o.perturb_type else ''
         perturbed += '_swapped' if o.answers == 'swapped' else ''
         perturbed += f'_goal-{o.goal_rule}' if o.goal_rule != DEFAULT_GOAL_RULE else ''
+        perturbed += f'_{o.protocol}' if o.protocol != DEFAULT_PROTOCOL else ''
         source = self.tasks_source
         tasks = f'{source.split}-{source.sha256[:8]}' if source else o.split   # a file: named by its content
         return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}{shard_suffix(o.shard)}.jsonl'

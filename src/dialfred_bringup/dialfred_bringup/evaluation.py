@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
+from dialfred_sim.chained import chain_episodes
 from dialfred_sim.dataclass_cli import add_fields, from_args
 from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, git_commit, load_results,
                                   played_at, results_by_task, results_lock, summarize, write_text_atomically)
@@ -70,6 +71,7 @@ class EvalReport:
             'split': c.split, 'tasks_file': run.tasks_source.describe() if run.tasks_source else None,
             'agent': run.agent_name, 'privileged': any(r.privileged for r in self.results),
             'oracle': run.oracle, 'seed': c.seed, 'resolution': c.resolution, 'goal_rule': c.goal_rule,
+            **({'protocol': c.protocol} if c.protocol != 'expert' else {}),
             'workers': c.workers,
             'through': 'performer node' if c.performer else ('local processes (no ROS)' if c.local else 'in-process agent'),
             'checkpoint': ({'path': str(run.checkpoint_path), 'sha256': run.checkpoint_sha256}
@@ -126,6 +128,9 @@ def resumable_results(run: EvalRun, task_ids: list) -> dict:
                                    f'oracle {r.oracle!r}, seed {r.seed}, not {config.split!r}, {run.agent_name!r}, '
                                    f'{run.oracle!r}, '
                                    f'{config.seed}: choose another --out')
+        if r.protocol != config.protocol:
+            raise ResultsFileError(f'{path} holds results of the {r.protocol!r} protocol, not {config.protocol!r}: '
+                                   'choose another --out')
         if r.goal_rule != config.goal_rule:
             held = repr(r.goal_rule) if r.goal_rule else "'visible' (written before results recorded the rule)"
             raise ResultsFileError(f'{path} holds results judged by the goal rule {held}, not {config.goal_rule!r}: '
@@ -218,6 +223,8 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
     run = config if isinstance(config, EvalRun) else EvalRun(config)
     if silent is not None and (not run.options.local or silent[0] not in ('record', 'replay')):
         raise ValueError(f"silent episodes are ('record' | 'replay', folder) of a local run, got {silent!r}")
+    if silent is not None and run.options.protocol != 'expert':
+        raise ValueError('silent episodes are of the expert protocol')
     if silent is not None and silent[0] == 'record' and run.asks:
         raise ValueError('silent episodes are recorded by a run without questions')
     with results_lock(run.results_path):
@@ -229,13 +236,26 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None)
     config = run.options
     tasks = run.split_tasks()[:config.limit]
     tasks = [under_rule(t, config.goal_rule) for t in tasks]      # goals and expert lengths as the run judges them
-    selected = shard_tasks(tasks, config.shard)       # (index in the split, task): the index seeds the episode
+    if config.protocol == 'chained':
+        # A job is a whole episode (its tasks in order, in one world); shards take whole episodes.
+        episodes = chain_episodes(enumerate(tasks))
+        if config.shard:
+            episodes = [e for n, e in enumerate(episodes) if n % config.shard[1] == config.shard[0]]
+        selected = [pair for e in episodes for pair in e.tasks]
+    else:
+        selected = shard_tasks(tasks, config.shard)       # (index in the split, task): the index seeds the episode
     tasks = [t for _, t in selected]
     done = resumable_results(run, [t.task_id for t in tasks])
-    jobs = [(k, t) for k, t in selected if t.task_id not in done]
+    if config.protocol == 'chained':
+        # An episode cut off before its last task is played again from its start (the world of its later
+        # tasks is the one its earlier ones left); only the tasks missing from the file are written.
+        jobs = [e for e in episodes if any(tid not in done for tid in e.task_ids)]
+    else:
+        jobs = [(k, t) for k, t in selected if t.task_id not in done]
     if done:
+        unit = 'episodes' if config.protocol == 'chained' else 'tasks'
         print(f'resuming: {len(done)} of {len(tasks)} tasks are already in {run.results_path}; '
-              f'{len(jobs)} to play', file=sys.stderr)
+              f'{len(jobs)} {unit} to play', file=sys.stderr)
     ran, startup_s, restarts, replayed = 0, 0.0, 0, 0
     code = git_commit()
     warn_of_other_code(run.results_path, done.values(), code)
@@ -245,6 +265,8 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None)
         (resumable), counted, shown."""
         def record(result) -> None:
             nonlocal ran
+            if result.task_id in done:       # a replayed chained episode's task that the file holds
+                return
             result = dataclasses.replace(result, code=code)
             append_result(run.results_path, result)
             done[result.task_id] = result
@@ -299,6 +321,7 @@ def print_report(report: EvalReport) -> None:
     privileged = (' (PRIVILEGED: given the expert\'s plan; a reference, not a benchmark result)'
                   if any(r.privileged for r in report.results) else '')
     shard = f', shard {c.shard[0]}/{c.shard[1]}' if c.shard else ''
+    shard += ', chained (each episode\'s tasks in order on the agent\'s own state)' if c.protocol == 'chained' else ''
     print(f'{c.split}{shard}, {run.agent_name} agent{privileged}, seed {c.seed}: {len(report.results)} tasks '
           f'({report.ran} played now in {report.wall_s:.1f} s{rate})')
     print(format_table(report.summary))

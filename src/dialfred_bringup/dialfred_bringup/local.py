@@ -26,6 +26,7 @@ from dialfred_oracle.answers import Perturbation
 from dialfred_oracle.in_process import EnvServer
 from dialfred_oracle.swap import AnswerSwap
 from dialfred_sim.agents import task_view
+from dialfred_sim.chained import ChainedEpisode, expert_reference, reference_length
 from dialfred_sim.env import DialfredEnv
 from dialfred_sim.episode import play
 from dialfred_sim.episode import run as run_episode
@@ -51,6 +52,22 @@ def _init_worker(run, silent: Optional[tuple[str, str]] = None) -> None:
                           if o.options.perturb_type else None)
     _W['swap'] = (AnswerSwap(run.split_tasks(), o.options.resolution, o.options.goal_rule)
                   if o.options.answers == 'swapped' else None)
+
+
+def _play_any(job) -> list:
+    """[(the EpisodeResult, whether it was replayed from the silent episodes)] of a job: (index, task)
+    (`_play_job`), or a chained.ChainedEpisode, whose tasks are played in order in one world."""
+    if not isinstance(job, ChainedEpisode):
+        return [_play_job(job)]
+    run, agent = _W['run'], _W['agent']
+    tasks = [t for _, t in job.tasks]
+    results, started = [], time.monotonic()
+    for k, (_, task), state in play_chain(run, _W['env'], agent, _W['perturbation'], job, _W['swap']):
+        now = time.monotonic()
+        results.append((state_result(run, task, agent, state, now - started,
+                                     expert_length=reference_length(tasks, k)), False))
+        started = now
+    return results
 
 
 def _play_job(job: tuple):
@@ -79,6 +96,21 @@ def play_state(run, env, agent, perturbation, index: int, task, swap=None, obser
     return run_episode(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))
 
 
+def play_chain(run, env, agent, perturbation, episode: ChainedEpisode, swap=None, observers=()):
+    """The tasks of a chained episode (dialfred_sim.chained) played in order in `env` with `agent`, for `run`:
+    yields (k, (index, task), final EpisodeState) as each task ends. The first task is reset to its start, every
+    later one goes on from the world the last one left; the expert is told its stretch of the demonstration,
+    an agent that is protocol.Continuing carries on, any other is reset."""
+    tasks = [t for _, t in episode.tasks]
+    for k, (index, task) in enumerate(episode.tasks):
+        told = task_view(agent, expert_reference(tasks, k))
+        loop = play(agent, seed=episode_seed(run.options.seed, index), told=told, asks=run.asks,
+                    max_questions=run.options.max_questions, observers=observers, carry_on=k > 0)
+        server = EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False,
+                           protocol='chained', continues=k > 0)
+        yield k, (index, task), run_episode(loop, server)
+
+
 def play_episode(run, env, agent, perturbation, index: int, task, swap=None):
     """`play_state`'s episode as its EpisodeResult (benchmarks/map_perception_ceiling.py plays so)."""
     started = time.monotonic()
@@ -86,17 +118,19 @@ def play_episode(run, env, agent, perturbation, index: int, task, swap=None):
     return state_result(run, task, agent, state, time.monotonic() - started)
 
 
-def state_result(run, task, agent, state, wall_s: float):
+def state_result(run, task, agent, state, wall_s: float, expert_length=None):
     """The results line of an episode played by `run` (an eval_run.EvalRun) to `state` (the episode loop's
-    EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker)."""
+    EpisodeState), in this process or through the simulator and oracle nodes (workers.SimWorker).
+    `expert_length`: a chained task's reference length (chained.reference_length)."""
     return result_line(task, state, [dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid),
                                                     qa.answer) for qa in state.dialogue],
-                       wall_s=wall_s, privileged=is_privileged(agent), **run.identity)
+                       wall_s=wall_s, privileged=is_privileged(agent), expert_length=expert_length, **run.identity)
 
 
 def play_local(run, jobs: list, on_result: Callable, silent: Optional[tuple[str, Path]] = None) -> int:
-    """Play every (index, task) of `jobs` in `run.options.workers` processes; `on_result(result)` as each
-    episode ends (in the order they end). `silent`: ('record', folder) keeps the episodes of a run without
+    """Play every (index, task) of `jobs` (or chained.ChainedEpisode: its tasks in order, in one process) in
+    `run.options.workers` processes; `on_result(result)` as each episode ends (in the order they end; a
+    chained episode's tasks together, when its last ends). `silent`: ('record', folder) keeps the episodes of a run without
     questions there; ('replay', folder) takes an episode from there whenever the questioner would ask
     nothing in it (silent.py). Returns how many episodes were replayed."""
     if not jobs:
@@ -105,7 +139,8 @@ def play_local(run, jobs: list, on_result: Callable, silent: Optional[tuple[str,
     replayed = 0
     initargs = (run, (silent[0], str(silent[1])) if silent else None)
     with worker_pool(workers, initializer=_init_worker, initargs=initargs) as pool:
-        for result, was_replayed in pool.imap_unordered(_play_job, jobs, chunksize=1):
-            replayed += was_replayed
-            on_result(result)
+        for results in pool.imap_unordered(_play_any, jobs, chunksize=1):
+            for result, was_replayed in results:
+                replayed += was_replayed
+                on_result(result)
     return replayed

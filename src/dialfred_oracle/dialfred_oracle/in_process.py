@@ -15,7 +15,7 @@ from typing import Optional
 
 from dialfred_sim.episode import Ask, Reply, Request, Reset, SimReply
 from dialfred_sim.ground_truth import snapshot
-from dialfred_sim.protocol import QA, env_observation
+from dialfred_sim.protocol import DEFAULT_PROTOCOL, QA, env_observation
 
 from . import answers
 from .answers import Answer, Perturbation, refusal_on_its_face, situation_key
@@ -38,12 +38,17 @@ class EnvServer:
     `task`), questions from the oracle's rules (`dialfred_oracle.in_process.answer_now`, with `perturbation`;
     with `swap`, a `swap.AnswerSwap`, another task's answers), exactly as the simulator and oracle nodes
     answer them. `with_depth` / `with_segmentation` False: the observations carry None for those images,
-    as the simulator node's replies do when a request does not ask for them (evaluations ask for RGB only)."""
+    as the simulator node's replies do when a request does not ask for them (evaluations ask for RGB only).
+    `protocol` 'chained' (dialfred_sim.chained): the reset starts `task` as an episode's first chained
+    task, or with `continues`, goes on to it in the world as the last task left it."""
 
     def __init__(self, env, task, perturbation=None, swap=None, with_depth: bool = True,
-                 with_segmentation: bool = True):
+                 with_segmentation: bool = True, protocol: str = DEFAULT_PROTOCOL, continues: bool = False):
         self.env, self.task, self.perturbation, self.swap = env, task, perturbation, swap
         self.with_depth, self.with_segmentation = with_depth, with_segmentation
+        if continues and protocol == DEFAULT_PROTOCOL:
+            raise ValueError('only a chained task continues from the last one')
+        self.protocol, self.continues = protocol, continues
         self.info: dict = {}
 
     def __call__(self, request: Request) -> Reply:
@@ -55,7 +60,12 @@ class EnvServer:
             return QA(q, bool(ans.valid), ans.text, ans.reason)
         if isinstance(request, Reset):
             try:
-                obs, self.info = self.env.reset(options={'task': self.task})
+                if self.continues:
+                    obs, self.info = self.env.continue_task(self.task)
+                elif self.protocol == DEFAULT_PROTOCOL:
+                    obs, self.info = self.env.reset(options={'task': self.task})
+                else:
+                    obs, self.info = self.env.reset(options={'task': self.task, 'protocol': self.protocol})
             except (ValueError, FileNotFoundError) as exc:
                 return SimReply(ok=False, error=str(exc))
             return self._reply(obs, self.info, task=self.task.public())

@@ -28,8 +28,9 @@ from typing import Any, Optional
 import numpy as np
 
 from dialfred_sim.agents import public_view, task_nouns, task_view
-from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Decision, Listener, PerformerAware,
-                                  Question, Questioner, every_question, is_privileged, names_object, top2_gap)
+from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Continuing, Decision, Listener,
+                                  PerformerAware, Question, Questioner, every_question, is_privileged, names_object,
+                                  top2_gap)
 
 
 def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:
@@ -174,6 +175,17 @@ class QuestioningAgent:
 
     def reset(self, task: Any, seed: int) -> None:
         self.performer.reset(task_view(self.performer, task), seed)
+        self.reset_questioner(task, seed)
+        self.dialogue = []
+        self._steps = 0
+
+    def carry_on(self, task: Any, seed: int) -> None:
+        """The next task of a chained episode: a performer that is protocol.Continuing carries on, any
+        other is reset; the questioner always starts the task anew."""
+        if isinstance(self.performer, Continuing):
+            self.performer.carry_on(task_view(self.performer, task), seed)
+        else:
+            self.performer.reset(task_view(self.performer, task), seed)
         self.reset_questioner(task, seed)
         self.dialogue = []
         self._steps = 0

@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
-from .protocol import MAX_FAILURES, MAX_STEPS
+from .protocol import DEFAULT_PROTOCOL, MAX_FAILURES, MAX_STEPS, PROTOCOLS
 from .tasks import get_task
 from .tasks.expert import replay
 from .tasks.generator import apply_setup
@@ -86,6 +86,8 @@ class DialfredEnv(gym.Env):
         self.task = None                  # the DialFRED task being played, if any
         self.goal_met: list[bool] = []             # per goal condition of the task: holds now
         self.goal_met_at_start: list[bool] = []    # ... held when the task started (GC leaves those out)
+        self.protocol = DEFAULT_PROTOCOL  # how the task is played (protocol.PROTOCOLS): 'chained' goes on past success
+        self.held_at_start = False        # the whole goal held when a chained task began: it cannot succeed
 
     # ------------------------------------------------------------------ Gymnasium API
 
@@ -93,15 +95,18 @@ class DialfredEnv(gym.Env):
         """Start an episode. options: {'scene': 'FloorPlanN'} picks the floor plan and
         {'dirty_probability': p} overrides the constructor's; {'task_id': 'valid_unseen/000012'} (or
         {'task': Task}) starts that DialFRED task (the seed is then the task's, and no other option
-        may be given). Bad options raise TypeError (wrong type) or ValueError (unknown key, scene or
+        may be given but 'protocol'). With a task, {'protocol': 'chained'} plays it under the chained
+        protocol: success does not end it (only Stop and the failure and step limits do), and the
+        episode's later tasks follow with `continue_task`. Bad options raise TypeError (wrong type) or ValueError (unknown key, scene or
         task, a value out of range) and change nothing. A task whose start state the world refuses
         to rebuild (its split made under older rules) raises ValueError after the room was rebuilt:
         the env then needs a new reset."""
         options = _check_options(options)     # TypeError / ValueError before anything changes
         if 'task' in options:
-            return self._reset_to_task(options['task'])
+            return self._reset_to_task(options['task'], options.get('protocol', DEFAULT_PROTOCOL))
         super().reset(seed=seed)
         self.task, self.goal_met, self.goal_met_at_start = None, [], []
+        self.protocol, self.held_at_start = DEFAULT_PROTOCOL, False
         scene = options.get('scene') or self.scene
         if scene is None:
             scenes = all_scenes()
@@ -131,12 +136,41 @@ class DialfredEnv(gym.Env):
             self.failures += 1
         self._frame = self.world.render()
         success = self._check_goal()
-        terminated = success or act == Action.Stop or self.failures >= self.max_failures
+        ends = success and self.protocol == 'expert'     # a chained task is judged when it stops, never told
+        terminated = ends or act == Action.Stop or self.failures >= self.max_failures
         truncated = not terminated and self.steps >= self.max_steps
         self.done = terminated or truncated
         return self._observation(), float(success), terminated, truncated, self._info()
 
-    def _reset_to_task(self, task):
+    def continue_task(self, task):
+        """Start `task`, the next task of the chained episode being played, in the world as the agent's
+        actions left it (the chained protocol): its goal is checked now, the step and failure counts
+        start again, and the observation's `last_action_success` is still the last action's. A task
+        whose whole goal holds already is played but cannot succeed (`held_at_start`). Returns
+        (observation, info) as reset does.
+
+        ValueError (nothing changes) unless the env holds a chained episode (reset with {'task': ...,
+        'protocol': 'chained'}) and `task` is of the same episode."""
+        if self.protocol != 'chained' or self.task is None or self._frame is None:
+            raise ValueError('continue_task() goes on from a chained task: reset(options={"task": ..., '
+                             '"protocol": "chained"}) first')
+        if not isinstance(task, Task):
+            raise TypeError(f'task must be a dialfred_sim.tasks.Task, got {type(task).__name__}')
+        if task.episode.episode_id != self.task.episode.episode_id or task.split != self.task.split:
+            raise ValueError(f'task {task.task_id} is of episode {task.split}/{task.episode.episode_id}; this env '
+                             f'plays {self.task.split}/{self.task.episode.episode_id}')
+        self.task = under_rule(task, self.goal_rule)
+        self.steps, self.failures, self.done = 0, 0, False
+        self._start_goal()
+        return self._observation(), self._info()
+
+    def _start_goal(self) -> None:
+        """The task's goal as it starts: what holds (GC leaves it out), and whether all of it does."""
+        self._check_goal()
+        self.goal_met_at_start = list(self.goal_met)
+        self.held_at_start = bool(self.goal_met) and all(self.goal_met)
+
+    def _reset_to_task(self, task, protocol: str = DEFAULT_PROTOCOL):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
         task = under_rule(task, self.goal_rule)    # its goal and expert length as this env judges them
         episode = task.episode
@@ -157,10 +191,9 @@ class DialfredEnv(gym.Env):
         self.world.update_held_pose()
         self.steps, self.failures, self.done = 0, 0, False
         self.last_result = ActionResult(True)
-        self.task = task
+        self.task, self.protocol = task, protocol
         self._frame = self.world.render()
-        self._check_goal()
-        self.goal_met_at_start = list(self.goal_met)
+        self._start_goal()
         return self._observation(), self._info()
 
     def _check_goal(self) -> bool:
@@ -303,7 +336,8 @@ class DialfredEnv(gym.Env):
             'failed_actions': self.failures,
             'instances': (ids, names),
             'task_id': self.task.task_id if self.task is not None else '',
-            'success': bool(self.goal_met) and all(self.goal_met),
+            'success': bool(self.goal_met) and all(self.goal_met) and not self.held_at_start,
+            'held_at_start': self.held_at_start,
             # GC counts only the conditions that did not hold when the task started (tasks.goals)
             'goal_conditions_met': achieved,
             'goal_conditions_total': to_achieve,
@@ -312,7 +346,7 @@ class DialfredEnv(gym.Env):
 
 # ---------------------------------------------------------------------- argument checks
 
-RESET_OPTIONS = ('scene', 'task_id', 'task', 'dirty_probability')
+RESET_OPTIONS = ('scene', 'task_id', 'task', 'dirty_probability', 'protocol')
 
 
 def _is_integer(value) -> bool:
@@ -344,8 +378,13 @@ def _check_options(options) -> dict:
     if unknown:
         raise ValueError(f'unknown reset option(s) {", ".join(unknown)}: expected {", ".join(RESET_OPTIONS)}')
     checked = dict(options)
+    if 'protocol' in options:
+        if options['protocol'] not in PROTOCOLS:
+            raise ValueError(f"unknown protocol {options['protocol']!r}: expected one of {', '.join(PROTOCOLS)}")
+        if 'task_id' not in options and 'task' not in options:
+            raise ValueError("a protocol is how a task is played: give it with 'task_id' or 'task'")
     if 'task_id' in options or 'task' in options:
-        others = sorted(set(options) - {'task_id', 'task'})
+        others = sorted(set(options) - {'task_id', 'task', 'protocol'})
         if others or ('task_id' in options and 'task' in options):
             raise ValueError(f"a task sets its own room and state: give 'task_id' or 'task' alone, got "
                              f"{sorted(options)}")

@@ -12,7 +12,8 @@ chooses the transport:
 - the evaluation's `SimWorker` sends each request as an asynchronous ROS call and resumes the generator
   when the reply arrives (many episodes in flight from one executor).
 
-The rules live here and nowhere else: the agent is reset after the simulator, with the task it is told;
+The rules live here and nowhere else: the agent is reset after the simulator, with the task it is told
+(a later task of a chained episode: an agent that is `protocol.Continuing` carries on instead);
 before every action a dialogue agent may ask until it returns None, at most `max_questions` in a row
 (the next one ends the episode with an error); an action the simulator refuses, or a request with no
 reply, ends it with an error; otherwise it ends when the simulator says so (success, Stop, too many
@@ -26,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Generator, Iterable, Optional, Union
 
 from .metrics import end_reason
-from .protocol import MAX_QUESTIONS, QA, Question
+from .protocol import MAX_QUESTIONS, QA, Continuing, Question
 
 
 @dataclass(frozen=True)
@@ -128,13 +129,15 @@ class EpisodeObserver:
 
 
 def play(agent, *, seed: int, told: Any = None, asks: bool = True, max_questions: int = MAX_QUESTIONS,
-         asker: str = 'agent', observers: Iterable[EpisodeObserver] = ()
+         asker: str = 'agent', observers: Iterable[EpisodeObserver] = (), carry_on: bool = False
          ) -> Generator[Request, Reply, EpisodeState]:
     """One episode of `agent` (protocol.Agent; with `asks`, a protocol.DialogueAgent): yields requests,
     is sent their replies, returns the final EpisodeState.
 
     seed: the agent's episode seed. told: the task the agent is told (default: the reset reply's
-    `task`). asker: who is named when too many questions end the episode ('agent', 'questioner')."""
+    `task`). asker: who is named when too many questions end the episode ('agent', 'questioner').
+    carry_on: the task follows another of a chained episode in the same world; an agent that is
+    protocol.Continuing is told it with `carry_on(task, seed)` instead of `reset`."""
     observers = list(observers)
     state = EpisodeState()
 
@@ -153,7 +156,11 @@ def play(agent, *, seed: int, told: Any = None, asks: bool = True, max_questions
     state.goal_conditions_total = int(reply.goal_conditions_total)
     for o in observers:
         o.on_started(state, reply)
-    agent.reset(told if told is not None else reply.task, seed)
+    task = told if told is not None else reply.task
+    if carry_on and isinstance(agent, Continuing):
+        agent.carry_on(task, seed)
+    else:
+        agent.reset(task, seed)
     current = reply
     while True:
         in_a_row = 0

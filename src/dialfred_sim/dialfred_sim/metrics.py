@@ -31,7 +31,8 @@ from typing import Iterable, Optional, Union
 
 import numpy as np
 
-from .protocol import MAX_FAILURES
+from .chained import episode_metrics
+from .protocol import DEFAULT_PROTOCOL, MAX_FAILURES, PROTOCOLS
 from .tasks.schema import TASK_TYPES
 
 END_REASONS = ('success', 'stop', 'max_steps', 'max_failures', 'error')
@@ -69,10 +70,18 @@ class EpisodeResult:
                                      # '' in results written before it was recorded)
     goal_rule: str = ''              # how its go-to was judged (tasks.goals.GOAL_RULES); '' in results written
                                      # before it was recorded, which the 'visible' rule judged
+    # The chained protocol's fields (dialfred_sim.chained); lines of the expert protocol leave them out.
+    protocol: str = DEFAULT_PROTOCOL   # how it was played: 'expert' (from the expert's state) or 'chained'
+    episode_id: str = ''               # chained: the episode (split/episode) whose tasks were played in order
+    held_at_start: bool = False        # chained: its whole goal held when it began (scored as not done)
 
     def __post_init__(self):
         if self.end_reason not in END_REASONS:
             raise ValueError(f'end_reason must be one of {END_REASONS}, got {self.end_reason!r}')
+        if self.protocol not in PROTOCOLS:
+            raise ValueError(f'protocol must be one of {PROTOCOLS}, got {self.protocol!r}')
+        if self.protocol == DEFAULT_PROTOCOL and (self.episode_id or self.held_at_start):
+            raise ValueError(f'episode_id and held_at_start belong to chained results, not {self.protocol!r} ones')
 
     @property
     def gc(self) -> float:
@@ -99,8 +108,13 @@ class EpisodeResult:
         return counts
 
     def to_json(self) -> str:
-        """One line of JSON (no newline)."""
-        return json.dumps(asdict(self), separators=(',', ':'))
+        """One line of JSON (no newline); a line of the expert protocol leaves out the chained fields, as it
+        was written before they existed."""
+        data = asdict(self)
+        if self.protocol == DEFAULT_PROTOCOL:
+            for name in CHAINED_FIELDS:
+                del data[name]
+        return json.dumps(data, separators=(',', ':'))
 
     @classmethod
     def from_json(cls, line: str) -> 'EpisodeResult':
@@ -130,20 +144,29 @@ class EpisodeResult:
         return cls(**data)
 
 
+CHAINED_FIELDS = ('protocol', 'episode_id', 'held_at_start')
 OUTCOME_FIELDS = ('success', 'goal_conditions_met', 'goal_conditions_total', 'steps', 'questions',
                   'invalid_questions', 'failed_actions', 'end_reason', 'error')
 
 
 def episode_result(task, outcome, dialogue: list, *, agent: str, oracle: str, seed: int, goal_rule: str,
-                   wall_s: float, privileged: bool = False) -> EpisodeResult:
+                   wall_s: float, privileged: bool = False, protocol: str = DEFAULT_PROTOCOL,
+                   expert_length: Optional[int] = None) -> EpisodeResult:
     """The results line of `task`'s episode, whichever way it was played: `outcome` has OUTCOME_FIELDS (the
     episode loop's EpisodeState, a RunTask result, ...), `dialogue` its questions as dialogue_entry dicts; the
-    run's identity (agent, oracle, seed, goal rule) and the episode's wall time."""
+    run's identity (agent, oracle, seed, goal rule, protocol) and the episode's wall time. Under the chained
+    protocol `expert_length` is the task's chained reference (chained.reference_length), and a task that
+    had no goal condition left to do when it began is marked held at start."""
     o = {k: getattr(outcome, k) for k in OUTCOME_FIELDS}
-    return EpisodeResult(
+    chained = {}
+    if protocol != DEFAULT_PROTOCOL:
+        chained = {'protocol': protocol, 'episode_id': f'{task.split}/{task.episode.episode_id}',
+                   'held_at_start': int(o['goal_conditions_total']) == 0 and o['end_reason'] != 'error'}
+    return EpisodeResult(**chained,
         task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(o['success']),
         goal_conditions_met=int(o['goal_conditions_met']), goal_conditions_total=int(o['goal_conditions_total']),
-        steps=int(o['steps']), expert_length=int(task.expert_length), questions=int(o['questions']),
+        steps=int(o['steps']), expert_length=int(task.expert_length if expert_length is None else expert_length),
+        questions=int(o['questions']),
         invalid_questions=int(o['invalid_questions']), failed_actions=int(o['failed_actions']),
         end_reason=o['end_reason'], error=o['error'], agent=agent, oracle=oracle, seed=seed, wall_s=round(wall_s, 4),
         goal_rule=goal_rule, privileged=bool(privileged), dialogue=list(dialogue))
@@ -165,7 +188,7 @@ _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
                 'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list, 'code': str,
-                'goal_rule': str}
+                'goal_rule': str, 'protocol': str, 'episode_id': str, 'held_at_start': bool}
 # Fields that say how and where an episode was played, not what happened in it.
 RUN_FIELDS = ('wall_s', 'code')
 
@@ -229,7 +252,10 @@ def type_order(task_type: str) -> tuple:
 
 
 def summarize(results: Iterable[EpisodeResult]) -> dict:
-    """{'overall': row, 'per_type': {task_type: row}, 'end_reasons': {reason: count}}.
+    """{'overall': row, 'per_type': {task_type: row}, 'end_reasons': {reason: count}}, and for results of
+    the chained protocol 'episodes': the per-episode figures (chained.episode_metrics: episodes whose
+    every task succeeded, tasks done in order before the first failure, questions per episode, tasks
+    whose goal held at their start).
 
     A row is {'n', 'SR', 'PWSR', 'GC' (percent), 'NQ', 'NQ_invalid' (mean questions per episode, and
     of those the ones the oracle could not answer)}; per_type holds
@@ -240,11 +266,14 @@ def summarize(results: Iterable[EpisodeResult]) -> dict:
     for r in results:
         by_type.setdefault(r.task_type, []).append(r)
     reasons = {reason: sum(r.end_reason == reason for r in results) for reason in END_REASONS}
-    return {
+    summary = {
         'overall': _row(results),
         'per_type': {t: _row(by_type[t]) for t in sorted(by_type, key=type_order)},
         'end_reasons': {k: v for k, v in reasons.items() if v},
     }
+    if any(r.protocol == 'chained' for r in results):
+        summary['episodes'] = episode_metrics(results)
+    return summary
 
 
 INTERVAL_METRICS = ('SR', 'PWSR', 'GC', 'NQ')
@@ -284,7 +313,14 @@ def format_table(summary: dict) -> str:
 
     rule = '-' * len(header)
     body = [line(t, row) for t, row in summary['per_type'].items()]
-    return '\n'.join([header, rule, *body, rule, line('overall', summary['overall'])])
+    table = [header, rule, *body, rule, line('overall', summary['overall'])]
+    e = summary.get('episodes')
+    if e:
+        table.append(f'chained: {e["episodes"]} episodes ({e["tasks_per_episode"]:.2f} tasks each), every task done '
+                     f'in {e["all_succeeded"]:.1f}%, {e["in_order"]:.2f} tasks done in order before the first failure, '
+                     f'{e["questions_per_episode"]:.2f} questions per episode; {e["held_at_start"]} tasks held at '
+                     f'start (in {e["episodes_with_held"]} episodes), scored as not done')
+    return '\n'.join(table)
 
 
 # ---------------------------------------------------------------------------------------- JSON lines

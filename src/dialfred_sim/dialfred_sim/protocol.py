@@ -10,6 +10,9 @@ Everything two packages must agree on is defined here once, and every package im
   performer's marks, the oracle's aliases). `question_text` fills one in; `register_question_type`
   adds one (docs/questioner.md, "Adding a question type").
 - `Question` and `QA`: a question for the oracle and what it said.
+- `PROTOCOLS`: how a split's tasks are played: `expert` (each task from the expert's state at its first
+  action, the paper's tables) or `chained` (an episode's tasks in order, each from the state the agent's
+  own actions left: DialFRED's challenge test; `dialfred_sim.chained`).
 - `MAX_QUESTIONS`: how many questions an agent may ask in a row without acting before its episode ends
   with an error.
 - `Observation`: what an agent is given after a reset or a step, whichever path served it (made once
@@ -22,6 +25,7 @@ Everything two packages must agree on is defined here once, and every package im
 - The optional capabilities, each a `Protocol` checked with isinstance: `Listener` (hears answers),
   `ConfusionSource` (action probabilities, for the model-confusion questioner), `MapPainter` (a picture
   of what it knows, for the live view and the GIFs), `Privileged` (told the whole task: the expert),
+  `Continuing` (an agent that keeps what it knows from one chained task to the next: the map performer),
   `PerformerAware` (a questioner that attaches to its performer) and `GapQuestioner` (a questioner that
   may ask given the performer's top-2 gap).
 - `episode_seed`, `scale_pixel`, `top2_gap`: small rules every driver of an episode applies the same way.
@@ -98,6 +102,11 @@ def every_question(nouns) -> list['Question']:
     return [Question(t, n) for n in nouns for t in OBJECT_QUESTION_TYPES] + \
         [Question(t) for t in QUESTION_TYPES if not names_object(t)]
 
+
+# How a split's tasks are played (dialfred_sim.chained): each from the expert's state at its first action
+# (the paper's protocol, the default), or an episode's tasks in order on the agent's own state.
+PROTOCOLS = ('expert', 'chained')
+DEFAULT_PROTOCOL = 'expert'
 
 MAX_QUESTIONS = 20     # in a row, without acting: an agent that asks more is stopped with an error
 # The paper's episode limits: an episode ends after MAX_STEPS actions (truncated) or MAX_FAILURES failed ones.
@@ -258,6 +267,17 @@ class Privileged(Protocol):
 def is_privileged(agent_or_class: Any) -> bool:
     """Whether an agent (or an agent class) is a privileged reference (`Privileged` with True)."""
     return bool(isinstance(agent_or_class, Privileged) and agent_or_class.privileged)
+
+
+@runtime_checkable
+class Continuing(Protocol):
+    """An agent that carries what it knows from one task of a chained episode to the next (the map
+    performer keeps its map, its pose on it and what it holds). Under the chained protocol every task
+    after an episode's first starts with `carry_on` instead of `reset`; an agent without it is reset
+    before every task (the Episodic Transformer starts each with a fresh memory, as it was trained)."""
+
+    def carry_on(self, task: Any, seed: int) -> None:
+        """Start the next task of the episode (a PublicTask) in the world as the last one left it."""
 
 
 @runtime_checkable

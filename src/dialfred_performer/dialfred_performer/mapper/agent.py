@@ -127,10 +127,33 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self.log: list[str] = []
         self.rgb: Optional[np.ndarray] = None           # the frame perceived last
         self.class_prob: Optional[torch.Tensor] = None  # the network's class probabilities of that frame
+        self.carried: Optional[tuple] = None   # a chained task's start: the last task's final decision (carry_on)
 
     def reset(self, task: Any, seed: int = 0) -> None:
         """Start an episode of `task` (a PublicTask: only its instruction is read)."""
         self.reset_state()
+        self._start(task)
+
+    # What a chained episode's next task starts with (carry_on): the map, the pose on it and the frame
+    # last seen, the hand, what the agent opened and where it put things.
+    CARRIED = ('pose', 'map', 'held', 'held_known', 'held_confirmed', 'opened', 'placed', 'rgb', 'class_prob')
+
+    def carry_on(self, task: Any, seed: int = 0) -> None:
+        """The next task of a chained episode (protocol.Continuing): what the agent knows of the room and
+        its hand (`CARRIED`) stays, the plan, the answers and the step's state start anew. The last
+        task's final action is reckoned when the first frame of this one, which reports its outcome,
+        arrives. Without a task before, the same as `reset`."""
+        if self.task is None:
+            self.reset(task, seed)
+            return
+        kept = {name: getattr(self, name) for name in self.CARRIED}
+        last = self.last
+        self.reset_state()
+        self.__dict__.update(kept)
+        self.carried = last
+        self._start(task)
+
+    def _start(self, task: Any) -> None:
         self.task = task
         try:
             self.reading = parse_instruction(task.instruction)

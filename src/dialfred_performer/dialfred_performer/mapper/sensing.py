@@ -38,7 +38,9 @@ class Sensing:
     def _update(self, observation: Observation) -> None:
         before, self.rgb = self.rgb, observation.rgb
         labels, conf, depth = self.sense(observation)
-        if self.step == 0:
+        if self.carried is not None:
+            self._carry_over(observation.last_action_success)
+        elif self.step == 0:
             self.pose.horizon = estimate_horizon(depth, labels == FLOOR)
         else:
             self._dead_reckon(observation.last_action_success)
@@ -68,6 +70,39 @@ class Sensing:
             self.held = wanted[0] if wanted else self._held_in_view()
             self.held_known = True
 
+    def _world_effect(self, action: str, step, success: bool) -> bool:
+        """What the agent's last action did to its pose, its hand and what it opened (`success`: as the
+        observation after it said); True for a move, turn or look, which is all it did."""
+        if action in ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown'):
+            if success:
+                self.pose = self.pose.after(action)
+            elif action == 'MoveAhead':
+                self.map.blocked.add(self.pose.forward())
+            return True
+        if not success:
+            return False
+        if action == 'Pickup':
+            self.held, self.held_confirmed = step.target, True
+            self.placed.pop(step.target, None)
+        elif action == 'Put':
+            if self.held or step.held:
+                self.placed[self.held or step.held] = (step.target, None)
+                self._just_put = self.held or step.held
+            self.held = None
+        elif action == 'Open':
+            self.opened.add(step.target)
+        elif action == 'Close':
+            self.opened.discard(step.target)
+        return False
+
+    def _carry_over(self, success: Optional[bool]) -> None:
+        """The first frame of a chained task (MapAgent.carry_on): the last task's final action, whose
+        outcome this frame reports, moves the pose or changes the hand; nothing of the new plan."""
+        action, step, _ = self.carried
+        self.carried = None
+        if action != 'Stop':
+            self._world_effect(action, step, True if success is None else success)
+
     def _held_in_view(self) -> Optional[str]:
         """The pickupable type seen most (at least 3 cells) where the hand carries an object, if any."""
         seen = Counter(self.labels[self.hand_window() & (self.labels >= STRUCTURE)].tolist())
@@ -91,29 +126,13 @@ class Sensing:
         action, step, point = self.last
         if success is None:
             success = True
-        if action in ('MoveAhead', 'RotateLeft', 'RotateRight', 'LookUp', 'LookDown'):
-            if success:
-                self.pose = self.pose.after(action)
-            elif action == 'MoveAhead':
-                self.map.blocked.add(self.pose.forward())
+        if self._world_effect(action, step, success):
             return
         if success:
             self.step_failures = 0
             if point is not None:
                 self.anchors[step.target] = point
                 self.stand_anchor = (step.target, *point)
-            if action == 'Pickup':
-                self.held, self.held_confirmed = step.target, True
-                self.placed.pop(step.target, None)
-            elif action == 'Put':
-                if self.held or step.held:
-                    self.placed[self.held or step.held] = (step.target, None)
-                    self._just_put = self.held or step.held
-                self.held = None
-            elif action == 'Open':
-                self.opened.add(step.target)
-            elif action == 'Close':
-                self.opened.discard(step.target)
             self._step_done(action)
         else:
             self.step_failures += 1

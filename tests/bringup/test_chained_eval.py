@@ -1,0 +1,116 @@
+"""`launch eval --protocol chained` (DialFRED's challenge test): the expert does every task of every episode,
+an agent that stops at once does none, a run cut off inside an episode resumes by playing that episode again,
+protocols never mix in one results file, and the map performer carries its map from task to task."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
+from dialfred_sim.metrics import ResultsFileError, load_results
+
+STOP_AT_ONCE = '''
+class StopAtOnce:
+    name = 'stop-at-once'
+
+    def __init__(self, resolution=128):
+        pass
+
+    def reset(self, task, seed):
+        pass
+
+    def act(self, observation):
+        return ('Stop', -1, -1)
+'''
+
+
+def chained(tmp_path, name, **settings):
+    return EvalConfig(**{'split': 'valid_unseen', 'local': True, 'workers': 2, 'protocol': 'chained',
+                         'out': tmp_path / f'{name}.jsonl', **settings})
+
+
+def comparable(results) -> list:
+    return [dataclasses.replace(r, wall_s=0.0, code='') for r in results]
+
+
+@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen'])
+def test_the_expert_does_every_task_of_every_chained_episode(tmp_path, split):
+    report = run_eval(chained(tmp_path, split, split=split, agent='expert', limit=120), progress=False)
+    episodes = report.summary['episodes']
+    assert len(report.results) == 120 and episodes['episodes'] >= 20
+    assert report.summary['overall']['SR'] == 100.0 and report.summary['overall']['PWSR'] == 100.0
+    assert episodes['all_succeeded'] == 100.0 and episodes['held_at_start'] == 0
+    assert all(r.protocol == 'chained' and r.episode_id and r.end_reason == 'success' for r in report.results)
+    assert json.loads(report.run.summary_path.read_text())['protocol'] == 'chained'
+
+
+def test_an_agent_that_stops_at_once_scores_nothing(tmp_path, monkeypatch):
+    (tmp_path / 'my_stop.py').write_text(STOP_AT_ONCE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    report = run_eval(chained(tmp_path, 'stop', agent='my_stop:StopAtOnce', limit=40), progress=False)
+    row = report.summary['overall']
+    assert row['n'] == 40 and row['SR'] == 0.0 and row['PWSR'] == 0.0 and row['GC'] == 0.0
+    assert report.summary['episodes']['all_succeeded'] == 0.0 and report.summary['episodes']['in_order'] == 0.0
+    assert all(r.steps == 1 and r.end_reason == 'stop' for r in report.results)
+    # "Close the fridge" when the agent never opened it: the goal holds already, and scores as not done
+    held = [r for r in report.results if r.held_at_start]
+    assert held and report.summary['episodes']['held_at_start'] == len(held)
+    assert all(r.goal_conditions_total == 0 and not r.success for r in held)
+    assert {r.task_type for r in held} <= {'Close', 'Turn off', 'Open & Pick & Close', 'Open & Put & Close',
+                                           'Move & Close'}
+
+
+def test_a_chained_run_cut_off_inside_an_episode_plays_it_again_and_writes_only_what_is_missing(tmp_path):
+    whole = run_eval(chained(tmp_path, 'whole', agent='random', resolution=64, limit=14, seed=5), progress=False)
+    out = tmp_path / 'cut.jsonl'
+    cut = chained(tmp_path, 'cut', agent='random', resolution=64, limit=14, seed=5)
+    run_eval(cut, progress=False)
+    lines = out.read_text().splitlines()
+    rows = load_results(out)
+    first_episode = rows[0].episode_id
+    keep = [ln for ln, r in zip(lines, rows) if r.episode_id != first_episode or r.task_id != max(
+        x.task_id for x in rows if x.episode_id == first_episode)]
+    assert len(keep) == len(lines) - 1
+    out.write_text('\n'.join(keep) + '\n')                           # the episode's last task is missing
+    again = run_eval(cut, progress=False)
+    assert again.ran == 1 and len(out.read_text().splitlines()) == len(lines)
+    by_id = {r.task_id: r for r in again.results}
+    assert comparable(by_id[t] for t in sorted(by_id)) == comparable(sorted(whole.results, key=lambda r: r.task_id))
+
+
+def test_protocols_never_mix_in_one_results_file_and_chaining_plays_locally(tmp_path):
+    out = tmp_path / 'expert.jsonl'
+    run_eval(EvalConfig(split='valid_unseen', agent='random', resolution=64, limit=2, local=True, workers=1, out=out),
+             progress=False)
+    with pytest.raises(ResultsFileError, match="'expert' protocol, not 'chained'"):
+        run_eval(chained(tmp_path, 'expert', agent='random', resolution=64, limit=2), progress=False)
+    with pytest.raises(ValueError, match='plays --local'):
+        EvalRun(EvalConfig(split='valid_unseen', agent='random', protocol='chained'))
+    assert EvalRun(chained(tmp_path, 'x', out=None), check=False).results_path.name == 'valid_unseen_expert_chained.jsonl'
+
+
+def test_the_map_performer_carries_its_map_to_the_next_task_and_the_performer_starts_afresh(tmp_path):
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_sim.protocol import Continuing
+    run = EvalRun(chained(tmp_path, 'map', agent='map', limit=1))
+    agent = run.make_performer()
+    assert isinstance(agent, MapAgent) and isinstance(agent, Continuing)
+    assert not isinstance(EvalRun(chained(tmp_path, 'et', agent='et', limit=1)).make_performer(), Continuing)
+    from dialfred_bringup.local import play_chain
+    from dialfred_sim.chained import chain_episodes
+    from dialfred_sim.env import DialfredEnv
+    episode = next(e for e in chain_episodes(enumerate(run.split_tasks()[:12])) if len(e.tasks) >= 2)
+    env = DialfredEnv(resolution=run.options.resolution)
+    maps, plans = [], []
+    try:
+        for k, _, state in play_chain(run, env, agent, None, dataclasses.replace(episode, tasks=episode.tasks[:2])):
+            maps.append(agent.map)
+            plans.append(agent.reading)
+            assert state.end_reason in ('success', 'stop', 'max_failures', 'max_steps')
+    finally:
+        env.close()
+    assert maps[0] is maps[1] and plans[0] is not plans[1]
+    assert len(maps[1].visited) >= 1
