@@ -374,3 +374,12 @@ def test_cpu_arithmetic_refuses_an_unknown_mode():
     proc = subprocess.run([sys.executable, str(REPO / 'benchmarks' / 'cpu_arithmetic.py'), '--modes', 'fast'],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and 'unknown mode' in proc.stderr
+
+
+@pytest.mark.slow   # a benchmark script end to end; the chained protocol has fast tests of its own
+def test_chained_cost_plays_both_protocols_and_reports_their_ratio():
+    report = run_bench('chained_cost', '--limit', '12', '--agents', 'expert', '--workers', '1')
+    row = report['agents']['expert']
+    assert row['expert']['SR'] == 100.0 and row['chained']['SR'] == 100.0
+    assert row['chained']['actions_per_task'] >= row['expert']['actions_per_task']    # the stretch and a Stop
+    assert row['ratio_chained_over_expert']['s_per_task'] > 0

@@ -38,13 +38,32 @@ def comparable(results) -> list:
 
 @pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen'])
 def test_the_expert_does_every_task_of_every_chained_episode(tmp_path, split):
-    report = run_eval(chained(tmp_path, split, split=split, agent='expert', limit=120), progress=False)
+    report = run_eval(chained(tmp_path, split, split=split, agent='expert', limit=50), progress=False)
+    expert_did_everything(report, 50)
+
+
+def expert_did_everything(report, tasks: int) -> None:
     episodes = report.summary['episodes']
-    assert len(report.results) == 120 and episodes['episodes'] >= 20
+    assert len(report.results) == tasks and episodes['episodes'] >= tasks / 16
     assert report.summary['overall']['SR'] == 100.0 and report.summary['overall']['PWSR'] == 100.0
     assert episodes['all_succeeded'] == 100.0 and episodes['held_at_start'] == 0
     assert all(r.protocol == 'chained' and r.episode_id and r.end_reason == 'success' for r in report.results)
     assert json.loads(report.run.summary_path.read_text())['protocol'] == 'chained'
+
+
+@pytest.mark.slow      # 4.5 min on 2 cores: every task of both validation splits, train's first 3,000, a sealed split
+@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', 'train', 'test_unseen'])
+def test_the_expert_does_every_task_of_whole_splits_chained(tmp_path, split):
+    settings = dict(split=split, agent='expert')
+    if split == 'train':
+        settings['limit'] = 3000
+    if split == 'test_unseen':      # a sealed split of a seed of one's own, as docs/tasks.md draws one
+        from dialfred_sim.tasks.splits import write_split
+        path = tmp_path / 'sealed.jsonl.gz'
+        write_split('test_unseen', path, size=300, split_seed=2024, progress=False, workers=2)
+        settings = dict(agent='expert', tasks_file=path, split='valid_unseen')
+    report = run_eval(chained(tmp_path, split, **settings), progress=False)
+    expert_did_everything(report, settings.get('limit') or len(report.run.split_tasks()))
 
 
 def test_an_agent_that_stops_at_once_scores_nothing(tmp_path, monkeypatch):
@@ -81,14 +100,14 @@ def test_a_chained_run_cut_off_inside_an_episode_plays_it_again_and_writes_only_
     assert comparable(by_id[t] for t in sorted(by_id)) == comparable(sorted(whole.results, key=lambda r: r.task_id))
 
 
-def test_protocols_never_mix_in_one_results_file_and_chaining_plays_locally(tmp_path):
+def test_protocols_never_mix_in_one_results_file(tmp_path):
     out = tmp_path / 'expert.jsonl'
     run_eval(EvalConfig(split='valid_unseen', agent='random', resolution=64, limit=2, local=True, workers=1, out=out),
              progress=False)
     with pytest.raises(ResultsFileError, match="'expert' protocol, not 'chained'"):
         run_eval(chained(tmp_path, 'expert', agent='random', resolution=64, limit=2), progress=False)
-    with pytest.raises(ValueError, match='plays --local'):
-        EvalRun(EvalConfig(split='valid_unseen', agent='random', protocol='chained'))
+    with pytest.raises(ValueError, match='--agent et'):
+        EvalRun(EvalConfig(split='valid_unseen', performer='et', protocol='chained'))
     assert EvalRun(chained(tmp_path, 'x', out=None), check=False).results_path.name == 'valid_unseen_expert_chained.jsonl'
 
 
@@ -106,7 +125,7 @@ def test_the_map_performer_carries_its_map_to_the_next_task_and_the_performer_st
     env = DialfredEnv(resolution=run.options.resolution)
     maps, plans = [], []
     try:
-        for k, _, state in play_chain(run, env, agent, None, dataclasses.replace(episode, tasks=episode.tasks[:2])):
+        for _, _, state in play_chain(run, env, agent, None, dataclasses.replace(episode, tasks=episode.tasks[:2])):
             maps.append(agent.map)
             plans.append(agent.reading)
             assert state.end_reason in ('success', 'stop', 'max_failures', 'max_steps')
@@ -114,3 +133,24 @@ def test_the_map_performer_carries_its_map_to_the_next_task_and_the_performer_st
         env.close()
     assert maps[0] is maps[1] and plans[0] is not plans[1]
     assert len(maps[1].visited) >= 1
+
+
+GRAPH_CASES = {
+    'random agent, random QA': dict(agent='random', questioner='random', resolution=64, limit=56),
+    'map performer, all QAs': dict(agent='map', questioner='all', limit=56),
+    'performer, RL anytime at every step': dict(agent='et', questioner='rl-anytime-1', limit=56),
+}
+
+
+@pytest.mark.parametrize('case', [pytest.param(c, marks=[] if c.startswith('random') else pytest.mark.slow)
+                                  for c in GRAPH_CASES])
+def test_the_same_chained_episodes_locally_and_through_the_graph(tmp_path, case):
+    """At least 10 episodes: the simulator node goes on from task to task (carry_on), the oracle node answers
+    about the current task, and every field but wall_s is the local path's."""
+    settings = GRAPH_CASES[case]
+    graph = run_eval(chained(tmp_path, 'graph', local=False, **settings), progress=False)
+    local = run_eval(chained(tmp_path, 'local', **settings), progress=False)
+    assert graph.summary['episodes']['episodes'] >= 10
+    assert comparable(graph.results) == comparable(local.results)
+    assert sum(r.questions for r in local.results) > 0
+    assert graph.to_json()['through'] == 'in-process agent'

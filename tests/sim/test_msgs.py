@@ -115,7 +115,7 @@ def test_field_types_are_enforced_when_checking_is_on():
 def test_services_have_the_documented_request_and_response():
     assert SimReset.Request.get_fields_and_field_types() == {
         'scene': 'string', 'seed': 'int64', 'task_id': 'string', 'with_depth': 'boolean',
-        'with_segmentation': 'boolean'}
+        'with_segmentation': 'boolean', 'protocol': 'string', 'carry_on': 'boolean'}
     assert SimReset.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'observation': 'dialfred_msgs/Observation',
         'task': 'dialfred_msgs/TaskDescription', 'goal_conditions_total': 'uint32'}

@@ -7,6 +7,7 @@ table from them). What follows from them (the agent, the names of the results, t
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -143,3 +144,14 @@ def default_resolution(config: EvalConfig) -> int:
         return camera_resolution(model, checkpoint_path(config))
     except (FileNotFoundError, ValueError):
         return DEFAULT_RESOLUTION
+
+
+# Options added after runs were stamped with their configs, at the value that plays as before: left out of
+# `config_inputs`, so that a run stamped before them is not stale.
+LATER_DEFAULTS = {'protocol': DEFAULT_PROTOCOL}
+
+
+def config_inputs(config: EvalConfig) -> dict:
+    """The options of `config` as a stage's inputs (reproduce/stages.py): every field, but those of
+    LATER_DEFAULTS at their default."""
+    return {k: v for k, v in dataclasses.asdict(config).items() if not (k in LATER_DEFAULTS and v == LATER_DEFAULTS[k])}

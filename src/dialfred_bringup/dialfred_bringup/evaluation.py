@@ -40,6 +40,7 @@ from dialfred_sim.dataclass_cli import add_fields, from_args
 from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, git_commit, load_results,
                                   played_at, results_by_task, results_lock, summarize, write_text_atomically)
 from dialfred_sim.tasks.goals import under_rule
+from dialfred_sim.traces import append_trace
 
 from .eval_config import EvalConfig
 from .eval_run import EvalRun
@@ -268,6 +269,8 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None)
             if result.task_id in done:       # a replayed chained episode's task that the file holds
                 return
             result = dataclasses.replace(result, code=code)
+            if result.trace is not None:     # first: a results line never lacks its trace
+                append_trace(run.results_path, result.task_id, result.trace)
             append_result(run.results_path, result)
             done[result.task_id] = result
             ran += 1

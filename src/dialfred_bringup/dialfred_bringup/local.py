@@ -34,6 +34,7 @@ from dialfred_sim.metrics import dialogue_entry
 from dialfred_sim.metrics import episode_result as result_line
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.protocol import episode_seed, is_privileged
+from dialfred_sim.traces import make_trace
 
 from .silent import SeenBeforeActions, SilentEpisodes, replayable, silent_key, silent_throughout
 
@@ -124,7 +125,8 @@ def state_result(run, task, agent, state, wall_s: float, expert_length=None):
     `expert_length`: a chained task's reference length (chained.reference_length)."""
     return result_line(task, state, [dialogue_entry(qa.question.question_type, qa.question.object_noun, bool(qa.valid),
                                                     qa.answer) for qa in state.dialogue],
-                       wall_s=wall_s, privileged=is_privileged(agent), expert_length=expert_length, **run.identity)
+                       wall_s=wall_s, privileged=is_privileged(agent), expert_length=expert_length,
+                       trace=make_trace(state.actions, state.asked_at), **run.identity)
 
 
 def play_local(run, jobs: list, on_result: Callable, silent: Optional[tuple[str, Path]] = None) -> int:

@@ -40,7 +40,7 @@ from dialfred_questioner.baselines import QuestioningAgent
 from dialfred_sim.episode import EpisodeObserver, EpisodeState
 from dialfred_sim.protocol import GapQuestioner, Observation, PerformerAware
 
-FORMAT = 'dialfred-silent/1'
+FORMAT = 'dialfred-silent/2'    # 2: the episode's state keeps its actions and question steps (traces)
 SMALL_FIELDS = ('pose', 'held_object', 'last_action_success', 'last_action_error', 'step_count', 'failed_actions')
 
 

@@ -21,6 +21,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from dialfred_sim.agents import task_view
 from dialfred_sim.bag import RecordingObserver
+from dialfred_sim.chained import ChainedEpisode, expert_reference, reference_length
 from dialfred_sim.episode import Ask, EpisodeObserver, Failed, Reset, play
 from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
 from dialfred_sim.protocol import MapPainter, episode_seed, image_array
@@ -35,7 +36,10 @@ class SimWorker(EpisodeObserver):
     request in flight: the episode loop (`dialfred_sim.episode.play`) driven by asynchronous service
     calls. `begin` starts an episode; `advance` hands the reply that arrived to the loop and either sends
     its next request or returns the episode's EpisodeResult. With `oracle`, the agent's questions go to
-    the oracle node of the same namespace before it acts."""
+    the oracle node of the same namespace before it acts. `begin_chain` plays a chained episode
+    (dialfred_sim.chained): its tasks one after the other on the same simulator, each later one going on
+    from the world the last left (`carry_on` in /sim/reset); `advance` returns each task's result as it
+    ends, and the worker stays busy until the episode's last has."""
 
     def __init__(self, graph: Graph, namespace: str, agent, run, oracle: bool = False):
         # lazy: the ROS messages, which the rest of this module does without
@@ -50,6 +54,7 @@ class SimWorker(EpisodeObserver):
         self.sent_at = 0.0
         self.task = None
         self.pending = ''      # what the request in flight is: 'reset', 'step' or 'question'
+        self.chain, self.link = None, 0     # a chained episode being played, and the task of it now
         self.traces = collections.defaultdict(list)   # task id -> the actions sent, (name, x, y)
 
     @property
@@ -57,7 +62,22 @@ class SimWorker(EpisodeObserver):
         return self.future is not None
 
     def begin(self, index: int, task) -> None:
-        self.job = (index, task)
+        self.job, self.chain = (index, task), None
+        self._start(index, task, task, carry_on=False)
+
+    def begin_chain(self, episode) -> None:
+        """Play the tasks of a chained episode (dialfred_sim.chained.ChainedEpisode) in order."""
+        self.job, self.chain = episode, episode
+        self._start_link(0)
+
+    def _start_link(self, k: int) -> None:
+        tasks = [t for _, t in self.chain.tasks]
+        self.link = k
+        index, task = self.chain.tasks[k]
+        self._start(index, task, expert_reference(tasks, k), carry_on=k > 0)
+
+    def _start(self, index: int, task, reference, carry_on: bool) -> None:
+        """Start the episode loop of `task`; the expert is told `reference` (its chained stretch)."""
         self.task = task
         self.started_at = time.monotonic()
         observers = [self]
@@ -69,8 +89,9 @@ class SimWorker(EpisodeObserver):
         if self.live is not None:
             self.live.begin(task)
         self.episode = play(self.agent, seed=episode_seed(self.run.options.seed, index),
-                            told=task_view(self.agent, task),      # the public view, unless privileged
-                            asks=self.ask_cli is not None, max_questions=self.run.options.max_questions, observers=observers)
+                            told=task_view(self.agent, reference),      # the public view, unless privileged
+                            asks=self.ask_cli is not None, max_questions=self.run.options.max_questions,
+                            observers=observers, carry_on=carry_on)
         self._request(next(self.episode))
 
     def overdue(self) -> bool:
@@ -97,7 +118,10 @@ class SimWorker(EpisodeObserver):
         try:
             self._request(self.episode.send(reply))
         except StopIteration as stop:
-            return self._result(stop.value)
+            result = self._result(stop.value)
+            if self.chain is not None and self.link + 1 < len(self.chain.tasks):
+                self._start_link(self.link + 1)      # still busy: the episode's next task
+            return result
         return None
 
     def _request(self, request) -> None:
@@ -106,8 +130,9 @@ class SimWorker(EpisodeObserver):
         # lazy: the ROS messages, which the rest of this module does without
         from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
         if isinstance(request, Reset):
+            chained = {'protocol': 'chained', 'carry_on': self.link > 0} if self.chain is not None else {}
             self._send(self.reset_cli, SimReset.Request(task_id=self.task.task_id, with_depth=False,
-                                                        with_segmentation=False), 'reset')
+                                                        with_segmentation=False, **chained), 'reset')
         elif isinstance(request, Ask):
             self.asking = request.question
             self._send(self.ask_cli, OracleAnswer.Request(question_type=request.question.question_type,
@@ -149,7 +174,9 @@ class SimWorker(EpisodeObserver):
         return True
 
     def _result(self, state):
-        return state_result(self.run, self.task, self.agent, state, time.monotonic() - self.started_at)
+        length = reference_length([t for _, t in self.chain.tasks], self.link) if self.chain is not None else None
+        return state_result(self.run, self.task, self.agent, state, time.monotonic() - self.started_at,
+                            expert_length=length)
 
 
 class PerformerWorker:
@@ -269,8 +296,16 @@ class PerformerWorker:
                               **self.run.identity)
 
 
+def begin(worker, job) -> None:
+    """Start `job` on `worker`: an (index, task), or a chained episode (SimWorker.begin_chain)."""
+    if isinstance(job, ChainedEpisode):
+        worker.begin_chain(job)
+    else:
+        worker.begin(*job)
+
+
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor=None) -> None:
-    """Play every (index, task) of `jobs` on the workers, each keeping one request in flight, and
+    """Play every (index, task) of `jobs` (or chained episodes, SimWorker.begin_chain) on the workers, each keeping one request in flight, and
     call `on_result(result)` as each episode ends (in the order they end).
 
     With a `supervisor` (a Supervisor), a worker whose node died or stopped answering has its nodes
@@ -279,11 +314,11 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor
     queue = collections.deque(jobs)
     for w in workers:
         if queue:
-            w.begin(*queue.popleft())
+            begin(w, queue.popleft())
     while any(w.busy for w in workers) or (supervisor is not None and queue):
         for w in workers:
             if not w.busy and queue:
-                w.begin(*queue.popleft())
+                begin(w, queue.popleft())
         try:
             graph.spin_until_any([w.future for w in workers if w.busy])
         except NodeDied:
@@ -300,8 +335,8 @@ def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor
                         w.live.result(result)
                     if supervisor is not None:
                         supervisor.finished(w.namespace)
-                    if queue:
-                        w.begin(*queue.popleft())
+                    if queue and not w.busy:        # (a chained episode goes on with its next task)
+                        begin(w, queue.popleft())
             elif w.busy and w.resend_if_lost():
                 continue
             elif w.busy and w.overdue():
@@ -361,8 +396,9 @@ class Supervisor:
                 if w.namespace not in pending:
                     continue
                 if w.job is not None and w.busy:
-                    queue.appendleft(w.job)
-                    w.traces.pop(w.job[1].task_id, None)      # the replay traces it afresh
+                    queue.appendleft(w.job)         # a chained episode is played again from its first task
+                    for task_id in (w.job.task_ids if isinstance(w.job, ChainedEpisode) else [w.job[1].task_id]):
+                        w.traces.pop(task_id, None)      # the replay traces it afresh
                 w.close()
                 self._restart(w.namespace, reason)
             try:
@@ -376,7 +412,7 @@ class Supervisor:
                 reason = ''
         for w in workers:
             if not w.busy and queue:
-                w.begin(*queue.popleft())
+                begin(w, queue.popleft())
 
     def _restart(self, namespace: str, reason: str) -> None:
         nodes = self.nodes_of[namespace]

@@ -161,6 +161,9 @@ class DialfredEnv(gym.Env):
                              f'plays {self.task.split}/{self.task.episode.episode_id}')
         self.task = under_rule(task, self.goal_rule)
         self.steps, self.failures, self.done = 0, 0, False
+        # The same pixels, drawn again: a new frame is a new state to whoever caches the ground truth by
+        # frame (ground_truth.GroundTruthCache: the simulator node's, whose answer key follows the task).
+        self._frame = self.world.render()
         self._start_goal()
         return self._observation(), self._info()
 

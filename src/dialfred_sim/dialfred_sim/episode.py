@@ -101,6 +101,8 @@ class EpisodeState:
     questions: int = 0
     invalid_questions: int = 0
     dialogue: list[QA] = field(default_factory=list)
+    asked_at: list[int] = field(default_factory=list)     # per QA of `dialogue`: the actions taken before it
+    actions: list[tuple[str, int, int]] = field(default_factory=list)   # every action sent, with its pixel
     last_action: str = ''
     last_error: str = ''
     success: bool = False
@@ -177,12 +179,14 @@ def play(agent, *, seed: int, told: Any = None, asks: bool = True, max_questions
             state.questions += 1
             state.invalid_questions += not qa.valid
             state.dialogue.append(qa)
+            state.asked_at.append(int(current.step_count))
             for o in observers:
                 o.on_question(state, qa, int(current.step_count))
             agent.hear(qa)
         name, x, y = agent.act(current.observation)
         x, y = int(x), int(y)
         state.last_action = name
+        state.actions.append((name, x, y))
         for o in observers:
             o.on_action(state, name, x, y)
         reply = yield Step(name, x, y)

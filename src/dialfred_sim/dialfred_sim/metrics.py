@@ -74,6 +74,8 @@ class EpisodeResult:
     protocol: str = DEFAULT_PROTOCOL   # how it was played: 'expert' (from the expert's state) or 'chained'
     episode_id: str = ''               # chained: the episode (split/episode) whose tasks were played in order
     held_at_start: bool = False        # chained: its whole goal held when it began (scored as not done)
+    # Not in the line: how the episode got there (traces.make_trace), which a run writes to its trace file.
+    trace: Optional[dict] = field(default=None, compare=False, repr=False)
 
     def __post_init__(self):
         if self.end_reason not in END_REASONS:
@@ -111,6 +113,7 @@ class EpisodeResult:
         """One line of JSON (no newline); a line of the expert protocol leaves out the chained fields, as it
         was written before they existed."""
         data = asdict(self)
+        del data['trace']
         if self.protocol == DEFAULT_PROTOCOL:
             for name in CHAINED_FIELDS:
                 del data[name]
@@ -125,7 +128,7 @@ class EpisodeResult:
             raise ValueError(f'not a JSON episode result ({exc.msg} at column {exc.colno}): {line[:80]!r}') from None
         if not isinstance(data, dict):
             raise ValueError(f'an episode result must be a JSON object, got {type(data).__name__}')
-        known = {f.name: f for f in fields(cls)}
+        known = {f.name: f for f in fields(cls) if f.name != 'trace'}
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise ValueError(f'unknown episode result fields {unknown}')
@@ -151,12 +154,13 @@ OUTCOME_FIELDS = ('success', 'goal_conditions_met', 'goal_conditions_total', 'st
 
 def episode_result(task, outcome, dialogue: list, *, agent: str, oracle: str, seed: int, goal_rule: str,
                    wall_s: float, privileged: bool = False, protocol: str = DEFAULT_PROTOCOL,
-                   expert_length: Optional[int] = None) -> EpisodeResult:
+                   expert_length: Optional[int] = None, trace: Optional[dict] = None) -> EpisodeResult:
     """The results line of `task`'s episode, whichever way it was played: `outcome` has OUTCOME_FIELDS (the
     episode loop's EpisodeState, a RunTask result, ...), `dialogue` its questions as dialogue_entry dicts; the
     run's identity (agent, oracle, seed, goal rule, protocol) and the episode's wall time. Under the chained
     protocol `expert_length` is the task's chained reference (chained.reference_length), and a task that
-    had no goal condition left to do when it began is marked held at start."""
+    had no goal condition left to do when it began is marked held at start. `trace`: the episode's actions
+    and question steps (traces.make_trace), carried with the result to the trace file."""
     o = {k: getattr(outcome, k) for k in OUTCOME_FIELDS}
     chained = {}
     if protocol != DEFAULT_PROTOCOL:
@@ -169,7 +173,7 @@ def episode_result(task, outcome, dialogue: list, *, agent: str, oracle: str, se
         questions=int(o['questions']),
         invalid_questions=int(o['invalid_questions']), failed_actions=int(o['failed_actions']),
         end_reason=o['end_reason'], error=o['error'], agent=agent, oracle=oracle, seed=seed, wall_s=round(wall_s, 4),
-        goal_rule=goal_rule, privileged=bool(privileged), dialogue=list(dialogue))
+        goal_rule=goal_rule, privileged=bool(privileged), dialogue=list(dialogue), trace=trace)
 
 
 def has_goto(task_type: str) -> bool:

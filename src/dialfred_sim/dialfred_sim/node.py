@@ -23,7 +23,7 @@ from .tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from .tasks.split_files import read_tasks_file, resolve_task
 from .world.rooms import GRID
 from .world.camera import CAMERA_HEIGHT
-from .protocol import MAX_FAILURES, MAX_STEPS, fill_image, image_bytes
+from .protocol import DEFAULT_PROTOCOL, MAX_FAILURES, MAX_STEPS, fill_image, image_bytes
 from .ros_util import SERVICE_QOS, Param, declare_parameters, error_reply, run_node
 
 # Observations: every one matters to a recorder, only the newest to a controller.
@@ -134,7 +134,14 @@ class SimNode(Node):
     def _reset_to_task(self, request: SimReset.Request, response: SimReset.Response) -> SimReset.Response:
         try:
             task = resolve_task(request.task_id, self.tasks_file)
-            self.obs, self.info = self.env.reset(options={'task': task})
+            if request.carry_on:
+                if request.protocol != 'chained':
+                    raise ValueError("carry_on goes on to the next task of a chained episode: protocol 'chained'")
+                self.obs, self.info = self.env.continue_task(task)
+            elif request.protocol in ('', DEFAULT_PROTOCOL):
+                self.obs, self.info = self.env.reset(options={'task': task})
+            else:
+                self.obs, self.info = self.env.reset(options={'task': task, 'protocol': request.protocol})
         except (ValueError, FileNotFoundError) as exc:
             response.ok, response.error = False, str(exc)
             return response

@@ -29,6 +29,7 @@ from dialfred_sim.metrics import write_text_atomically, same_episode
 from dialfred_sim.tasks import load_split
 
 from ..baseline_runs import run_baseline
+from ..eval_config import config_inputs
 from ..evaluation import EvalRun, resumable_results
 from ..machine import machine, speed_probe
 from ..paths import REPO
@@ -430,7 +431,7 @@ class Runner:
             questioner = s.questioner
             if questioner.startswith('rl:'):
                 questioner = file_sha256(p.questioner_checkpoint(questioner[3:]))
-            inputs = {'setting': dataclasses.asdict(s), 'config': dataclasses.asdict(config), 'performer': performer,
+            inputs = {'setting': dataclasses.asdict(s), 'config': config_inputs(config), 'performer': performer,
                       'questioner': questioner}
             # the results file and its companions (summary, runs, lock, tasks record): <split>_<key>.*
             outputs = sorted(p.eval_dir.glob(f'{s.split}_{s.key}.*'))
