@@ -112,6 +112,10 @@ def test_the_doc_has_every_table_row_and_the_plot(first):
     assert '## Beyond the paper: the map-and-plan performer' in doc
     for name, *_ in reproduce.MAP_ROWS.values():
         assert f'\n| {name} | 8 |' in doc
+    chained = doc[doc.index("## DialFRED's challenge test"):doc.index('## What RL optimizes')]
+    rows = [line for line in chained.splitlines() if line.startswith(('| Episodic Transformer |', '| map-and-plan |'))]
+    assert len([r for r in rows if r.split(' | ')[2] == '8']) == len(reproduce.chained_settings())
+    assert '| overall |' in chained                                   # the tasks lost to chaining, per type
     assert 'no results' not in doc and 'not recorded' not in doc
     assert doc.count('**holds**') + doc.count('**does not hold**') >= 8
     png = out / 'sr_nq.png'

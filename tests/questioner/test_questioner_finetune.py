@@ -16,7 +16,8 @@ import json
 import pytest
 import torch
 
-from dialfred_questioner.finetune import FinetuneConfig, episode_plan, finetune, rollout_chunks
+from dialfred_questioner.finetune import (FinetuneConfig, chained_episodes, chained_plan, episode_plan, finetune,
+                                         rollout_chunks)
 from dialfred_questioner.frames import build_first_frames
 from dialfred_questioner.model import QuestionerConfig
 from dialfred_questioner.policy import LearnedQuestioner
@@ -117,6 +118,31 @@ def test_the_questioner_fine_tunes_against_the_map_performer_too(setup, tmp_path
     line = json.loads((tmp_path / 'map' / 'metrics.jsonl').read_text())
     assert line['episodes'] == 4 and line['decisions'] >= 4
     assert not same(final['state_dict'], weights(setup[0]))
+
+
+def test_a_chained_run_plays_whole_episodes_from_the_performers_own_state(setup, tmp_path):
+    cfg = config(setup, tmp_path / 'chained', protocol='chained', updates=2)
+    finetune(cfg)
+    lines = [json.loads(l) for l in (tmp_path / 'chained' / 'metrics.jsonl').read_text().splitlines()]
+    sizes = [len(e.tasks) for e in chained_episodes(cfg)]
+    for update, line in enumerate(lines):
+        played = chained_plan(sizes, update, cfg.episodes_per_update, cfg.seed, cfg.samples_per_task)
+        assert line['episodes'] == sum(sizes[e] for e, _, _ in played) >= cfg.episodes_per_update
+    assert not same(weights(tmp_path / 'chained' / 'final.pt'), weights(setup[0]))
+
+
+def test_the_chained_plan_takes_each_episode_once_per_pass_in_whole_episodes():
+    sizes = [3, 5, 2, 6, 4, 3, 5, 2]
+    taken = [chained_plan(sizes, u, 8, 0, 2) for u in range(12)]
+    for played in taken:
+        episodes = [e for e, _, _ in played]
+        assert all(episodes[j] == episodes[j + 1] for j in range(0, len(episodes), 2))     # each played twice
+        assert played[0][1] == played[1][1] and played[0][2] != played[1][2]   # same starts, other sampling
+        assert 4 <= sum(sizes[e] for e in episodes[::2]) < 4 + max(sizes)
+    stream = [e for played in taken for e, _, _ in played[::2]]
+    first_pass = stream[:len(sizes)]
+    assert sorted(first_pass) == list(range(len(sizes)))
+    assert chained_plan(sizes, 5, 8, 0, 2) == taken[5]                 # a pure function of the update
 
 
 def test_the_episode_plan_visits_every_task_once_per_pass():

@@ -1,6 +1,8 @@
 """Why the episodes of a results file failed: each failure sorted by how it ended and what its last
 failed action was told, the distances of the out-of-reach interactions, and the task types they
-come from. Prints JSON (the diagnosis a performer change should start from).
+come from; for a chained run, also the 10 most common ways its episodes go wrong (each episode's first
+failed task: its type, how it ended, and which task of the episode it was). Prints JSON (the diagnosis a
+performer change should start from).
 
     ./dialfred env python -m dialfred_bringup.failures out/eval/valid_unseen_et_all.jsonl [--examples 3]
 """
@@ -43,18 +45,51 @@ class FailuresConfig:
     examples: int = arg(3, 'task ids listed per kind of failure')
 
 
+def failure_kind(r) -> tuple[str, str]:
+    """(how a failed task ended, its last failed action's error as a kind); a chained task whose goal held at
+    its start is a kind of its own ('held at start': scored as not done whatever the agent did)."""
+    if r.held_at_start:
+        return ('held at start', '')
+    return (r.end_reason, kind_of(r.error))
+
+
+def episode_failures(results: list, top: int = 10, examples: int = 3) -> list[dict]:
+    """How the chained episodes of `results` go wrong: each episode's first failed task (in the order its tasks
+    were played), by its task type and failure_kind, the `top` most common."""
+    by_episode: dict[str, list] = collections.defaultdict(list)
+    for r in results:
+        by_episode[r.episode_id].append(r)
+    kinds: dict[tuple, list] = collections.defaultdict(list)
+    for rows in by_episode.values():
+        rows.sort(key=lambda r: r.task_id)
+        first = next((k for k, r in enumerate(rows) if not r.success), None)
+        if first is not None:
+            r = rows[first]
+            kinds[(r.task_type, *failure_kind(r), first + 1)].append(r)
+    ranked = sorted(kinds.items(), key=lambda kv: (-len(kv[1]), kv[0]))[:top]
+    return [{'task_type': t, 'end_reason': end, 'last_error': kind or '(no failed action)', 'task_in_episode': k,
+             'episodes': len(rs), 'share_of_episodes': round(len(rs) / len(by_episode), 3),
+             'examples': [r.task_id for r in rs[:examples]]} for (t, end, kind, k), rs in ranked]
+
+
 def breakdown(path: Path, examples: int = 3) -> dict:
     results = load_results(path, skip_bad=True)
     if not results:
         raise ValueError(f'{path}: no results')
+    return breakdown_of(results, str(path), examples)
+
+
+def breakdown_of(results: list, name: str, examples: int = 3) -> dict:
+    """`breakdown` of results in hand; a chained run's also says how its episodes go wrong."""
     failed = [r for r in results if not r.success]
     kinds: dict[tuple, list] = collections.defaultdict(list)
     for r in failed:
-        kinds[(r.end_reason, kind_of(r.error))].append(r)
+        kinds[failure_kind(r)].append(r)
     distances = np.array([float(m.group(1)) for r in failed if (m := _DISTANCE.search(r.error or ''))])
     reach = [r for r in failed if 'out of reach' in (r.error or '')]
+    chained = any(r.protocol == 'chained' for r in results)
     return {
-        'results': str(path), 'episodes': len(results), 'failed': len(failed),
+        'results': name, 'episodes': len(results), 'failed': len(failed),
         'by_end_and_last_error': [
             {'end_reason': end, 'last_error': kind or '(no failed action)', 'episodes': len(rs),
              'share_of_failures': round(len(rs) / len(failed), 3),
@@ -67,6 +102,7 @@ def breakdown(path: Path, examples: int = 3) -> dict:
             'within_0.25_m_of_reach': round(float((distances < 1.75).mean()), 3) if len(distances) else None,
             'task_types': dict(collections.Counter(r.task_type for r in reach).most_common(8)),
         },
+        **({'chained_episodes_go_wrong': episode_failures(results, examples=examples)} if chained else {}),
     }
 
 

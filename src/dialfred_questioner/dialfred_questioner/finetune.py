@@ -49,7 +49,8 @@ from dialfred_performer.model_registry import PERFORMER_MODELS, camera_resolutio
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.processes import worker_pool
-from dialfred_sim.protocol import MAX_STEPS
+from dialfred_sim.chained import chain_episodes
+from dialfred_sim.protocol import MAX_STEPS, PROTOCOLS
 from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
 from dialfred_sim.tasks import load_split
 
@@ -57,7 +58,7 @@ from .checkpoint import resume_training, save
 from .model import Questioner
 from .policy import LearnedQuestioner, score_records
 from .rl import Rewards, actor_critic_loss, discounted_returns, group_baseline
-from .rollout import TIMINGS, Timing, play_rollout
+from .rollout import TIMINGS, Timing, play_chained_rollout, play_rollout
 
 MODULE = 'dialfred_questioner.finetune'
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -98,6 +99,10 @@ class FinetuneConfig:
                              "performer's training resolution, 128 px for the map performer)")
     max_steps: int = arg(MAX_STEPS, 'performer steps before an episode is cut off (the evaluation\'s limit)')
     limit: int = arg(0, 'only the first N tasks of the split (0: all)')
+    protocol: str = arg('expert', "how the tasks are played (dialfred_sim.chained): expert = each from the expert's "
+                        "state; chained = an episode's tasks in order on the state the performer's own actions left "
+                        '(an update then plays whole episodes until they hold episodes_per_update / samples_per_task '
+                        'tasks, each episode samples_per_task times)', choices=PROTOCOLS)
     workers: int = arg(2, 'rollout processes')
     seed: int = arg(0, 'seeds the task order, the episodes and the sampling')
     resume: bool = arg(False, 'continue from out/last.pt (same config required)')
@@ -130,6 +135,8 @@ class FinetuneConfig:
             raise ValueError(f'lr must be a positive number, got {self.lr}')
         if not 0.0 < self.gamma <= 1.0:
             raise ValueError(f'gamma must be in (0, 1], got {self.gamma}')
+        if self.protocol not in PROTOCOLS:
+            raise ValueError(f'protocol must be one of {", ".join(PROTOCOLS)}, got {self.protocol!r}')
 
     @property
     def timing_of(self) -> Timing:
@@ -152,6 +159,35 @@ def episode_plan(n_tasks: int, update: int, per_update: int, seed: int, samples:
     return out
 
 
+def chained_plan(sizes: list[int], update: int, per_update: int, seed: int, samples: int = 1) -> list[tuple]:
+    """(chained episode index, its tasks' episode seeds, sampling seed) of each rollout of update `update` under
+    the chained protocol: the episodes (of `sizes` tasks each) in a shuffled order per pass (seeded by `seed` and
+    the pass), each update taking them in turn from where the last one stopped until they hold at least
+    per_update // samples tasks, each played `samples` times from the same start with different sampling seeds."""
+    per = max(1, per_update // samples)
+    orders: dict = {}
+
+    def at(k: int) -> int:
+        epoch, pos = divmod(k, len(sizes))
+        if epoch not in orders:
+            orders[epoch] = list(range(len(sizes)))
+            random.Random(f'{seed}/chained-pass{epoch}').shuffle(orders[epoch])
+        return orders[epoch][pos]
+
+    k = 0
+    for _ in range(update + 1):
+        taken, tasks = [], 0
+        while tasks < per:
+            taken.append((k, at(k)))
+            tasks += sizes[at(k)]
+            k += 1
+    out = []
+    for k, e in taken:
+        starts = [int(np.random.SeedSequence([seed, k, j]).generate_state(1)[0]) for j in range(sizes[e])]
+        out += [(e, starts, int(np.random.SeedSequence([seed, k, 1000 + j]).generate_state(1)[0])) for j in range(samples)]
+    return out
+
+
 # ---------------------------------------------------------------------- rollout workers
 
 _W: dict = {}
@@ -167,28 +203,57 @@ def _init_worker(cfg_json: str) -> None:
     _W['policy'] = LearnedQuestioner.from_checkpoint(Path(cfg.init), greedy=False, timing=cfg.timing_of)
     _W['policy'].reads_dialogue = cfg.dialogue
     _W['tasks'] = [t.task_id for t in load_split(cfg.split)][:cfg.limit or None]
+    _W['chained'] = chained_episodes(cfg)
     _W['perturbation'] = (Perturbation(cfg.perturb_type, cfg.perturb_probability, cfg.seed)
                           if cfg.perturb_type else None)
 
 
-def _play_chunk(args: tuple[dict, list[tuple[int, int, int, int]]]) -> list[tuple[int, dict]]:
-    """Play (episode number, task index, episode seed, sampling seed) with the policy's weights `state`."""
+def _play_chunk(args: tuple[dict, list[tuple]]) -> list[tuple[int, dict]]:
+    """Play (episode number, task index, episode seed, sampling seed) with the policy's weights `state`; under
+    the chained protocol (first numbers, chained episode index, its tasks' seeds, sampling seed), one number a task."""
     state, jobs = args
     cfg, policy = _W['cfg'], _W['policy']
     policy.model.load_state_dict(state)
     policy.model.eval()
     out = []
-    for number, task_index, seed, sample_seed in jobs:
+    for number, where, seed, sample_seed in jobs:
         policy.generator.manual_seed(sample_seed)
-        ep = play_rollout(_W['env'], _W['performer'], policy, _W['tasks'][task_index], seed, cfg.timing_of,
-                  REWARDS[cfg.rewards], _W['perturbation'])
-        out.append((number, {
-            'task_id': ep.task_id, 'success': ep.success, 'steps': ep.steps, 'questions': ep.questions,
-            'invalid': ep.invalid_questions, 'rewards': ep.rewards, 'records': [d.record for d in ep.decisions],
-            'asked': [d.question.question_type if d.question else None for d in ep.decisions],
-            'dialogue': [(qa.question.question_type, qa.question.object_noun, qa.valid, qa.answer)
-                         for qa in ep.dialogue]}))
+        if cfg.protocol == 'chained':
+            tasks = [t for _, t in _W['chained'][where].tasks]
+            played = play_chained_rollout(_W['env'], _W['performer'], policy, tasks, seed, cfg.timing_of,
+                                          REWARDS[cfg.rewards], _W['perturbation'])
+        else:
+            played = [play_rollout(_W['env'], _W['performer'], policy, _W['tasks'][where], seed, cfg.timing_of,
+                                   REWARDS[cfg.rewards], _W['perturbation'])]
+        for j, ep in enumerate(played):
+            out.append((number + j, {
+                'task_id': ep.task_id, 'success': ep.success, 'steps': ep.steps, 'questions': ep.questions,
+                'invalid': ep.invalid_questions, 'rewards': ep.rewards, 'records': [d.record for d in ep.decisions],
+                'asked': [d.question.question_type if d.question else None for d in ep.decisions],
+                'dialogue': [(qa.question.question_type, qa.question.object_noun, qa.valid, qa.answer)
+                             for qa in ep.dialogue]}))
     return out
+
+
+def chained_episodes(cfg: FinetuneConfig) -> list:
+    """The chained episodes of the split's (first `limit`) tasks (dialfred_sim.chained)."""
+    return chain_episodes(enumerate(load_split(cfg.split)[:cfg.limit or None]))
+
+
+def update_jobs(cfg: FinetuneConfig, update: int, n_tasks: int, sizes: list[int]) -> tuple[list, list]:
+    """The rollouts of update `update` as jobs for _play_chunk, and each played task's group (the rollouts of
+    the same task from the same start, for the group baseline)."""
+    if cfg.protocol != 'chained':
+        plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed, cfg.samples_per_task)
+        jobs = [(update * cfg.episodes_per_update + k, t, s, z) for k, (t, s, z) in enumerate(plan)]
+        return jobs, [k // cfg.samples_per_task for k in range(len(plan))]
+    jobs, groups, number = [], [], 0
+    for slot, (e, seeds, z) in enumerate(chained_plan(sizes, update, cfg.episodes_per_update, cfg.seed,
+                                                      cfg.samples_per_task)):
+        jobs.append((number, e, seeds, z))
+        groups += [(slot // cfg.samples_per_task, j) for j in range(sizes[e])]
+        number += sizes[e]
+    return jobs, groups
 
 
 def rollout_chunks(jobs: list, workers: int, per_worker: int = 8) -> list[list]:
@@ -280,6 +345,7 @@ def finetune(cfg: FinetuneConfig) -> dict:
     n_tasks = len(load_split(cfg.split)[:cfg.limit or None])
     if n_tasks == 0:
         raise ValueError(f'the split {cfg.split!r} has no tasks')
+    sizes = [len(e.tasks) for e in chained_episodes(cfg)] if cfg.protocol == 'chained' else []
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     update, seconds_before = 0, 0.0
     log_path = out / 'metrics.jsonl'
@@ -302,14 +368,12 @@ def finetune(cfg: FinetuneConfig) -> dict:
     cfg_json = json.dumps(dataclasses.asdict(cfg))
     with worker_pool(cfg.workers, initializer=_init_worker, initargs=(cfg_json,)) as pool:
         while update < cfg.updates:
-            plan = episode_plan(n_tasks, update, cfg.episodes_per_update, cfg.seed, cfg.samples_per_task)
-            jobs = [(update * cfg.episodes_per_update + k, t, s, z) for k, (t, s, z) in enumerate(plan)]
+            jobs, groups = update_jobs(cfg, update, n_tasks, sizes)
             state = {k: v.detach().clone() for k, v in model.state_dict().items()}
             played = sorted((x for part in pool.imap_unordered(_play_chunk, [(state, c) for c in
                                                                              rollout_chunks(jobs, cfg.workers)])
                              for x in part), key=lambda x: x[0])
-            episodes = [dict(ep, group=(number - update * cfg.episodes_per_update) // cfg.samples_per_task)
-                        for number, ep in played]
+            episodes = [dict(ep, group=group) for (_, ep), group in zip(played, groups)]
             t_play = time.monotonic()
             parts = update_step(model, opt, episodes, cfg)
             update += 1

@@ -12,6 +12,10 @@ until the next chance, the success bonus at the end; steps before the first chan
 confusion timing can have, are charged to nobody), and `record`: whatever the policy returned to
 keep for its update (its inputs, so log-probabilities can be recomputed).
 
+`play_chained_rollout` plays the tasks of a chained episode (dialfred_sim.chained) in order in one world, each
+task an episode of its own for the MDP (its own decisions, rewards and success), each later one from the
+state the last one left; the performer carries on where it can (protocol.Continuing).
+
 Timings (`Timing`): `begin` (a chance at step 0 only: RL begin), `anytime` with a `gap` (a chance at
 steps 0, gap, 2 gap, ...: RL anytime, the paper's Fixed 1 / 5 / 10), and `confusion` (a chance
 before each action whose top-2 action-probability gap is below `epsilon`: the MC setting).
@@ -26,7 +30,7 @@ from dialfred_oracle.in_process import EnvServer
 from dialfred_performer.preprocess import AskedQA
 from dialfred_sim.episode import EpisodeObserver, run
 from dialfred_sim.episode import play as play_episode
-from dialfred_sim.protocol import QA, Question, top2_gap
+from dialfred_sim.protocol import QA, Continuing, Question, top2_gap
 from dialfred_sim.tasks import get_task
 
 from .rl import Rewards
@@ -105,6 +109,14 @@ class RolloutAgent(EpisodeObserver):
         self.task = task
         self.performer.reset(task, seed)
 
+    def carry_on(self, task, seed: int) -> None:
+        """The next task of a chained episode: the performer carries on if it can, else starts afresh."""
+        self.task = task
+        if isinstance(self.performer, Continuing):
+            self.performer.carry_on(task, seed)
+        else:
+            self.performer.reset(task, seed)
+
     def ask(self, observation) -> Optional[Question]:
         episode = self.episode
         if self.had_chance:
@@ -141,13 +153,26 @@ class RolloutAgent(EpisodeObserver):
 def play_rollout(env, performer, policy: Policy, task_id: str, seed: int, timing: Timing, rewards: Rewards = Rewards(),
          perturbation=None) -> Episode:
     """One episode of `task_id`; see the module's doc."""
-    task = get_task(task_id)
-    episode = Episode(task_id, seed)
+    return _play(env, performer, policy, get_task(task_id), seed, timing, rewards, perturbation)
+
+
+def play_chained_rollout(env, performer, policy: Policy, tasks: list, seeds: list[int], timing: Timing,
+                         rewards: Rewards = Rewards(), perturbation=None) -> list[Episode]:
+    """The tasks of one chained episode (dialfred_sim.chained: `tasks` in order, each with its seed), one
+    Episode each; see the module's doc."""
+    return [_play(env, performer, policy, task, seed, timing, rewards, perturbation, chained=True, continues=k > 0)
+            for k, (task, seed) in enumerate(zip(tasks, seeds))]
+
+
+def _play(env, performer, policy: Policy, task, seed: int, timing: Timing, rewards: Rewards, perturbation,
+          chained: bool = False, continues: bool = False) -> Episode:
+    episode = Episode(task.task_id, seed)
     agent = RolloutAgent(performer, policy, timing, rewards, episode)
-    server = EnvServer(env, task, perturbation, with_depth=False, with_segmentation=False)   # RGB, as evaluations
-    state = run(play_episode(agent, seed=seed, told=task.public(), observers=[agent]), server)
+    server = EnvServer(env, task, perturbation, with_depth=False, with_segmentation=False,    # RGB, as evaluations
+                       protocol='chained' if chained else 'expert', continues=continues)
+    state = run(play_episode(agent, seed=seed, told=task.public(), observers=[agent], carry_on=continues), server)
     if state.end_reason == 'error':
-        raise RuntimeError(f'{task_id}: {state.error}')
+        raise RuntimeError(f'{task.task_id}: {state.error}')
     if episode.decisions:
         episode.decisions[-1].reward += rewards.step * agent.steps_since + (rewards.success if episode.success else 0.0)
     episode.end = 'success' if episode.success else ('max_steps' if state.end_reason == 'max_steps' else 'ended')

@@ -39,7 +39,7 @@ def check_protocol(protocol: str) -> str:
 
 @dataclass(frozen=True)
 class ChainedEpisode:
-    """One chained episode: its id (split/episode) and its tasks in order, each with its index in the split
+    """One chained episode: its episode id and its tasks in order, each with its index in the split
     (which seeds its agent, as under the expert protocol)."""
 
     episode_id: str
@@ -51,8 +51,8 @@ class ChainedEpisode:
 
 
 def episode_key(task) -> str:
-    """The chained episode a task belongs to: 'split/episode id'."""
-    return f'{task.split}/{task.episode.episode_id}'
+    """The chained episode a task belongs to: its episode's id ('valid_unseen/ep000003': split and number)."""
+    return task.episode.episode_id
 
 
 def chain_episodes(selected: Iterable[tuple]) -> list[ChainedEpisode]:

@@ -72,7 +72,7 @@ class EpisodeResult:
                                      # before it was recorded, which the 'visible' rule judged
     # The chained protocol's fields (dialfred_sim.chained); lines of the expert protocol leave them out.
     protocol: str = DEFAULT_PROTOCOL   # how it was played: 'expert' (from the expert's state) or 'chained'
-    episode_id: str = ''               # chained: the episode (split/episode) whose tasks were played in order
+    episode_id: str = ''               # chained: the episode ('valid_unseen/ep000003') whose tasks were played in order
     held_at_start: bool = False        # chained: its whole goal held when it began (scored as not done)
     # Not in the line: how the episode got there (traces.make_trace), which a run writes to its trace file.
     trace: Optional[dict] = field(default=None, compare=False, repr=False)
@@ -164,7 +164,7 @@ def episode_result(task, outcome, dialogue: list, *, agent: str, oracle: str, se
     o = {k: getattr(outcome, k) for k in OUTCOME_FIELDS}
     chained = {}
     if protocol != DEFAULT_PROTOCOL:
-        chained = {'protocol': protocol, 'episode_id': f'{task.split}/{task.episode.episode_id}',
+        chained = {'protocol': protocol, 'episode_id': task.episode.episode_id,
                    'held_at_start': int(o['goal_conditions_total']) == 0 and o['end_reason'] != 'error'}
     return EpisodeResult(**chained,
         task_id=task.task_id, task_type=task.task_type, split=task.split, success=bool(o['success']),

@@ -19,10 +19,11 @@ Stages, in order (each calls the project's own API or command; none repeats thei
 | dialogues | synthetic train dialogues (`scripts/annotate_dialogues.py --splits train --from-demonstrations`: the rows the demos stage made, the same bytes as the script's own pass) | `~/.cache/dialfred/dialogues/train.jsonl.gz` (quick: `cache/dialogues`) |
 | frames | train's first frames, copied out of the demonstrations (`dialfred_questioner.frames --demonstrations`) | `~/.cache/dialfred/questioner/train_first_64.npz` (quick: `cache/`) |
 | pretrain | questioner pre-training (`dialfred_questioner.pretrain`) | `questioner/pretrain/best.pt` |
-| rl | the RL fine-tunings (`dialfred_questioner.finetune` on valid_seen, 32 updates of 64 episodes): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training); beyond the paper rl_anytime_no_dialogue (the instruction only) and map_rl_anytime (against the map-and-plan performer, `--model map`) | `questioner/<name>/final.pt` |
+| rl | the RL fine-tunings (`dialfred_questioner.finetune` on valid_seen, 32 updates of 64 episodes): rl_begin, rl_anytime (gap 5), rl_anytime_1 (gap 1, Fixed-1 rewards), rl_anytime_10, rl_mc (model confusion), rl_anytime_withhold_{location,appearance,direction} (the oracle withholding 50% of that type's answers during training); beyond the paper rl_anytime_no_dialogue (the instruction only) map_rl_anytime (against the map-and-plan performer, `--model map`), and rl_anytime_chained and map_rl_anytime_chained (RL anytime against each performer under the chained protocol, `--protocol chained`: whole episodes on the performer's own state) | `questioner/<name>/final.pt` |
 | eval | every setting of the tables, the map-and-plan performer's five and the swap control (All QAs with another task's answers, `--answers swapped`) among them (`dialfred_bringup.evaluation.run_eval`; `--eval-path local` (default): worker processes without ROS, `dialfred_bringup.local`; `graph`: performer nodes; `in-process`: the agent in this process, simulator and oracle nodes); resumable episode by episode | `eval/<split>_<setting>.jsonl` |
+| chained | DialFRED's challenge test (`--protocol chained`, `dialfred_sim/chained.py`): on valid_unseen, both performers with the instruction only, All QAs, Random QA, RL anytime (fine-tuned under expert initialisation, and under chaining), and All QAs with swapped answers, each episode's tasks in order on the agent's own state; locally, or with `--eval-path graph`/`in-process` by the performer in this process through simulator and oracle nodes | `chained/<split>_<setting>.jsonl` |
 | check | the first `--check-tasks` tasks of every setting played again through the ROS graph (performer, questioner, oracle and simulator nodes) and compared with the eval stage's episodes field by field (wall time aside); mismatches are listed in the document, not hidden | `check/<split>_<setting>.jsonl`, `check/report.json` |
-| doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, the worth of a question (by task family and type; the swap control), what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`, its plot beside it: `sr_nq.png`, or `<stem>_sr_nq.png` for a doc of another name) |
+| doc | Tables II, III, IV beside the paper's numbers with 95% bootstrap intervals, the worth of a question (by task family and type; the swap control), the chained table beside the expert-initialised one (with the worth of a question under chaining, the tasks lost to chaining per type and the 10 most common ways a chained episode goes wrong), what holds, the SR-NQ plot, the RL questioner's most frequent questions and dialogues that turned a failure into a success | `results.md`, `sr_nq.png` (and `--doc PATH`, its plot beside it: `sr_nq.png`, or `<stem>_sr_nq.png` for a doc of another name) |
 
 Each stage writes `stamps/<stage>.json` with the hash of its inputs (its config, the hashes of the stages
 it depends on, and the source files that make it). A stage whose stamp matches is skipped
@@ -65,12 +66,13 @@ from dialfred_sim.dataclass_cli import parse
 
 from .document import build_report, copy_doc, draw_frontier, render, why_lines, write_outputs
 from .plan import (EXTRA, MAP_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS,
-                   SPLITS, STAGES, Plan, ReproduceConfig, Setting, settings, weights_sha256)
+                   SPLITS, STAGES, Plan, ReproduceConfig, Setting, chained_settings, settings, weights_sha256)
 from .stages import Runner
 from .status import run_status, status_lines
 
 __all__ = ['EXTRA', 'MAP_ROWS', 'PAPER_T2', 'PAPER_T3', 'PAPER_T4', 'PERTURB_PROBABILITY', 'RESOLUTION', 'RL_RUNS',
-           'SHIPPED_QUESTIONERS', 'SPLITS', 'STAGES', 'Plan', 'ReproduceConfig', 'Runner', 'Setting', 'copy_doc',
+           'SHIPPED_QUESTIONERS', 'SPLITS', 'STAGES', 'Plan', 'ReproduceConfig', 'Runner', 'Setting', 'chained_settings',
+           'copy_doc',
            'draw_frontier', 'main', 'render', 'settings', 'weights_sha256', 'why_lines', 'write_outputs']
 
 

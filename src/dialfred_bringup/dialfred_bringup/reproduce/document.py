@@ -11,23 +11,27 @@ from typing import Optional
 import numpy as np
 
 from dialfred_questioner.rl import Rewards
-from dialfred_sim.metrics import has_goto, intervals, summarize
+from dialfred_sim.metrics import has_goto, intervals, summarize, type_order
 from dialfred_sim.protocol import QUESTION_TYPES, question_text
 from dialfred_sim.tasks import load_split
 
 from ..evaluation import EvalRun, resumable_results
+from ..failures import episode_failures
 from ..paths import REPO
 from ..report_page import environment
-from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, WORTH_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SHIPPED_RUN, SPLITS, STAGES, Setting, settings)
+from .plan import (TRAINING, camera, weights_sha256, EXTRA, MAP_ROWS, SWAPPED, WORTH_ROWS, PAPER_T2, PAPER_T3, PAPER_T4, PERTURB_PROBABILITY, Plan, RESOLUTION, RETURN_ROWS, SHIPPED_QUESTIONERS, SHIPPED_RUN, SPLITS, STAGES, Setting, settings,
+                   chained_settings)
 
 
 # --------------------------------------------------------------------------------------------- the report
 
-def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
-    """The numbers of one setting from its results file (n = 0 when it has none)."""
-    if not plan.available(s) or not (plan.eval_dir / f'{s.split}_{s.key}.jsonl').exists():
+def setting_row(plan: Plan, s: Setting, resamples: int, chained: bool = False) -> dict:
+    """The numbers of one setting from its results file (n = 0 when it has none); `chained`: of the chained
+    stage's run of it (with the per-episode figures)."""
+    folder = plan.chained_dir if chained else plan.eval_dir
+    if not plan.available(s) or not (folder / f'{s.split}_{s.key}.jsonl').exists():
         return {'n': 0}
-    config = plan.eval_config(s)
+    config = plan.eval_config(s, chained=chained)
     tasks = load_split(s.split)[:config.limit]
     done = resumable_results(EvalRun(config, check=False), [t.task_id for t in tasks])
     results = [done[t.task_id] for t in tasks if t.task_id in done]
@@ -51,12 +55,77 @@ def setting_row(plan: Plan, s: Setting, resamples: int) -> dict:
             **{k: overall[k] for k in ('SR', 'PWSR', 'GC', 'NQ')},
             'CI95': {k: [lo, hi] for k, (lo, hi) in ci.items()},
             'shares': {t: round(v, 3) for t, v in shares.items()} if shares is not None else None,
+            **({'episodes': summarize(results)['episodes']} if chained else {}),
             'results': results}
 
 
 def build_report(plan: Plan, resamples: int) -> dict:
     rows = {(s.split, s.key): setting_row(plan, s, resamples) for s in settings()}
-    return {'rows': rows, 'plan': plan}
+    chained = {(s.split, s.key): setting_row(plan, s, resamples, chained=True) for s in chained_settings()}
+    return {'rows': rows, 'chained': chained, 'plan': plan}
+
+
+# --------------------------------------------------------------------------------------------- chained
+
+def chained_rows(rows: dict, chained: dict) -> list[list]:
+    """The chained table: each setting of the chained stage beside the same setting under expert initialisation."""
+    out = []
+    for s in chained_settings():
+        r, e = chained[(s.split, s.key)], rows.get((s.split, s.key), {})
+        name = 'map-and-plan' if s.performer == 'map' else 'Episodic Transformer'
+        label = MAP_ROWS[s.key][0] if s.key in MAP_ROWS else setting_name(s.key).removeprefix('Map performer: ')
+        expert = f'{e["SR"]:.1f}' if e.get('n') else ('no results' if (s.split, s.key) in rows else 'not in the tables')
+        if not r.get('n'):
+            out.append([name, label, 0, 'no results', '', '', '', '', '', '', expert, ''])
+            continue
+        ep = r['episodes']
+        out.append([name, label, _n(r), _v(r, 'SR'), _v(r, 'PWSR'), f'{r["GC"]:.1f}', _v(r, 'NQ'),
+                    f'{ep["episodes"]}: {ep["all_succeeded"]:.1f}%', f'{ep["in_order"]:.2f}',
+                    f'{ep["held_at_start"]}', expert,
+                    f'{r["SR"] - e["SR"]:+.1f}' if e.get('n') else ''])
+    return out
+
+
+def lost_rows(rows: dict, chained: dict) -> list[list]:
+    """Per task type, over the same tasks with the instruction only: SR under expert initialisation and under
+    chaining, and the tasks lost (done from the expert's state, not from the agent's own) and gained, for each
+    performer."""
+    out = []
+    pairs = {}
+    for name, key in (('E.T.', 'instruction_only'), ('map', 'map_instruction_only')):
+        e, c = rows.get(('valid_unseen', key), {}), chained.get(('valid_unseen', key), {})
+        if e.get('n') and c.get('n'):
+            mine = {r.task_id: r for r in e['results']}
+            pairs[name] = [(mine[r.task_id], r) for r in c['results'] if r.task_id in mine]
+    if not pairs:
+        return out
+    types = sorted({a.task_type for ps in pairs.values() for a, _ in ps}, key=type_order)
+    for t in (*types, 'overall'):
+        cells = [t]
+        for name in ('E.T.', 'map'):
+            ps = [(a, b) for a, b in pairs.get(name, []) if t == 'overall' or a.task_type == t]
+            if not ps:
+                cells += ['', '', '', '']
+                continue
+            n = len(ps)
+            cells += [f'{n}', f'{100 * sum(a.success for a, _ in ps) / n:.1f} / {100 * sum(b.success for _, b in ps) / n:.1f}',
+                      f'{sum(a.success and not b.success for a, b in ps)}', f'{sum(b.success and not a.success for a, b in ps)}']
+        out.append(cells)
+    return out
+
+
+def chained_failure_rows(chained: dict, top: int = 10) -> list[list]:
+    """The `top` most common ways a chained episode goes wrong with All QAs, for each performer: its first failed
+    task (dialfred_bringup.failures.episode_failures)."""
+    out = []
+    for name, key in (('Episodic Transformer', 'all_qas'), ('map-and-plan', 'map_all_qas')):
+        c = chained.get(('valid_unseen', key), {})
+        if not c.get('n'):
+            continue
+        for k, row in enumerate(episode_failures(c['results'], top=top), start=1):
+            out.append([name, k, row['task_type'], row['task_in_episode'], row['end_reason'], row['last_error'],
+                        row['episodes'], f'{100 * row["share_of_episodes"]:.1f}%', ', '.join(f'`{x}`' for x in row['examples'][:2])])
+    return out
 
 
 def _v(row: dict, key: str) -> str:
@@ -457,6 +526,9 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
         command='./dialfred reproduce' + (f' {mode}' if mode else ''), eval_dir=_relative(plan.eval_dir),
         quick=cfg.quick, settings=settings, table2=table2, table3=table3, table4=table4, extra=extra, returns=returns,
         map_rows=map_rows, worth=worth_rows(rows),
+        chained=chained_rows(rows, report['chained']), chained_worth=worth_rows(report['chained']),
+        chained_lost=lost_rows(rows, report['chained']), chained_failures=chained_failure_rows(report['chained']),
+        chained_dir=_relative(plan.chained_dir),
         plot_name=plot_name, holds=what_holds(rows), why=why_lines(plan, rows), asked=asked, examples=examples,
         times=times)
 
@@ -525,7 +597,8 @@ def setting_name(key: str) -> str:
     names = {**{k: p['name'] for k, p in PAPER_T2.items()}, **{k: v[0] for k, v in PAPER_T3.items()},
              **{k: v[0] for k, v in PAPER_T4.items()}, 'pretrained': 'Pre-trained only',
              'rl_anytime_no_dialogue': 'RL anytime, instruction only',
-             SWAPPED: 'All QAs, answers swapped',
+             SWAPPED: 'All QAs, answers swapped', 'rl_anytime_chained': 'RL anytime, fine-tuned chained',
+             'map_rl_anytime_chained': 'Map performer: RL anytime, fine-tuned chained',
              **{k: f'Map performer: {name}' for k, (name, *_) in MAP_ROWS.items()}}
     return names[key]
 

@@ -22,7 +22,8 @@ from ..evaluation import EvalConfig
 from ..paths import REPO
 
 
-STAGES = ('demos', 'perception', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'check', 'doc')
+STAGES = ('demos', 'perception', 'performer', 'dialogues', 'frames', 'pretrain', 'rl', 'eval', 'chained', 'check',
+          'doc')
 EVAL_PATHS = ('local', 'graph', 'in-process')
 SPLITS = ('valid_seen', 'valid_unseen')
 PERTURB_PROBABILITY = 0.5
@@ -62,6 +63,9 @@ RL_RUNS = {
     'rl_anytime_no_dialogue': dict(timing='anytime', gap=5, dialogue=False),
     # Beyond the paper: RL anytime fine-tuned against the map-and-plan performer (over the same perception).
     'map_rl_anytime': dict(timing='anytime', gap=5, model='map'),
+    # DialFRED's challenge test: RL anytime fine-tuned under the chained protocol, against each performer.
+    'rl_anytime_chained': dict(timing='anytime', gap=5, protocol='chained'),
+    'map_rl_anytime_chained': dict(timing='anytime', gap=5, model='map', protocol='chained'),
 }
 # The rows of the returns table (both splits where the setting was evaluated there).
 RETURN_ROWS = ('instruction_only', 'all_qas', 'random_qa', 'random_mc', 'pretrained', 'rl_begin', 'rl_anytime',
@@ -150,6 +154,24 @@ def settings() -> list[Setting]:
     return out
 
 
+# The chained stage (DialFRED's challenge test, dialfred_sim/chained.py): these settings of the eval stage played
+# again under the chained protocol, each task of an episode from the state the agent's own actions left.
+# Beside them, RL anytime fine-tuned under chaining (RL_RUNS' *_chained), for each performer.
+CHAINED_KEYS = ('instruction_only', 'all_qas', 'random_qa', 'rl_anytime', 'rl_anytime_chained', SWAPPED,
+                'map_instruction_only', 'map_all_qas', 'map_random_qa', 'map_rl_anytime', 'map_rl_anytime_chained',
+                'map_all_qas_swapped')
+CHAINED_RL = {'rl_anytime_chained': Setting('rl_anytime_chained', 'valid_unseen', 'rl:rl_anytime_chained'),
+              'map_rl_anytime_chained': Setting('map_rl_anytime_chained', 'valid_unseen', 'rl:map_rl_anytime_chained',
+                                                performer='map')}
+
+
+def chained_settings() -> list[Setting]:
+    """The settings of the chained stage (valid_unseen, both performers): the eval stage's of CHAINED_KEYS, and
+    RL anytime fine-tuned under chaining."""
+    by_key = {**{s.key: s for s in settings() if s.split == 'valid_unseen'}, **CHAINED_RL}
+    return [by_key[k] for k in CHAINED_KEYS]
+
+
 @dataclass(frozen=True)
 class ReproduceConfig:
     """Run the whole DialFRED pipeline after set-up and write the results document (Tables II, III, IV)."""
@@ -227,6 +249,7 @@ class Plan:
         self.performer_dir = self.run / 'performer'
         self.pretrain_dir = self.run / 'questioner' / 'pretrain'
         self.eval_dir = self.run / 'eval'
+        self.chained_dir = self.run / 'chained'
         self.eval_limit = 8 if q else 0
         self.eval_path = cfg.eval_path
         self.check_dir = self.run / 'check'
@@ -310,16 +333,25 @@ class Plan:
             'demos': [self.demos], 'dialogues': [dialogues], 'frames': [self.frames],
             'perception': [self.perception_dir], 'performer': [self.performer_dir], 'pretrain': [self.pretrain_dir],
             'rl': [self.run / 'questioner' / name for name in RL_RUNS], 'eval': [self.eval_dir],
+            'chained': [self.chained_dir],
             'check': [self.check_dir], 'doc': [self.run / 'results.md', self.run / 'sr_nq.png'],
         }[stage]
 
-    def eval_config(self, s: Setting, check: bool = False):
+    def eval_config(self, s: Setting, check: bool = False, chained: bool = False):
         """The evaluation of setting `s` for the tables, or with `check` its first check_tasks tasks
-        through the graph (performer nodes)."""
+        through the graph (performer nodes), or with `chained` under the chained protocol (the performer in
+        the launcher's process where the tables' path is the graph's: the performer node plays one task a
+        goal)."""
         questioner = s.questioner
         if questioner.startswith('rl:'):
             questioner = f'learned:{self.questioner_checkpoint(questioner[3:])}'
         path = 'graph' if check else self.eval_path
+        if chained:
+            return EvalConfig(split=s.split, agent=s.performer, local=path == 'local', protocol='chained',
+                              questioner=questioner, perturb_type=s.perturb_type, answers=s.answers,
+                              perturb_probability=PERTURB_PROBABILITY, limit=self.eval_limit or None,
+                              workers=self.cfg.workers, out=self.chained_dir / f'{s.split}_{s.key}.jsonl',
+                              seed=self.cfg.seed, resolution=camera(s.performer), checkpoint=self.performer_checkpoint)
         limit = self.check_tasks if check else self.eval_limit or None
         if check and self.eval_limit:
             limit = min(limit, self.eval_limit)

@@ -34,7 +34,8 @@ from ..evaluation import EvalRun, resumable_results
 from ..machine import machine, speed_probe
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)
-from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, settings)
+from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, chained_settings,
+                   settings)
 
 
 # --------------------------------------------------------------------------------------------- stages
@@ -133,6 +134,7 @@ QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/model.py', f'{QUES}/data.py', f
 RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/checkpoint.py', f'{SIM}/episode.py', *QUESTIONER_CODE)
 EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/silent.py', f'{SIM}/episode.py',
              f'{QUES}/baselines.py', f'{QUES}/questioners.py', *QUESTIONER_CODE, f'{SIM}/metrics.py')
+CHAINED_CODE = (*EVAL_CODE, f'{SIM}/chained.py', f'{SIM}/traces.py')
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
               'src/dialfred_oracle/dialfred_oracle/annotator.py'),
@@ -144,6 +146,7 @@ CODE = {
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/checkpoint.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (*RL_CODE, *MODEL_CODE['map']),
     'eval': (*EVAL_CODE, *MODEL_CODE['map']),
+    'chained': (*CHAINED_CODE, *MODEL_CODE['map']),
     'check': (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/reproduce/stages.py'),
     'doc': (f'{UP}/reproduce/document.py', f'{UP}/reproduce/plan.py', f'{UP}/baseline_runs.py', f'{SIM}/metrics.py',
             f'{PERF}/curves.py'),
@@ -166,13 +169,14 @@ def world_code_hash(raw: bool = False) -> str:
 
 # Stages of many items (RL runs, evaluation settings) stamped one by one (Runner.run_item): a change to the
 # stage's inputs reruns the items whose own inputs changed, and reuses the others.
-ITEMIZED = ('rl', 'eval')
+ITEMIZED = ('rl', 'eval', 'chained')
 # Stages that fill caches outside the run's folder, shared with other commands: their files are rewritten in
 # place (the same inputs give the same bytes), never cleared.
 CACHES = ('demos', 'dialogues', 'frames')
 UPSTREAM = {
     'demos': (), 'perception': ('demos',), 'performer': ('demos', 'perception'), 'dialogues': ('demos',), 'frames': ('demos',), 'pretrain': ('performer', 'dialogues', 'frames'),
-    'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'check': ('eval',), 'doc': ('eval', 'check'),
+    'rl': ('performer', 'pretrain'), 'eval': ('performer', 'rl'), 'chained': ('performer', 'rl'), 'check': ('eval',),
+    'doc': ('eval', 'chained', 'check'),
 }
 
 
@@ -216,6 +220,11 @@ class Runner:
                              'performer': str(p.performer_checkpoint),
                              'questioners': {r: str(p.questioner_checkpoint(r)) for r in (*RL_RUNS, 'pretrained')},
                              'shipped': self.shipped_hashes() if self.cfg.shipped else None},
+            'chained': lambda: {'settings': [dataclasses.asdict(s) for s in chained_settings() if p.available(s)],
+                                'eval_path': p.eval_path, 'limit': p.eval_limit, 'seed': self.cfg.seed,
+                                'performer': str(p.performer_checkpoint),
+                                'questioners': {r: str(p.questioner_checkpoint(r)) for r in (*RL_RUNS, 'pretrained')},
+                                'shipped': self.shipped_hashes() if self.cfg.shipped else None},
             'check': lambda: {'settings': [dataclasses.asdict(s) for s in p.check_settings()],
                               'tasks': p.check_tasks, 'seed': self.cfg.seed},
             'doc': lambda: {'resamples': self.cfg.resamples, 'limit': p.eval_limit,
@@ -446,6 +455,30 @@ class Runner:
                 return {}                                          # in <results>.runs.jsonl
             items[f'{s.split}/{s.key}'] = self.run_item('eval', f'{s.split}/{s.key}', inputs,
                                                         (*EVAL_CODE, *MODEL_CODE[s.performer]), outputs, run)
+        return {'items': items}
+
+    def chained(self, resume: bool) -> dict:
+        """The settings of plan.CHAINED_KEYS under the chained protocol (DialFRED's challenge test), one item each."""
+        p, items = self.plan, {}
+        p.chained_dir.mkdir(parents=True, exist_ok=True)
+        performer = file_sha256(p.performer_checkpoint)
+        for s in chained_settings():
+            if not p.available(s):
+                self.log(f'chained: {s.split} {s.key}: no questioner checkpoint, left out')
+                continue
+            config = p.eval_config(s, chained=True)
+            questioner = s.questioner
+            if questioner.startswith('rl:'):
+                questioner = file_sha256(p.questioner_checkpoint(questioner[3:]))
+            inputs = {'setting': dataclasses.asdict(s), 'config': dataclasses.asdict(config), 'performer': performer,
+                      'questioner': questioner}
+            outputs = sorted(p.chained_dir.glob(f'{s.split}_{s.key}.*'))
+
+            def run(resume: bool, config=config) -> dict:
+                run_baseline(config, self.cfg.progress)
+                return {}
+            items[f'{s.split}/{s.key}'] = self.run_item('chained', f'{s.split}/{s.key}', inputs,
+                                                        (*CHAINED_CODE, *MODEL_CODE[s.performer]), outputs, run)
         return {'items': items}
 
     def check(self, resume: bool) -> dict:

@@ -63,8 +63,8 @@ def _lines(path: Path) -> int:
 def stage_progress(stage: str, stamp: dict, run: Path) -> Optional[dict]:
     """{'done', 'total', 'unit'} of a running stage, from its stamp's config and what it has written, or
     None where it cannot tell: perception counts frames trained on, the performer updates (its metrics'
-    train lines), rl the actor-critic updates of all its runs (each run's metrics.jsonl) and eval the
-    episodes of all its settings (each setting's results file)."""
+    train lines), rl the actor-critic updates of all its runs (each run's metrics.jsonl) and eval and chained
+    the episodes of all their settings (each setting's results file)."""
     config = (stamp.get('inputs') or {}).get('config') or {}
     if stage == 'perception' and config.get('frames') and config.get('out'):
         row = _last_line(Path(config['out']) / 'metrics.jsonl', 'frames')
@@ -79,13 +79,13 @@ def stage_progress(stage: str, stamp: dict, run: Path) -> Optional[dict]:
             row = _last_line(Path(c['out']) / 'metrics.jsonl', 'update')
             done += min(c['updates'], row['update']) if row else 0
         return {'done': done, 'total': sum(c['updates'] for c in config.values()), 'unit': 'RL updates'}
-    if stage == 'eval' and config.get('settings'):
+    if stage in ('eval', 'chained') and config.get('settings'):
         done = total = 0
         for s in config['settings']:
             size = SPLIT_SIZES.get(s.get('split'), 0)
             n = min(size, config['limit']) if config.get('limit') else size
             total += n
-            done += min(n, _lines(run / 'eval' / f'{s.get("split")}_{s.get("key")}.jsonl'))
+            done += min(n, _lines(run / stage / f'{s.get("split")}_{s.get("key")}.jsonl'))
         return {'done': done, 'total': total, 'unit': 'episodes'} if total else None
     return None
 
