@@ -27,9 +27,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from dialfred_oracle.answers import Perturbation
+from dialfred_oracle.in_process import answer_now
+from dialfred_oracle.swap import AnswerSwap
+from dialfred_sim import tasks as task_sets
 from dialfred_sim.chained import chain_episodes, reference_length
+from dialfred_sim.env import DialfredEnv
 from dialfred_sim.metrics import (DEFAULT_PROTOCOL, EpisodeResult, ResultsFileError, end_reason,
                                   format_table, load_results, summarize)
+from dialfred_sim.processes import worker_pool
+from dialfred_sim.progress import progress_bar
+from dialfred_sim.tasks.splits import read_tasks_file
 from dialfred_sim.traces import load_traces, trace_path
 
 # The fields of a results line a replay recomputes (the rest name the run, or are its wall time and commit).
@@ -138,19 +146,11 @@ _W: dict = {}
 
 
 def _init(setting: Setting, tasks_path: Optional[str], split: str) -> None:
-    import torch
-    torch.set_num_threads(1)
-    from dialfred_oracle.answers import Perturbation
-    from dialfred_oracle.in_process import answer_now
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim import tasks as task_sets
-    from dialfred_sim.tasks.splits import read_tasks_file
     tasks = read_tasks_file(tasks_path).tasks if tasks_path else task_sets.load_split(split)
     _W['tasks'] = {t.task_id: t for t in tasks}
     env = _W['env'] = DialfredEnv(resolution=setting.resolution, goal_rule=setting.goal_rule)
     perturbation = swap = None
     if setting.oracle == 'swapped':
-        from dialfred_oracle.swap import AnswerSwap
         swap = AnswerSwap(tasks, setting.resolution, setting.goal_rule)
     elif setting.oracle not in ('', 'human'):
         kind, _, p = setting.oracle.partition(':')
@@ -207,7 +207,6 @@ def tasks_source(path: Path, given: Optional[Path], split: str) -> Optional[Path
         if record is None:
             return None
         given = Path(record['path'])
-    from dialfred_sim.tasks.splits import read_tasks_file
     source = read_tasks_file(given)
     if record is not None and source.sha256 != record.get('sha256'):
         raise ResultsFileError(f'{given} (sha256 {source.sha256[:12]}...) is not the tasks file {path} was played '
@@ -220,8 +219,6 @@ def tasks_source(path: Path, given: Optional[Path], split: str) -> Optional[Path
 def score(path: Path, tasks: Optional[Path] = None, workers: int = 2, progress: bool = True) -> dict:
     """Replay every episode of the results file `path`: {'results', 'summary', 'refused': None or
     (task_id, what), 'tasks', 'episodes', 'wall_s'}. ResultsFileError for a file that cannot be scored."""
-    from dialfred_sim.processes import worker_pool
-    from dialfred_sim.progress import progress_bar
     t0 = time.monotonic()
     path = Path(path)
     if not path.is_file():
@@ -241,8 +238,6 @@ def score(path: Path, tasks: Optional[Path] = None, workers: int = 2, progress: 
                                f'(first: {missing[0]}); results written without a trace cannot be replayed')
     if setting.oracle == 'human':
         raise ResultsFileError(f'{path}: a person answered these questions; a replay cannot ask them again')
-    from dialfred_sim import tasks as task_sets
-    from dialfred_sim.tasks.splits import read_tasks_file
     split_tasks = read_tasks_file(source).tasks if source else task_sets.load_split(results[0].split)
     index = {t.task_id: k for k, t in enumerate(split_tasks)}
     unknown = [r.task_id for r in results if r.task_id not in index]
