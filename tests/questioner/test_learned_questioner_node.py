@@ -94,7 +94,7 @@ def test_the_shipped_names_are_the_checkpoints_files_and_ship_with_the_package()
     assert {policy.learned_checkpoint(n).name for n in policy.SHIPPED_LEARNED} == {
         'pretrained.pt', 'rl_begin.pt', 'rl_anytime.pt', 'rl_anytime_1.pt', 'rl_anytime_10.pt', 'rl_mc.pt',
         'rl_anytime_withhold_location.pt', 'rl_anytime_withhold_appearance.pt', 'rl_anytime_withhold_direction.pt',
-        'rl_anytime_no_dialogue.pt', 'map_rl_anytime.pt'}
+        'rl_anytime_no_dialogue.pt', 'map_rl_anytime.pt', 'rl_anytime_chained.pt', 'map_rl_anytime_chained.pt'}
     assert "package_data={package_name: ['checkpoints/*.pt']}" in (
         REPO / 'src' / 'dialfred_questioner' / 'setup.py').read_text()
 

@@ -32,6 +32,8 @@ EXPECTED = {
     'rl-anytime-withhold-direction': (('--perturb-type direction',), 'anytime', 5, True),
     'rl-anytime-no-dialogue': (('--no-dialogue',), 'anytime', 5, False),
     'map-rl-anytime': (('--timing anytime', '--gap 5', '--model map'), 'anytime', 5, True),
+    'rl-anytime-chained': (('--timing anytime', '--gap 5', '--protocol chained'), 'anytime', 5, True),
+    'map-rl-anytime-chained': (('--timing anytime', '--gap 5', '--model map', '--protocol chained'), 'anytime', 5, True),
 }
 
 

@@ -76,7 +76,9 @@ class EvalConfig:
         'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
         'pretrained, rl-begin, rl-anytime (every 5 steps), rl-anytime-1, rl-anytime-10, '
         'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction, '
-        'rl-anytime-no-dialogue (the checkpoints shipped in dialfred_questioner/checkpoints), or learned:PATH (any '
+        'rl-anytime-no-dialogue, map-rl-anytime (fine-tuned against the map performer), rl-anytime-chained and '
+        'map-rl-anytime-chained (fine-tuned under the chained protocol) (the checkpoints shipped in '
+        'dialfred_questioner/checkpoints), or learned:PATH (any '
         'questioner checkpoint; results are named learned-<file stem>-<sha256[:8]>); '
         'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))',
         aliases={'none': ''}, metavar='NAME')

@@ -46,7 +46,8 @@ DEFAULT_TIMING = Timing('begin')
 CHECKPOINTS = Path(__file__).resolve().parent / 'checkpoints'
 SHIPPED_LEARNED = ('pretrained', 'rl-begin', 'rl-anytime', 'rl-anytime-1', 'rl-anytime-10', 'rl-mc',
                    'rl-anytime-withhold-location', 'rl-anytime-withhold-appearance',
-                   'rl-anytime-withhold-direction', 'rl-anytime-no-dialogue', 'map-rl-anytime')
+                   'rl-anytime-withhold-direction', 'rl-anytime-no-dialogue', 'map-rl-anytime',
+                   'rl-anytime-chained', 'map-rl-anytime-chained')
 LEARNED_PREFIX = 'learned:'       # 'learned:PATH': the questioner of any checkpoint file
 
 
