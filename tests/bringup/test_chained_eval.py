@@ -154,3 +154,17 @@ def test_the_same_chained_episodes_locally_and_through_the_graph(tmp_path, case)
     assert comparable(graph.results) == comparable(local.results)
     assert sum(r.questions for r in local.results) > 0
     assert graph.to_json()['through'] == 'in-process agent'
+
+
+def test_the_shards_of_a_chained_run_take_whole_episodes_and_merge_into_a_file_score_replays(tmp_path):
+    from dialfred_bringup.score import score
+    from dialfred_bringup.shards import merge_shards, write_merged
+    whole = run_eval(chained(tmp_path, 'whole', agent='random', resolution=64, limit=30, seed=2), progress=False)
+    shards = [run_eval(chained(tmp_path, f'part_shard{k}of2', agent='random', resolution=64, limit=30, seed=2,
+                               shard=(k, 2)), progress=False) for k in range(2)]
+    episodes = [{r.episode_id for r in s.results} for s in shards]
+    assert episodes[0] and episodes[1] and not episodes[0] & episodes[1]         # whole episodes each
+    merged = merge_shards([s.run.results_path for s in shards], tmp_path / 'merged.jsonl')
+    write_merged(merged, tmp_path / 'merged.jsonl')
+    assert comparable(merged.results) == comparable(whole.results)
+    assert score(tmp_path / 'merged.jsonl', workers=1, progress=False)['refused'] is None

@@ -26,10 +26,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Sequence
 
+from dialfred_sim.chained import chain_episodes
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
-from dialfred_sim.metrics import (EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
+from dialfred_sim.metrics import (DEFAULT_PROTOCOL, EpisodeResult, ResultsFileError, TruncatedResultsWarning, failures, format_table, load_results,
                       played_at, same_episode, summarize, write_text_atomically)
 from dialfred_sim.tasks import load_split
+from dialfred_sim.traces import load_traces, trace_path
 
 SHARD_NAME = re.compile(r'_shard(\d+)of(\d+)$')
 
@@ -92,7 +94,7 @@ def shard_tasks(tasks: Sequence, shard) -> list[tuple[int, object]]:
 # What must be the same in every shard's .summary.json (EvalReport.to_json of dialfred_bringup/evaluation.py) for
 # their results to be one run's; `workers`, `this_run` and the file names may differ.
 SAME_RUN = ('split', 'tasks_file', 'agent', 'oracle', 'seed', 'resolution', 'goal_rule', 'through', 'checkpoint',
-            'limit', 'shard_count')
+            'limit', 'shard_count', 'protocol')
 
 
 @dataclass
@@ -118,7 +120,7 @@ class ShardFile:
                 'agent': run.get('agent'), 'oracle': run.get('oracle'), 'seed': run.get('seed'),
                 'resolution': run.get('resolution'), 'goal_rule': run.get('goal_rule'), 'through': run.get('through'),
                 'checkpoint': checkpoint['sha256'] if checkpoint else None, 'limit': run.get('limit'),
-                'shard_count': self.count}
+                'shard_count': self.count, 'protocol': run.get('protocol', DEFAULT_PROTOCOL)}
 
 
 def summary_path(results_path: Path) -> Path:
@@ -180,6 +182,8 @@ class Merged:
     run: dict                          # the summary JSON of the merged file
     missing: list[str] = field(default_factory=list)     # task ids no shard file holds
     ignored: int = 0                   # results in the files of tasks beyond --limit (as a run ignores them)
+    traces: dict = field(default_factory=dict)           # task id -> its trace (dialfred_sim.traces), where kept
+    record: Optional[dict] = None      # the shards' <results>.run.json (camera, question limit), where kept
 
 
 def split_tasks(settings: dict, run: dict, tasks_path: Optional[Path] = None) -> list:
@@ -228,6 +232,11 @@ def merge_shards(paths: Sequence, out: Path, partial: bool = False, tasks_path: 
     in_split = {t.task_id for t in every}
     tasks = every[:settings['limit']]
     index_of = {t.task_id: i for i, t in enumerate(tasks)}
+    if settings['protocol'] == 'chained':
+        # A chained run's shards take whole episodes (episode n of the selected tasks to shard n mod N).
+        shard_of = {tid: n % count for n, e in enumerate(chain_episodes(enumerate(tasks))) for tid in e.task_ids}
+    else:
+        shard_of = {tid: i % count for tid, i in index_of.items()}
     found: dict[str, EpisodeResult] = {}
     ignored = 0
     for s in shards:
@@ -244,15 +253,26 @@ def merge_shards(paths: Sequence, out: Path, partial: bool = False, tasks_path: 
                     raise ResultsFileError(f'{s.path}: task {r.task_id} is not a task of {settings["split"]}')
                 ignored += 1           # beyond --limit: a longer run's result, which the run itself ignores too
                 continue
-            if i % count != s.index:
-                raise ResultsFileError(f'{s.path}: task {r.task_id} (index {i}) belongs to shard {i % count}/{count}, '
+            if shard_of[r.task_id] != s.index:
+                raise ResultsFileError(f'{s.path}: task {r.task_id} (index {i}) belongs to shard {shard_of[r.task_id]}/{count}, '
                                        f'not {s.index}/{count}: was another shard run with the same --out?')
             found[r.task_id] = r
     missing = [t.task_id for t in tasks if t.task_id not in found]
     if missing and not partial:
         raise ResultsFileError(missing_message(missing, index_of, by_index, count))
     results = [found[t.task_id] for t in tasks if t.task_id in found]
-    return Merged(results, merged_run(shards, results, out, missing), missing, ignored)
+    traces, records = {}, []
+    for s in shards:
+        try:
+            traces.update(load_traces(s.path))
+        except ValueError as exc:
+            raise ResultsFileError(str(exc)) from None
+        record = s.path.with_suffix('.run.json')
+        records.append(json.loads(record.read_text()) if record.exists() else None)
+    if any(r != records[0] for r in records[1:]):
+        raise ResultsFileError('the shards were played with other cameras or question limits (their .run.json differ)')
+    traces = {r.task_id: traces[r.task_id] for r in results if r.task_id in traces}
+    return Merged(results, merged_run(shards, results, out, missing), missing, ignored, traces, records[0])
 
 
 def missing_message(missing: list, index_of: dict, by_index: dict, count: int) -> str:
@@ -280,6 +300,7 @@ def merged_run(shards: list[ShardFile], results: list[EpisodeResult], out: Path,
         'split': first.get('split'), 'tasks_file': first.get('tasks_file'), 'agent': first.get('agent'),
         'privileged': any(r.privileged for r in results), 'oracle': first.get('oracle'), 'seed': first.get('seed'),
         'resolution': first.get('resolution'), 'goal_rule': first.get('goal_rule'),
+        **({'protocol': first['protocol']} if first.get('protocol', DEFAULT_PROTOCOL) != DEFAULT_PROTOCOL else {}),
         'workers': sum(s.run.get('workers') or 0 for s in shards),
         'through': first.get('through'), 'checkpoint': first.get('checkpoint'), 'limit': first.get('limit'),
         'shard': None, 'results_file': str(out), 'tasks': len(results), 'played_at': played_at(results),
@@ -305,9 +326,14 @@ def default_out(path: Path) -> Path:
 
 
 def write_merged(merged: Merged, out: Path) -> None:
-    """The merged results (one line each, as `metrics.append_result` writes them) and summary, each
-    written to a temporary file and renamed into place."""
+    """The merged results (one line each, as `metrics.append_result` writes them), their traces and run record
+    (so that `./dialfred score` replays the merged file) and summary, each written to a temporary file and
+    renamed into place."""
     out.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomically(trace_path(out), ''.join(json.dumps({'task_id': tid, **t}, separators=(',', ':')) + '\n'
+                                                  for tid, t in merged.traces.items()))
+    if merged.record is not None:
+        write_text_atomically(out.with_suffix('.run.json'), json.dumps(merged.record, indent=1) + '\n')
     write_text_atomically(out, ''.join(r.to_json() + '\n' for r in merged.results))
     write_text_atomically(summary_path(out), json.dumps(merged.run, indent=1) + '\n')
 

@@ -97,8 +97,8 @@ class DialfredEnv(gym.Env):
         {'task': Task}) starts that DialFRED task (the seed is then the task's, and no other option
         may be given but 'protocol'). With a task, {'protocol': 'chained'} plays it under the chained
         protocol: success does not end it (only Stop and the failure and step limits do), and the
-        episode's later tasks follow with `continue_task`. Bad options raise TypeError (wrong type) or ValueError (unknown key, scene or
-        task, a value out of range) and change nothing. A task whose start state the world refuses
+        episode's later tasks follow with `continue_task`. Bad options raise TypeError (wrong type) or
+        ValueError (unknown key, scene or task, a value out of range) and change nothing. A task whose start state the world refuses
         to rebuild (its split made under older rules) raises ValueError after the room was rebuilt:
         the env then needs a new reset."""
         options = _check_options(options)     # TypeError / ValueError before anything changes
@@ -171,7 +171,9 @@ class DialfredEnv(gym.Env):
         """The task's goal as it starts: what holds (GC leaves it out), and whether all of it does."""
         self._check_goal()
         self.goal_met_at_start = list(self.goal_met)
-        self.held_at_start = bool(self.goal_met) and all(self.goal_met)
+        # Only a chained task can start with its goal met: the expert protocol's tasks are cut where something
+        # is left to do (and are judged as they always were).
+        self.held_at_start = self.protocol == 'chained' and bool(self.goal_met) and all(self.goal_met)
 
     def _reset_to_task(self, task, protocol: str = DEFAULT_PROTOCOL):
         """Rebuild the world as the expert left it at the task's first action (see tasks.generator)."""
