@@ -46,7 +46,8 @@ from .questioners import make_questioner
 PARAMETERS = (
     Param('questioner', 'random', 'random, all, confusion (needs the confusion_gap of each request), a '
           'shipped learned questioner (pretrained, rl-begin, rl-anytime, rl-anytime-1, rl-anytime-10, rl-mc, '
-          'rl-anytime-withhold-<type>, rl-anytime-no-dialogue), learned (with `checkpoint`), learned:PATH, '
+          'rl-anytime-withhold-<type>, rl-anytime-no-dialogue, map-rl-anytime, rl-anytime-chained, '
+          'map-rl-anytime-chained), learned (with `checkpoint`), learned:PATH, '
           'or package.module:ClassName'),
     Param('checkpoint', '', 'for questioner=learned: the questioner checkpoint file'),
     Param('timing', '', "a learned questioner's timing ('' = its checkpoint's)",
