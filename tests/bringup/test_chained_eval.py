@@ -36,7 +36,7 @@ def comparable(results) -> list:
     return [dataclasses.replace(r, wall_s=0.0, code='') for r in results]
 
 
-@pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen'])
+@pytest.mark.parametrize('split', ['valid_unseen', pytest.param('valid_seen', marks=pytest.mark.slow)])
 def test_the_expert_does_every_task_of_every_chained_episode(tmp_path, split):
     report = run_eval(chained(tmp_path, split, split=split, agent='expert', limit=50), progress=False)
     expert_did_everything(report, 50)
@@ -156,6 +156,7 @@ def test_the_same_chained_episodes_locally_and_through_the_graph(tmp_path, case)
     assert graph.to_json()['through'] == 'in-process agent'
 
 
+@pytest.mark.slow   # three chained runs and a replay; merging's rules have fast tests in tests/bringup/test_shards.py
 def test_the_shards_of_a_chained_run_take_whole_episodes_and_merge_into_a_file_score_replays(tmp_path):
     from dialfred_bringup.score import score
     from dialfred_bringup.shards import merge_shards, write_merged
