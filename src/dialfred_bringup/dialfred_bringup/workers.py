@@ -305,8 +305,9 @@ def begin(worker, job) -> None:
 
 
 def play_episodes(graph: Graph, workers: list, jobs: list, on_result, supervisor=None) -> None:
-    """Play every (index, task) of `jobs` (or chained episodes, SimWorker.begin_chain) on the workers, each keeping one request in flight, and
-    call `on_result(result)` as each episode ends (in the order they end).
+    """Play every (index, task) of `jobs` (or chained episode: SimWorker.begin_chain) on the workers, each
+    keeping one request in flight, and call `on_result(result)` as each episode (or chained task) ends, in
+    the order they end.
 
     With a `supervisor` (a Supervisor), a worker whose node died or stopped answering has its nodes
     restarted and its episode played again from the start; without one, NodeDied or TimeoutError ends
