@@ -469,3 +469,18 @@ def test_the_browser_checks_catch_a_broken_script_a_console_error_and_a_missing_
                   "return i.decode().catch(function () { return 0; }); }))")
     assert any('ERR_FILE_NOT_FOUND' in e for e in page.errors), page.errors
 
+
+
+def test_a_chained_runs_page_gives_its_episodes_figures_and_each_tasks_place(tmp_path):
+    from dialfred_bringup.evaluation import EvalConfig, run_eval
+    out = tmp_path / 'chained.jsonl'
+    report = run_eval(EvalConfig(split='valid_unseen', agent='random', resolution=64, limit=16, local=True,
+                                 workers=2, protocol='chained', out=out), progress=False)
+    page = build_report(out)[0].read_text()
+    episodes = report.summary['episodes']
+    assert f'Chained (DialFRED&#x27;s challenge test): {episodes["episodes"]} episodes' in page
+    first = report.results[0]
+    total = sum(r.episode_id == first.episode_id for r in report.results)
+    assert f'episode {first.episode_id}, task 1 of {total}' in page
+    if episodes['held_at_start']:
+        assert 'its goal held at its chained start' in page

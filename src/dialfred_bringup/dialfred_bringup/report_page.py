@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import html
 from pathlib import Path
-from typing import Sequence
+from typing import Optional, Sequence
 
 import jinja2
 
@@ -29,7 +29,9 @@ def esc(value) -> str:
 
 
 def outcome_label(result) -> str:
-    """'success' or 'failure (why)'."""
+    """'success' or 'failure (why)'; a chained task whose goal held at its start says so."""
+    if result.held_at_start:
+        return 'failure (its goal held at its chained start: scored as not done)'
     return 'success' if result.success else f'failure ({OUTCOME_LABELS.get(result.end_reason, result.end_reason)})'
 
 
@@ -82,10 +84,21 @@ def cards(overall: dict, bounds: dict) -> list[dict]:
     return out
 
 
-def episode_view(ep) -> dict:
-    """What the page shows of one episode (`ep`: a report.EpisodeView)."""
+def chained_places(results) -> dict:
+    """{task id: 'episode E, task k of n'} of a chained run's results (its tasks in the order played)."""
+    by_episode: dict = {}
+    for r in results:
+        if r.protocol == 'chained':
+            by_episode.setdefault(r.episode_id, []).append(r.task_id)
+    return {tid: f'episode {e}, task {k} of {len(ids)}' for e, ids in by_episode.items()
+            for k, tid in enumerate(sorted(ids), start=1)}
+
+
+def episode_view(ep, place: str = '') -> dict:
+    """What the page shows of one episode (`ep`: a report.EpisodeView); `place`: where a chained task stands in
+    its episode."""
     r = ep.result
-    facts = [f'{r.steps} steps (expert {r.expert_length})',
+    facts = ([place] if place else []) + [f'{r.steps} steps (expert {r.expert_length})',
              f'goal conditions {r.goal_conditions_met}/{r.goal_conditions_total}',
              f'{r.questions} question{"s" if r.questions != 1 else ""}'
              + (f' ({r.invalid_questions} unanswerable)' if r.invalid_questions else ''),
@@ -95,10 +108,22 @@ def episode_view(ep) -> dict:
                 outcome_label=outcome_label(r), facts=' · '.join(facts))
 
 
+def chained_line(episodes: Optional[dict]) -> str:
+    """The per-episode figures of a chained run (metrics.summarize's 'episodes'), as a sentence; '' otherwise."""
+    if not episodes:
+        return ''
+    e = episodes
+    return (f'Chained (DialFRED\'s challenge test): {e["episodes"]} episodes of {e["tasks_per_episode"]:.2f} tasks, each '
+            f'task on the state the agent\'s own actions left; every task done in {e["all_succeeded"]:.1f}% of them, '
+            f'{e["in_order"]:.2f} tasks done in order before the first failure, {e["questions_per_episode"]:.2f} '
+            f'questions an episode; {e["held_at_start"]} tasks held at start (scored as not done).')
+
+
 def render_page(report) -> str:
     """The whole page of a report.Report, as text."""
     summary = report.summary
     overall = summary['overall']
+    places = chained_places(ep.result for ep in report.episodes)
     chart_rows = [('overall', overall['n'], overall['SR'], report.bounds['SR'], '')]
     chart_rows += [(t, row['n'], row['SR'], report.type_bounds[t], t) for t, row in summary['per_type'].items()]
     end_reasons = summary['end_reasons']
@@ -108,5 +133,6 @@ def render_page(report) -> str:
         report=report, overall=overall, cards=cards(overall, report.bounds), nq_invalid=f'{overall["NQ_invalid"]:.2f}',
         reasons=', '.join(f'{esc(r)} {end_reasons[r]}' for r in END_REASONS if r in end_reasons),
         sr_chart=sr_chart(chart_rows), per_type=per_type, total=len(report.episodes),
-        episodes=[episode_view(ep) for ep in report.episodes],
+        episodes=[episode_view(ep, places.get(ep.result.task_id, '')) for ep in report.episodes],
+        chained=chained_line(summary.get('episodes')),
         style=(TEMPLATES / 'report.css').read_text(), script=(TEMPLATES / 'report.js').read_text())
