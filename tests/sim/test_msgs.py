@@ -140,7 +140,8 @@ def test_services_have_the_documented_request_and_response():
 
 def test_run_task_action_has_the_documented_goal_result_and_feedback():
     from dialfred_msgs.action import RunTask
-    assert RunTask.Goal.get_fields_and_field_types() == {'task_id': 'string', 'seed': 'int64', 'checkpoint': 'string'}
+    assert RunTask.Goal.get_fields_and_field_types() == {'task_id': 'string', 'seed': 'int64', 'checkpoint': 'string',
+                                                         'protocol': 'string', 'carry_on': 'boolean'}
     assert RunTask.Result.get_fields_and_field_types() == {
         'success': 'boolean', 'steps': 'uint32', 'goal_conditions_met': 'uint32', 'goal_conditions_total': 'uint32',
         'failed_actions': 'uint32', 'questions': 'uint32', 'invalid_questions': 'uint32', 'end_reason': 'string',

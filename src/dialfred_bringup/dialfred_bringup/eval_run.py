@@ -86,10 +86,6 @@ def check_ranges(o: EvalConfig) -> None:
                          f'got {o.performer!r}')
     if o.protocol not in PROTOCOLS:
         raise ValueError(f'--protocol must be one of {", ".join(PROTOCOLS)}, got {o.protocol!r}')
-    if o.protocol == 'chained' and o.performer:
-        raise ValueError('--protocol chained: the performer node plays one task a goal (the expert protocol); play '
-                         'the same performer in this process with --agent ' + o.performer + ' (through the simulator '
-                         'and oracle nodes, or --local)')
     if o.answers not in SWAP_MODES:
         raise ValueError(f'--answers must be one of {", ".join(SWAP_MODES)}, got {o.answers!r}')
     if o.perturb_type and o.perturb_type not in QUESTION_TYPES:

@@ -202,6 +202,7 @@ class PerformerWorker:
         self.task = self.job = None
         self.live = None       # a LiveHook, with --foxglove
         self.pending = ''       # 'goal' (waiting for acceptance) or 'result'
+        self.chain, self.link = None, 0     # a chained episode being played (a goal a task), and its task now
         self.traces = collections.defaultdict(list)   # task id -> the actions of its feedback, (name, x, y)
 
     def _prove_paths(self, deadline: float) -> None:
@@ -229,9 +230,18 @@ class PerformerWorker:
         return self.future is not None
 
     def begin(self, index: int, task) -> None:
+        self.job, self.chain = (index, task), None
+        self._send_goal(index, task)
+
+    def begin_chain(self, episode) -> None:
+        """Play the tasks of a chained episode (dialfred_sim.chained.ChainedEpisode) in order, a goal each: the
+        first resets the simulator to its start, every later one goes on (`carry_on`)."""
+        self.job, self.chain, self.link = episode, episode, 0
+        self._send_goal(*episode.tasks[0])
+
+    def _send_goal(self, index: int, task) -> None:
         from dialfred_msgs.action import RunTask  # lazy: the ROS messages, which the rest of this module does without
 
-        self.job = (index, task)
         self.task, self.started = task, time.monotonic()
         self.sent_at, self.cancel_future, self.goal_handle = self.started, None, None
         trace = self.traces[task.task_id]
@@ -248,7 +258,8 @@ class PerformerWorker:
             if self.on_feedback is not None:
                 self.on_feedback(task, msg.feedback)
 
-        goal = RunTask.Goal(task_id=task.task_id, seed=episode_seed(self.run.options.seed, index))
+        chained = {'protocol': 'chained', 'carry_on': self.link > 0} if self.chain is not None else {}
+        goal = RunTask.Goal(task_id=task.task_id, seed=episode_seed(self.run.options.seed, index), **chained)
         self.future = self.client.send_goal_async(goal, feedback_callback=feedback)
         self.pending = 'goal'
 
@@ -256,15 +267,24 @@ class PerformerWorker:
         reply, self.future = self.future.result(), None
         if self.pending == 'goal':
             if reply is None or not reply.accepted:
-                return self._result(None, error=f'{self.name} rejected the goal (is another goal running there?)')
+                return self._go_on(self._result(None, error=f'{self.name} rejected the goal (is another goal running '
+                                                            'there?)'))
             self.goal_handle, self.pending = reply, 'result'
             self.future = reply.get_result_async()
             return None
         from action_msgs.msg import GoalStatus  # lazy: the ROS messages, which the rest of this module does without
         result = reply.result
         if reply.status == GoalStatus.STATUS_CANCELED:
-            return self._result(result, error=f'cancelled after {self.run.options.episode_timeout:g} s (episode_timeout)')
-        return self._result(result)
+            return self._go_on(self._result(result, error=f'cancelled after {self.run.options.episode_timeout:g} s '
+                                                          '(episode_timeout)'))
+        return self._go_on(self._result(result))
+
+    def _go_on(self, line):
+        """`line`, a task's results line; in a chained episode the next task's goal is sent first (still busy)."""
+        if self.chain is not None and self.link + 1 < len(self.chain.tasks):
+            self.link += 1
+            self._send_goal(*self.chain.tasks[self.link])
+        return line
 
     def overdue(self) -> bool:
         """Cancel a goal past episode_timeout (once); True only if even the cancel got no result in 60 s."""
@@ -292,8 +312,9 @@ class PerformerWorker:
         outcome.end_reason = reason
         outcome.error = '' if outcome.success else (error or (r.error if r is not None else ''))
         dialogue = [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in r.dialogue] if r else []
+        length = reference_length([t for _, t in self.chain.tasks], self.link) if self.chain is not None else None
         return episode_result(self.task, outcome, dialogue, wall_s=time.monotonic() - self.started,
-                              **self.run.identity)
+                              expert_length=length, **self.run.identity)
 
 
 def begin(worker, job) -> None:

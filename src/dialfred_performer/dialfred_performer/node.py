@@ -44,7 +44,8 @@ from dialfred_msgs.msg import Action, QAPair
 from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
 from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
 from dialfred_sim.messages import qa_from_answer, qa_msg, sim_reply, task_description_msg
-from dialfred_sim.protocol import MAX_QUESTIONS, QA, ConfusionSource, MapPainter, Question, top2_gap
+from dialfred_sim.protocol import (MAX_QUESTIONS, PROTOCOLS, QA, ConfusionSource, Continuing, MapPainter, Question,
+                                  top2_gap)
 from dialfred_sim.bag import IMAGE_FORMATS, RecordingObserver
 from dialfred_sim.ros_util import (RESEND_AFTER_S, SERVICE_QOS, SETTLE_S, Param, declare_parameters, refused_request,
                                    run_node)
@@ -173,6 +174,10 @@ class PerformerNode(Node):
                              'valid_unseen/000012')
         if goal.seed < 0:
             raise GoalFailed(f'seed must be a non-negative integer, got {goal.seed}')
+        if goal.protocol not in ('', *PROTOCOLS):
+            raise GoalFailed(f'protocol must be one of {", ".join(PROTOCOLS)} (or empty), got {goal.protocol!r}')
+        if goal.carry_on and goal.protocol != 'chained':
+            raise GoalFailed("carry_on goes on to the next task of a chained episode: protocol 'chained'")
         try:
             policy = self.policy(goal.checkpoint or self.checkpoint)
         except (FileNotFoundError, CheckpointError, ValueError) as exc:
@@ -186,7 +191,7 @@ class PerformerNode(Node):
             observers.append(self.recorder)
         episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
                        max_questions=int(self.get_parameter('max_questions').value), asker='questioner',
-                       observers=observers)
+                       observers=observers, carry_on=bool(goal.carry_on))
         run(episode, goal_run.serve)
 
     # ------------------------------------------------------------------ helpers
@@ -268,6 +273,15 @@ class GoalRun(EpisodeObserver):
         self.task, self.seed = task, seed
         self.policy.reset(task, seed)
 
+    def carry_on(self, task, seed: int) -> None:
+        """A chained goal after the first of its episode: a policy that is protocol.Continuing keeps what it
+        knows (the map performer its map), any other starts afresh."""
+        self.task, self.seed = task, seed
+        if isinstance(self.policy, Continuing):
+            self.policy.carry_on(task, seed)
+        else:
+            self.policy.reset(task, seed)
+
     def ask(self, observation):
         """What the questioner node asks before this action (with the policy's top-2 action-probability gap)."""
         if self.goal_handle.is_cancel_requested:
@@ -294,8 +308,10 @@ class GoalRun(EpisodeObserver):
     def serve(self, request):
         node = self.node
         if isinstance(request, Reset):
-            reply = node.call(node.reset_cli, SimReset.Request(task_id=self.goal_handle.request.task_id,
-                                                               with_depth=False, with_segmentation=False), resend=True)
+            goal = self.goal_handle.request
+            reply = node.call(node.reset_cli, SimReset.Request(task_id=goal.task_id, with_depth=False,
+                                                               with_segmentation=False, protocol=goal.protocol,
+                                                               carry_on=goal.carry_on), resend=True)
             if not reply.ok:
                 raise GoalFailed(f'reset: {reply.error}')
             return sim_reply(reply)
