@@ -124,7 +124,7 @@ def measure(shard: str, limit: int, workers: int, out: Path, checkpoint: str, se
     with worker_pool(max(1, workers), initializer=_init, initargs=(checkpoint, seed, resolution)) as pool, \
             tqdm(total=len(jobs), disable=not progress, file=sys.stderr, unit='ep') as bar:
         for sight, questioner, result in pool.imap_unordered(_job, jobs, chunksize=1):
-            files[sight, questioner].write(json.dumps(dataclasses.asdict(result)) + '\n')
+            files[sight, questioner].write(result.to_json() + "\n")
             files[sight, questioner].flush()
             done[sight, questioner][result.task_id] = result
             bar.update(1)

@@ -68,7 +68,8 @@ def test_every_baseline_is_played_reported_and_documented_and_a_rerun_resumes(ru
     assert 'Instruction only on valid_unseen: SR' in doc and '>= 18.3 (paper)' in doc
 
     files = lines_of(folder)
-    assert files == {f'valid_unseen_{k}.jsonl': 3 for k in rows} | {f'valid_unseen_{k}.runs.jsonl': 1 for k in rows}
+    assert files == ({f'valid_unseen_{k}.jsonl': 3 for k in rows} | {f'valid_unseen_{k}.runs.jsonl': 1 for k in rows}
+                     | {f'valid_unseen_{k}.trace.jsonl': 3 for k in rows})      # each episode's trace (score)
     again = call(capfd, argv)                                  # a rerun: nothing new is played
     assert lines_of(folder) == files
     assert again['results'] == report['results']

@@ -52,6 +52,7 @@ def expert_did_everything(report, tasks: int) -> None:
 
 
 @pytest.mark.slow      # 4.5 min on 2 cores: every task of both validation splits, train's first 3,000, a sealed split
+@pytest.mark.timeout(1200)   # train's 3,000 tasks: 4-5 min beside the rest of the slow tier
 @pytest.mark.parametrize('split', ['valid_unseen', 'valid_seen', 'train', 'test_unseen'])
 def test_the_expert_does_every_task_of_whole_splits_chained(tmp_path, split):
     settings = dict(split=split, agent='expert')
