@@ -34,8 +34,8 @@ from ..evaluation import EvalRun, resumable_results
 from ..machine import machine, speed_probe
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)
-from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, chained_settings,
-                   settings)
+from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, Setting,
+                   chained_settings, settings)
 
 
 # --------------------------------------------------------------------------------------------- stages
@@ -429,56 +429,48 @@ class Runner:
         return {'items': items}
 
     def eval(self, resume: bool) -> dict:
+        p = self.plan
+
+        def silent(s: Setting):
+            # The no-question setting of each performer and split keeps its episodes; the other settings take
+            # an episode from there when their questioner would ask nothing in it (dialfred_bringup.silent).
+            return ('replay' if s.questioner else 'record', p.eval_dir / 'silent' / f'{s.split}_{s.performer}') \
+                if p.eval_path == 'local' else None
+        return self.evaluations('eval', settings(), p.eval_dir, p.eval_config, EVAL_CODE, silent)
+
+    def chained(self, resume: bool) -> dict:
+        """The settings of plan.CHAINED_KEYS under the chained protocol (DialFRED's challenge test), one item each."""
+        p = self.plan
+        return self.evaluations('chained', chained_settings(), p.chained_dir,
+                                lambda s: p.eval_config(s, chained=True), CHAINED_CODE, lambda s: None)
+
+    def evaluations(self, stage: str, chosen: list, folder: Path, config_of: Callable, code: tuple,
+                    silent_of: Callable) -> dict:
+        """The eval or chained stage: each available setting of `chosen` played (`config_of(setting)`) as an item
+        of its own, its results in `folder`."""
         p, items = self.plan, {}
-        p.eval_dir.mkdir(parents=True, exist_ok=True)
+        folder.mkdir(parents=True, exist_ok=True)
         performer = file_sha256(p.performer_checkpoint)
-        for s in settings():
+        for s in chosen:
             if not p.available(s):
-                self.log(f'eval: {s.split} {s.key}: no questioner checkpoint, left out')
+                self.log(f'{stage}: {s.split} {s.key}: no questioner checkpoint, left out')
                 continue
-            config = p.eval_config(s)
+            config = config_of(s)
             questioner = s.questioner
             if questioner.startswith('rl:'):
                 questioner = file_sha256(p.questioner_checkpoint(questioner[3:]))
             inputs = {'setting': dataclasses.asdict(s), 'config': config_inputs(config), 'performer': performer,
                       'questioner': questioner}
-            # the results file and its companions (summary, runs, lock, tasks record): <split>_<key>.*
-            outputs = sorted(p.eval_dir.glob(f'{s.split}_{s.key}.*'))
+            # the results file and its companions (summary, runs, lock, tasks record, trace): <split>_<key>.*
+            outputs = sorted(folder.glob(f'{s.split}_{s.key}.*'))
 
-            # The no-question setting of each performer and split keeps its episodes; the other settings take
-            # an episode from there when their questioner would ask nothing in it (dialfred_bringup.silent).
-            silent = ('replay' if s.questioner else 'record', p.eval_dir / 'silent' / f'{s.split}_{s.performer}') \
-                if p.eval_path == 'local' else None
+            silent = silent_of(s)
 
             def run(resume: bool, config=config, silent=silent) -> dict:
                 run_baseline(config, self.cfg.progress, silent)    # resumes a cut-off results file; its wall time
                 return {}                                          # in <results>.runs.jsonl
-            items[f'{s.split}/{s.key}'] = self.run_item('eval', f'{s.split}/{s.key}', inputs,
-                                                        (*EVAL_CODE, *MODEL_CODE[s.performer]), outputs, run)
-        return {'items': items}
-
-    def chained(self, resume: bool) -> dict:
-        """The settings of plan.CHAINED_KEYS under the chained protocol (DialFRED's challenge test), one item each."""
-        p, items = self.plan, {}
-        p.chained_dir.mkdir(parents=True, exist_ok=True)
-        performer = file_sha256(p.performer_checkpoint)
-        for s in chained_settings():
-            if not p.available(s):
-                self.log(f'chained: {s.split} {s.key}: no questioner checkpoint, left out')
-                continue
-            config = p.eval_config(s, chained=True)
-            questioner = s.questioner
-            if questioner.startswith('rl:'):
-                questioner = file_sha256(p.questioner_checkpoint(questioner[3:]))
-            inputs = {'setting': dataclasses.asdict(s), 'config': dataclasses.asdict(config), 'performer': performer,
-                      'questioner': questioner}
-            outputs = sorted(p.chained_dir.glob(f'{s.split}_{s.key}.*'))
-
-            def run(resume: bool, config=config) -> dict:
-                run_baseline(config, self.cfg.progress)
-                return {}
-            items[f'{s.split}/{s.key}'] = self.run_item('chained', f'{s.split}/{s.key}', inputs,
-                                                        (*CHAINED_CODE, *MODEL_CODE[s.performer]), outputs, run)
+            items[f'{s.split}/{s.key}'] = self.run_item(stage, f'{s.split}/{s.key}', inputs,
+                                                        (*code, *MODEL_CODE[s.performer]), outputs, run)
         return {'items': items}
 
     def check(self, resume: bool) -> dict:
