@@ -17,8 +17,10 @@ import pytest
 
 
 from dialfred_bringup.evaluation import EvalConfig, run_eval
-from dialfred_sim.bag import bag_name, read_episode
+from dialfred_sim.bag import bag_name, read_bag, read_episode
 from dialfred_bringup.replay import main as replay_main
+from dialfred_bringup.report import build_report
+from dialfred_sim.traces import load_traces
 
 REPO = Path(__file__).resolve().parents[2]
 RES = 64
@@ -37,6 +39,52 @@ def check_bags_match_results(report, folder: Path) -> None:
         assert (ep.result['success'], ep.result['steps'], ep.result['questions'], ep.result['end_reason']) == \
             (r.success, r.steps, r.questions, r.end_reason)
         assert sum(not a[4] for a in ep.actions) == r.failed_actions
+
+
+def check_chained_bags(report, folder: Path, results: Path, traced: bool = True) -> None:
+    """One bag a chained episode, `<first task>_chained`, that holds its tasks in the order played, each as its
+    results line says; the report page shows every task with its episode's one GIF."""
+    episodes: dict = {}
+    for r in report.results:
+        episodes.setdefault(r.episode_id, []).append(r)
+    assert len(episodes) >= 2
+    traces = load_traces(results) if traced else {}   # performer-node runs keep no trace
+    assert sorted(p.name for p in folder.iterdir()) == sorted(bag_name(rs[0].task_id, chained=True)
+                                                              for rs in episodes.values())
+    for rs in episodes.values():
+        parts = read_bag(folder / bag_name(rs[0].task_id, chained=True))
+        assert [p.task['task_id'] for p in parts] == [r.task_id for r in rs]
+        for ep, r in zip(parts, rs):
+            assert [a[0] for a in ep.actions] == list(range(1, r.steps + 1))
+            if traced:
+                assert [(a[1], a[2], a[3]) for a in ep.actions] == [tuple(a) for a in traces[r.task_id]['actions']]
+            assert len(ep.frames) == r.steps + 1
+            assert [(q[1], q[2], q[4]) for q in ep.dialogue] == [(d['type'], d['noun'], d['answer']) for d in r.dialogue]
+            assert (ep.result['success'], ep.result['steps'], ep.result['end_reason']) == (r.success, r.steps,
+                                                                                           r.end_reason)
+    page, rep, counts = build_report(results, bags=folder)
+    assert counts == {'gifs': len(report.results), 'missing': 0, 'unreadable': 0, 'mismatched': 0}
+    gifs = {v.result.task_id: v.gif for v in rep.episodes}
+    for rs in episodes.values():
+        assert len({gifs[r.task_id] for r in rs}) == 1 and gifs[rs[0].task_id]
+    assert len(set(gifs.values())) == len(episodes)
+
+
+def test_a_chained_episode_is_recorded_as_one_bag_with_its_tasks(tmp_path):
+    """The in-process agent path (the simulator and oracle nodes); the performer node's: below."""
+    report = run_eval(EvalConfig(split='valid_unseen', agent='random', questioner='random', limit=17, workers=1,
+                                 resolution=RES, protocol='chained', out=tmp_path / 'c.jsonl', record=tmp_path / 'bags'),
+                      progress=False)
+    assert sum(r.questions for r in report.results) > 0
+    check_chained_bags(report, tmp_path / 'bags', tmp_path / 'c.jsonl')
+
+
+@pytest.mark.slow   # a chained graph run through the performer node; fast: the in-process path above
+def test_the_performer_node_records_a_chained_episode_as_one_bag(checkpoint, tmp_path):
+    report = run_eval(EvalConfig(split='valid_unseen', performer='et', questioner='all', limit=17, workers=1,
+                                 resolution=RES, protocol='chained', checkpoint=checkpoint, out=tmp_path / 'c.jsonl',
+                                 record=tmp_path / 'bags'), progress=False)
+    check_chained_bags(report, tmp_path / 'bags', tmp_path / 'c.jsonl', traced=False)
 
 
 @pytest.mark.slow   # two graph runs end to end; fast: the recording tests below

@@ -135,3 +135,18 @@ def test_a_chained_file_that_starts_an_episode_in_its_middle_cannot_be_scored(ru
     dst.write_text('\n'.join(keep) + '\n')
     with pytest.raises(ResultsFileError, match='scored from its start'):
         score(dst, workers=1, progress=False)
+
+
+@pytest.mark.slow   # two chained runs of the map performer, one through performer nodes; fast: the local runs above
+def test_a_run_through_performer_nodes_keeps_the_local_paths_trace_and_replays(tmp_path):
+    """The performer node's RunTask result carries its goal's actions and question steps: the trace file of a
+    graph run is the local run's, line for line, and `score` replays it."""
+    settings = dict(split='valid_unseen', agent='map', questioner='all', protocol='chained', limit=17, workers=2)
+    graph = tmp_path / 'graph.jsonl'
+    run_eval(EvalConfig(performer='map', out=graph, **settings), progress=False)
+    run_eval(EvalConfig(local=True, out=tmp_path / 'local.jsonl', **settings), progress=False)
+    lines = lambda p: sorted(trace_path(p).read_text().splitlines())
+    assert lines(graph) == lines(tmp_path / 'local.jsonl')
+    report = score(graph, workers=2, progress=False)
+    assert report['refused'] is None, report['refused']
+    assert sum(r.questions for r in report['results']) > 0

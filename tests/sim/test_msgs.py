@@ -145,7 +145,8 @@ def test_run_task_action_has_the_documented_goal_result_and_feedback():
     assert RunTask.Result.get_fields_and_field_types() == {
         'success': 'boolean', 'steps': 'uint32', 'goal_conditions_met': 'uint32', 'goal_conditions_total': 'uint32',
         'failed_actions': 'uint32', 'questions': 'uint32', 'invalid_questions': 'uint32', 'end_reason': 'string',
-        'error': 'string', 'last_action': 'string', 'dialogue': 'sequence<dialfred_msgs/QAPair>'}
+        'error': 'string', 'last_action': 'string', 'dialogue': 'sequence<dialfred_msgs/QAPair>',
+        'actions': 'sequence<dialfred_msgs/Action>', 'asked_at': 'sequence<uint32>'}
     assert RunTask.Feedback.get_fields_and_field_types() == {
         'step': 'uint32', 'action': 'dialfred_msgs/Action', 'action_success': 'boolean', 'questions': 'uint32'}
     # The action's hidden services and topic carry the goal id (action_msgs) with the goal.

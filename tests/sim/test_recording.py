@@ -19,7 +19,7 @@ import pytest
 
 from dialfred_bringup.replay import main as replay_main
 from dialfred_bringup.replay import transcript
-from dialfred_sim.bag import (ACTION_NS, QA_NS, RESULT_NS, STEP_NS, TOPICS, BagError, EpisodeRecorder, read_episode,
+from dialfred_sim.bag import (ACTION_NS, QA_NS, RESULT_NS, STEP_NS, TOPICS, BagError, EpisodeRecorder, read_bag, read_episode,
                               typestore)
 
 TASK = dict(task_id='valid_unseen/000007', scene='FloorPlan301', split='valid_unseen',
@@ -203,3 +203,76 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match='unknown result fields'):
         rec.result(sucess=True)
     assert len(rec.messages) == 1                                         # only the task
+
+
+NEXT = dict(task_id='valid_unseen/000008', scene='FloorPlan301', split='valid_unseen',
+            instruction='Pick up the book.', object_nouns=['book'])
+
+
+def chained_episode(folder: Path) -> tuple[list, list]:
+    """Two tasks of a chained episode in one bag, saved after each task (as the recorders do); random frames
+    (SYNTHETIC). Returns (the bag's bytes after the first task, the frames of the second task)."""
+    rng = np.random.default_rng(5)
+    frames = [rng.integers(0, 256, (48, 64, 3), dtype=np.uint8) for _ in range(3)]
+    rec = EpisodeRecorder(**TASK, chained=True)
+    rec.observation(0, frames[0], (1.0, 2.0, 90.0, 0.0), 0.9)
+    rec.question(0, 'location', 'book', 'Where is the book?', 'The book is on the desk.', True)
+    rec.action(1, 'Stop', -1, -1, True, 1)
+    rec.observation(1, frames[0], (1.0, 2.0, 90.0, 0.0), 0.9)
+    rec.result(success=False, steps=1, questions=1, end_reason='stop', last_action='Stop')
+    first = sorted(f.read_bytes() for f in rec.save(folder).iterdir())
+    with pytest.raises(ValueError, match='already recorded'):
+        rec.result(steps=1)
+    rec.next_task(**NEXT)
+    for k in range(3):
+        if k:
+            rec.action(k, 'MoveAhead', -1, -1, True, 0)
+        rec.observation(k, frames[k], (1.0 + 0.25 * k, 2.0, 90.0, 0.0), 0.9)
+    rec.question(2, 'direction', '', 'Which way should I go?', 'Turn left.', True)
+    rec.action(3, 'Stop', -1, -1, True, 1)
+    rec.observation(3, frames[2], (1.5, 2.0, 90.0, 0.0), 0.9)
+    rec.result(success=True, steps=3, questions=1, end_reason='stop', last_action='Stop')
+    assert rec.save(folder) == folder / 'valid_unseen_000007_chained'
+    return first, frames
+
+
+def test_a_chained_episode_is_one_bag_that_holds_its_tasks_in_order_each_on_its_own_clock(tmp_path):
+    _, frames = chained_episode(tmp_path)
+    bag = tmp_path / 'valid_unseen_000007_chained'
+    first, second = read_bag(bag)
+    assert (first.task['task_id'], second.task['task_id']) == ('valid_unseen/000007', 'valid_unseen/000008')
+    assert (first.place, first.of, second.place, second.of) == (1, 2, 2, 2)
+    assert first.offset_ns == 0 and second.offset_ns == 2 * STEP_NS        # one step after the first task's result
+    assert [f[1] for f in second.frames] == [0, 1, 2, 3] and all(
+        np.array_equal(f[2], g) for f, g in zip(second.frames, frames))
+    assert [a[:2] for a in second.actions] == [(1, 'MoveAhead'), (2, 'MoveAhead'), (3, 'Stop')]
+    assert [q[:2] for q in first.dialogue] == [(0, 'location')] and [q[:2] for q in second.dialogue] == [(2, 'direction')]
+    assert (first.result['success'], first.result['steps'], second.result['success'], second.result['steps']) == \
+        (False, 1, True, 3)
+    rows = independent_read(bag)       # one clock over the whole episode, each result with its own task's dialogue
+    assert [t for tp, _, t, _ in rows if tp == '/task'] == [0, 2 * STEP_NS]
+    results = [m for tp, _, _, m in rows if tp == '/episode/result']
+    assert [[q.question_type for q in r.dialogue] for r in results] == [['location'], ['direction']]
+    with pytest.raises(BagError, match='chained episode'):
+        read_episode(bag)
+
+
+def test_a_chained_bag_is_complete_after_each_task_and_replays_task_after_task(tmp_path, capsys):
+    first_bytes, _ = chained_episode(tmp_path / 'a')
+    chained_episode(tmp_path / 'b')
+    bag = tmp_path / 'b' / 'valid_unseen_000007_chained'
+    assert sorted(f.read_bytes() for f in bag.iterdir()) == sorted(
+        f.read_bytes() for f in (tmp_path / 'a' / bag.name).iterdir())       # the same bytes on a rerun
+    assert sorted(f.read_bytes() for f in bag.iterdir()) != first_bytes     # rewritten with the second task
+    assert replay_main([str(bag), '--gif', str(tmp_path / 'e.gif'), '--sheet', str(tmp_path / 'e.png')]) == 0
+    out = capsys.readouterr().out
+    assert 'a chained episode of 2 tasks' in out
+    assert out.index('task 1 of 2: valid_unseen/000007') < out.index('task 2 of 2: valid_unseen/000008')
+    assert (tmp_path / 'e.gif').stat().st_size > 1000
+
+
+def test_a_recorder_of_one_task_refuses_a_next_task_and_a_chained_one_before_the_result(tmp_path):
+    with pytest.raises(ValueError, match='holds one task'):
+        EpisodeRecorder(**TASK).next_task(**NEXT)
+    with pytest.raises(ValueError, match='no result yet'):
+        EpisodeRecorder(**TASK, chained=True).next_task(**NEXT)

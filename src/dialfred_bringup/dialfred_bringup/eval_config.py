@@ -28,7 +28,8 @@ from .shards import parse_shard, show_shard
 def record_field():
     """--record DIR, for every job that plays episodes (eval, demo, dialogue)."""
     return arg(None, 'write each episode as a ROS 2 bag (rosbag2, MCAP storage) into DIR/<split>_<number>/: task, '
-               'camera, poses, QAs, actions and their results, the outcome; `./dialfred replay DIR/<bag>` prints '
+               'camera, poses, QAs, actions and their results, the outcome (a chained episode: one bag, '
+               'DIR/<split>_<first number>_chained/, its tasks in order); `./dialfred replay DIR/<bag>` prints '
                'and renders one', metavar='DIR')
 
 

@@ -1,5 +1,6 @@
 """Replay a recorded episode bag (dialfred_sim.bag): its dialogue and actions as text, a captioned GIF and a
-contact sheet from the bag alone, or a stream into the live view.
+contact sheet from the bag alone, or a stream into the live view. A chained episode's bag plays its tasks
+one after another (the contact sheet: a row a task).
 
     ./dialfred replay BAG [--gif OUT.gif] [--sheet OUT.png] [--foxglove [PORT]]
 """
@@ -14,7 +15,7 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.bag import STEP_NS, BagError, RecordedEpisode, read_episode
+from dialfred_sim.bag import STEP_NS, BagError, RecordedEpisode, read_bag
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 
 from .film import save_captioned_gif, save_contact_sheet
@@ -24,7 +25,7 @@ from .live import FOXGLOVE_PORT, LiveView, describe
 
 def transcript(ep: RecordedEpisode) -> list[str]:
     """The episode as lines of text: the task, each QA and action in order, the outcome."""
-    lines = [f'{ep.task["task_id"]} in {ep.task["scene"]}: "{ep.task["instruction"]}"']
+    lines = [f'{where(ep)}{ep.task["task_id"]} in {ep.task["scene"]}: "{ep.task["instruction"]}"']
     events = [(s, 0, k, f'  Q [{q[1]}{": " + q[2] if q[2] else ""}] -> '
                         f'{q[4] if q[5] else "(the oracle could not answer)"}')
               for k, q in enumerate(ep.dialogue) for s in [q[0]]]
@@ -39,6 +40,16 @@ def transcript(ep: RecordedEpisode) -> list[str]:
     else:
         lines.append('outcome: not recorded (the episode did not end)')
     return lines
+
+
+def where(ep: RecordedEpisode) -> str:
+    """'task k of n: ' for a task of a chained episode's bag, '' for a bag of one task."""
+    return f'task {ep.place} of {ep.of}: ' if ep.of > 1 else ''
+
+
+def bag_film(parts: list) -> list:
+    """The captioned GIF's frames of a bag: its tasks' films one after another (read_bag's parts)."""
+    return [shot for ep in parts for shot in film(ep)]
 
 
 def beside(frame, picture):
@@ -56,7 +67,7 @@ def film(ep: RecordedEpisode) -> list:
     """(frame, caption lines) pairs for a captioned GIF: the start, each QA over the frame it was asked
     on, each action over the frame after it; with the performer's map beside each frame where the bag
     holds one (the map it decided its next action on)."""
-    title = f'{ep.task["task_id"]}: "{ep.task["instruction"]}"'
+    title = f'{where(ep)}{ep.task["task_id"]}: "{ep.task["instruction"]}"'
     maps = sorted(ep.maps, key=lambda m: m[0])
 
     def shot(step: int):
@@ -83,35 +94,35 @@ def film(ep: RecordedEpisode) -> list:
 
 
 def replay_bag(view, path, worker: str = 'w0', speed: float = 1.0) -> None:
-    """Stream a recorded episode bag into a live view (dialfred_bringup.live.LiveView) at `speed` times the
-    simulator's clock (0.1 s a step)."""
-    ep = read_episode(path)
-    t = ep.task
-    view.task(worker, t['task_id'], t['scene'], t['instruction'])
-    events = [(time_ns, 0, ('frame', step, rgb)) for time_ns, step, rgb in ep.frames]
-    events += [(q[0] * STEP_NS + 1, 1, ('qa', q)) for q in ep.dialogue]
-    events += [(a[0] * STEP_NS, 2, ('action', a)) for a in ep.actions]
-    events += [((step - 1) * STEP_NS + 1, 3, ('belief', picture)) for step, picture in ep.maps]
-    poses = {p[0]: p for p in ep.poses}
+    """Stream a recorded bag into a live view (dialfred_bringup.live.LiveView) at `speed` times the simulator's
+    clock (0.1 s a step); a chained episode's tasks one after another."""
     start = time.monotonic()
-    for time_ns, _, event in sorted(events, key=lambda e: (e[0], e[1])):
-        wait = start + time_ns / 1e9 / max(speed, 1e-6) - time.monotonic()
-        if wait > 0:
-            time.sleep(wait)
-        if event[0] == 'frame':
-            p = poses.get(event[1], (event[1], 0.0, 0.0, 0.0, 0.0))
-            view.frame(worker, event[2], (p[1], p[2], p[3], p[4]), 0.9, event[1])
-        elif event[0] == 'qa':
-            q = event[1]
-            view.qa(worker, q[1], q[2], q[4], q[5])
-        elif event[0] == 'belief':
-            view.belief(worker, event[1])
-        else:
-            a = event[1]
-            view.action(worker, a[0], a[1], a[4])
-    if ep.result:
-        r = ep.result
-        view.result(worker, t['task_id'], r['success'], r['end_reason'], r['steps'], r['questions'])
+    for ep in read_bag(path):
+        t = ep.task
+        view.task(worker, t['task_id'], t['scene'], t['instruction'])
+        events = [(time_ns, 0, ('frame', step, rgb)) for time_ns, step, rgb in ep.frames]
+        events += [(q[0] * STEP_NS + 1, 1, ('qa', q)) for q in ep.dialogue]
+        events += [(a[0] * STEP_NS, 2, ('action', a)) for a in ep.actions]
+        events += [((step - 1) * STEP_NS + 1, 3, ('belief', picture)) for step, picture in ep.maps]
+        poses = {p[0]: p for p in ep.poses}
+        for time_ns, _, event in sorted(events, key=lambda e: (e[0], e[1])):
+            wait = start + (ep.offset_ns + time_ns) / 1e9 / max(speed, 1e-6) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+            if event[0] == 'frame':
+                p = poses.get(event[1], (event[1], 0.0, 0.0, 0.0, 0.0))
+                view.frame(worker, event[2], (p[1], p[2], p[3], p[4]), 0.9, event[1])
+            elif event[0] == 'qa':
+                q = event[1]
+                view.qa(worker, q[1], q[2], q[4], q[5])
+            elif event[0] == 'belief':
+                view.belief(worker, event[1])
+            else:
+                a = event[1]
+                view.action(worker, a[0], a[1], a[4])
+        if ep.result:
+            r = ep.result
+            view.result(worker, t['task_id'], r['success'], r['end_reason'], r['steps'], r['questions'])
 
 
 @dataclass
@@ -132,20 +143,24 @@ class ReplayConfig:
 def main(argv=None) -> int:
     args = parse(ReplayConfig, argv, prog='dialfred replay', description=' '.join(ReplayConfig.__doc__.split()))
     try:
-        ep = read_episode(args.bag)
+        parts = read_bag(args.bag)
     except BagError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    print('\n'.join(transcript(ep)))
-    if not ep.frames:
+    ep = parts[0]
+    if len(parts) > 1:
+        print(f'{ep.path.name}: a chained episode of {len(parts)} tasks, played one after another\n')
+    print('\n\n'.join('\n'.join(transcript(part)) for part in parts))
+    if not any(part.frames for part in parts):
         print('(no camera frames in this bag: no pictures)', file=sys.stderr)
         return 0
     gif = args.gif or ep.path.parent / f'{ep.path.name}.gif'
     sheet = args.sheet or ep.path.parent / f'{ep.path.name}_sheet.png'
     if args.pictures:
-        save_captioned_gif(film(ep), gif)
+        save_captioned_gif(bag_film(parts), gif)
         print(f'GIF: {gif}')
-        save_contact_sheet([(ep.task['task_id'], [f[2] for f in ep.frames])], sheet)
+        save_contact_sheet([(where(part) + part.task['task_id'], [f[2] for f in part.frames]) for part in parts
+                            if part.frames], sheet)
         print(f'contact sheet: {sheet}')
     if args.foxglove is not None:
         view = LiveView(1, port=args.foxglove, total=1)

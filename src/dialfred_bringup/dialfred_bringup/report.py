@@ -34,13 +34,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
-from dialfred_sim.bag import BagError, read_episode, bag_name
+from dialfred_sim.bag import BagError, bag_name, read_bag
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
 from dialfred_sim.tasks.split_files import get_task
 
 from .film import save_captioned_gif
-from .replay import film
+from .replay import bag_film
 from .report_page import OUTCOME_LABELS, render_page
 
 GIF_WIDTH = 256
@@ -199,43 +199,69 @@ def episode_of(result) -> dict:
 
 
 def render_gif(bag: Path, gif: Path, width: int, expected: Optional[dict] = None) -> dict:
-    """Render one bag's captioned GIF (runs in a worker process). Returns {'ok', 'note', 'instruction',
-    'scene', 'frames'}; a bag that cannot be read or has no frames gives ok False and why. With `expected`
-    (episode_of the results line, and its 'dialogue' [(type, noun, answer)]), a bag of another episode (bags
-    are named by task only: another run's, recorded into the same folder) gives ok False, 'mismatch' True."""
+    """Render one bag's captioned GIF (runs in a worker process): a task's, or a chained episode's with all its
+    tasks. Returns {'ok', 'note', 'tasks': {task id: {'instruction', 'scene'}}, 'frames'}; a bag that cannot be
+    read or has no frames gives ok False and why. With `expected` ({task id: episode_of its results line, with
+    'dialogue' [(type, noun, answer)]}), a bag of other episodes (bags are named by task: another run's,
+    recorded into the same folder) gives ok False, 'mismatch' True."""
     try:
-        ep = read_episode(bag)
+        parts = read_bag(bag)
     except BagError as exc:
         return {'ok': False, 'note': f'recording unreadable: {exc}'}
     except Exception as exc:  # noqa: BLE001 - a damaged file can fail anywhere in the reader; report it
         return {'ok': False, 'note': f'recording unreadable: {type(exc).__name__}: {exc}'}
-    info = {'instruction': ep.task.get('instruction', ''), 'scene': ep.task.get('scene', ''), 'frames': len(ep.frames)}
-    if expected is not None and ep.result:
-        held = {**episode_of(ep.result), 'dialogue': [(d[1], d[2], d[4] if d[5] else '') for d in ep.dialogue]}
-        differ = [k for k in expected if held.get(k) != expected[k]]
+    info = {'tasks': {ep.task['task_id']: {'instruction': ep.task.get('instruction', ''), 'scene': ep.task.get('scene', '')}
+                      for ep in parts},
+            'frames': sum(len(ep.frames) for ep in parts)}
+    if expected is not None:
+        held = {ep.task['task_id']: {**episode_of(ep.result), 'dialogue': [(d[1], d[2], d[4] if d[5] else '')
+                                                                           for d in ep.dialogue]}
+                for ep in parts if ep.result}
+        ids = set(info['tasks'])
+        differ = ([f'tasks {", ".join(sorted(ids ^ set(expected)))}'] if ids != set(expected) else
+                  list(dict.fromkeys(k for t in held for k in expected[t] if held[t].get(k) != expected[t][k])))
         if differ:
             return {'ok': False, 'mismatch': True, **info,
                     'note': f'the recording is of another episode of this task ({", ".join(differ)} differ from the '
                             'results): another run recorded into that folder'}
-    if not ep.frames:
+    if not info['frames']:
         return {'ok': False, 'note': 'the recording has no camera frames', **info}
-    save_captioned_gif(film(ep), gif, width=width)
+    save_captioned_gif(bag_film(parts), gif, width=width)
     return {'ok': True, 'note': '', **info}
+
+
+def bag_of(view: EpisodeView, first: dict) -> str:
+    """The folder name of the bag that holds a view's episode: its task's, or its chained episode's (`first`:
+    {episode id: its first task id})."""
+    r = view.result
+    if r.protocol == 'chained':
+        return bag_name(first[r.episode_id], chained=True)
+    return bag_name(r.task_id)
 
 
 def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Path, width: int, embed: bool,
                 workers: int, say: Callable[[str], None]) -> dict:
     """Render the GIF of every episode whose bag `bags` holds into `media`, and set each view's gif or
-    media_note. Returns counts {'gifs', 'missing', 'unreadable', 'mismatched' (a bag of another episode)}."""
-    todo = []
+    media_note. The tasks of a chained episode share its one bag and GIF. Returns counts {'gifs', 'missing',
+    'unreadable', 'mismatched' (a bag of another episode)}, each of views."""
     counts = {'gifs': 0, 'missing': 0, 'unreadable': 0, 'mismatched': 0}
+    first: dict = {}
     for view in views:
-        bag = bags / bag_name(view.result.task_id)
+        if view.result.protocol == 'chained':
+            e = view.result.episode_id
+            first[e] = min(first.get(e, view.result.task_id), view.result.task_id)
+    groups: dict = {}      # bag name -> the views it shows, in order
+    for view in views:
+        groups.setdefault(bag_of(view, first), []).append(view)
+    todo = []
+    for name, group in groups.items():
+        bag = bags / name
         if bag.exists():     # a folder that is no bag is reported as unreadable below
-            todo.append((view, bag))
+            todo.append((group, bag))
         else:
-            view.media_note = 'no recording'
-            counts['missing'] += 1
+            for view in group:
+                view.media_note = 'no recording'
+            counts['missing'] += len(group)
     if counts['missing']:
         say(f'{counts["missing"]} of {len(views)} episodes have no bag in {bags}: shown without a GIF')
     if not todo:
@@ -244,26 +270,33 @@ def attach_gifs(views: list[EpisodeView], bags: Path, media: Path, page_dir: Pat
         media.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix='dialfred-report-') as scratch:
         target = Path(scratch) if embed else media
-        jobs = [(view, bag, target / f'{bag.name}.gif') for view, bag in todo]
-        expected = [{**episode_of(v.result), 'dialogue': [(d['type'], d['noun'], d['answer']) for d in v.result.dialogue]}
-                    for v, _ in todo]
+        jobs = [(group, bag, target / f'{bag.name}.gif') for group, bag in todo]
+        expected = [{v.result.task_id: {**episode_of(v.result),
+                                        'dialogue': [(d['type'], d['noun'], d['answer']) for d in v.result.dialogue]}
+                     for v in group} for group, _ in todo]
         start = last = time.monotonic()
         pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
         try:
             outcomes = (pool.map(render_gif, [b for _, b, _ in jobs], [g for *_, g in jobs], [width] * len(jobs),
                                  expected)
                         if pool else (render_gif(b, g, width, e) for (_, b, g), e in zip(jobs, expected)))
-            for k, ((view, bag, gif), outcome) in enumerate(zip(jobs, outcomes), start=1):
-                view.instruction = outcome.get('instruction') or view.instruction
-                view.scene = outcome.get('scene') or view.scene
+            for k, ((group, bag, gif), outcome) in enumerate(zip(jobs, outcomes), start=1):
+                address = ''
                 if outcome['ok']:
-                    counts['gifs'] += 1
-                    view.gif = (f'data:image/gif;base64,{base64.b64encode(gif.read_bytes()).decode("ascii")}' if embed
-                                else urllib.parse.quote(os.path.relpath(gif, page_dir).replace(os.sep, '/')))
+                    address = (f'data:image/gif;base64,{base64.b64encode(gif.read_bytes()).decode("ascii")}' if embed
+                               else urllib.parse.quote(os.path.relpath(gif, page_dir).replace(os.sep, '/')))
                 else:
-                    counts['mismatched' if outcome.get('mismatch') else 'unreadable'] += 1
-                    view.media_note = outcome['note']
                     say(f'{bag}: {outcome["note"]}; the episode is shown without a GIF')
+                for view in group:
+                    told = outcome.get('tasks', {}).get(view.result.task_id, {})
+                    view.instruction = told.get('instruction') or view.instruction
+                    view.scene = told.get('scene') or view.scene
+                    if outcome['ok']:
+                        counts['gifs'] += 1
+                        view.gif = address
+                    else:
+                        counts['mismatched' if outcome.get('mismatch') else 'unreadable'] += 1
+                        view.media_note = outcome['note']
                 now = time.monotonic()
                 if k == 1 or k == len(jobs) or now - last >= 2.0:
                     left = (now - start) / k * (len(jobs) - k)

@@ -26,6 +26,7 @@ from dialfred_sim.episode import Ask, EpisodeObserver, Failed, Reset, play
 from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
 from dialfred_sim.protocol import MapPainter, episode_seed, image_array
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
+from dialfred_sim.traces import make_trace
 
 from .graph import Graph, NodeDied, NodeProcess, oracle_node, sim_node, sim_service
 from .local import state_result
@@ -81,10 +82,14 @@ class SimWorker(EpisodeObserver):
         self.task = task
         self.started_at = time.monotonic()
         observers = [self]
-        self.recorder = None
-        if self.run.options.record is not None:
-            self.recorder = RecordingObserver(self.run.options.record, self.run.options.record_format,
-                                              picture=self.agent.picture if isinstance(self.agent, MapPainter) else None)
+        if not carry_on:        # a chained episode's tasks share one recorder: the episode is one bag
+            self.recorder = None
+            if self.run.options.record is not None:
+                self.recorder = RecordingObserver(
+                    self.run.options.record, self.run.options.record_format,
+                    picture=self.agent.picture if isinstance(self.agent, MapPainter) else None,
+                    chained=self.chain is not None)
+        if self.recorder is not None:
             observers.append(self.recorder)
         if self.live is not None:
             self.live.begin(task)
@@ -313,8 +318,11 @@ class PerformerWorker:
         outcome.error = '' if outcome.success else (error or (r.error if r is not None else ''))
         dialogue = [dialogue_entry(m.question_type, m.object_noun, m.valid, m.answer) for m in r.dialogue] if r else []
         length = reference_length([t for _, t in self.chain.tasks], self.link) if self.chain is not None else None
+        # the trace: the actions the node sent and its questions' steps, as its result says (no result: none)
+        trace = make_trace([(a.action, a.x, a.y) for a in r.actions], r.asked_at) if r is not None else \
+            make_trace([], [])
         return episode_result(self.task, outcome, dialogue, wall_s=time.monotonic() - self.started,
-                              expert_length=length, **self.run.identity)
+                              expert_length=length, trace=trace, **self.run.identity)
 
 
 def begin(worker, job) -> None:

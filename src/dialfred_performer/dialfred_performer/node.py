@@ -21,7 +21,9 @@ checkpoint, negative seed) ends aborted with end_reason 'error' and the reason; 
 
 With the `record_dir` parameter set, each goal's episode is also written as a ROS 2 bag (rosbag2,
 MCAP storage; `dialfred_sim.bag`): `<record_dir>/<split>_<number>/`, from the messages this node
-sent and received (the task, every frame and pose, QA, action, its feedback and the result).
+sent and received (the task, every frame and pose, QA, action, its feedback and the result). The goals
+of a chained episode (protocol 'chained', its first goal then carry_on ones) are one bag,
+`<record_dir>/<split>_<first number>_chained/`, that holds its tasks in order.
 """
 
 from __future__ import annotations
@@ -89,6 +91,7 @@ class PerformerNode(Node):
         self.record_dir = str(p('record_dir').value)
         self.record_format = str(p('record_format').value)
         self.recorder = None       # the running goal's RecordingObserver, when recording
+        self.chain_recorder = None  # the chained episode's RecordingObserver, kept for its next task's goal
         torch.set_num_threads(max(1, int(p('torch_threads').value)))
         self.checkpoint = p('checkpoint').value
         self.model = str(p('model').value)
@@ -185,9 +188,14 @@ class PerformerNode(Node):
         goal_run = GoalRun(self, goal_handle, policy, result, goal.checkpoint or self.checkpoint)
         observers = [goal_run]
         if self.record_dir:     # the bag is written with the goal's result, however the goal ends (save_recording)
-            self.recorder = RecordingObserver(Path(self.record_dir), self.record_format,
-                                              picture=policy.picture if isinstance(policy, MapPainter) else None,
-                                              save_on_end=False)
+            chained = goal.protocol == 'chained'
+            if chained and goal.carry_on and self.chain_recorder is not None:
+                self.recorder = self.chain_recorder     # the episode's next task, in the episode's bag
+            else:
+                self.recorder = RecordingObserver(Path(self.record_dir), self.record_format,
+                                                  picture=policy.picture if isinstance(policy, MapPainter) else None,
+                                                  save_on_end=False, chained=chained)
+            self.chain_recorder = self.recorder if chained else None
             observers.append(self.recorder)
         episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
                        max_questions=int(self.get_parameter('max_questions').value), asker='questioner',
@@ -336,6 +344,7 @@ class GoalRun(EpisodeObserver):
         self.result.questions += 1
         self.result.invalid_questions += not qa.valid
         self.result.dialogue.append(qa_msg(qa))
+        self.result.asked_at.append(int(step))
         self.node.qa_pub.publish(qa_msg(qa))
 
     def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
@@ -345,6 +354,7 @@ class GoalRun(EpisodeObserver):
             h, w = img.shape[:2]
             node.map_pub.publish(Image(height=h, width=w, encoding='rgb8', step=w * 3, data=img.tobytes()))
         node.action_pub.publish(Action(action=action, x=x, y=y))
+        self.result.actions.append(Action(action=action, x=x, y=y))     # sent: the trace keeps it, whatever comes back
 
     def on_stepped(self, state: EpisodeState, reply, action: str, x: int, y: int) -> None:
         result, observation = self.result, reply.raw.observation

@@ -27,6 +27,13 @@ k * 0.1 s + 1, 2, ... ms, the action command at + 50 ms and its feedback with th
 a seeded episode is therefore the same bytes on every rerun. A bag is written whole under a temporary
 name and renamed into place, so an interrupted run never leaves half a bag.
 
+A chained episode (DialFRED's challenge protocol, dialfred_sim.chained) is one bag, `<first task>_chained`,
+that holds its tasks in the order played: each task's /task message starts its stretch of the clock, one
+step after the task before it ended, and each task ends with its own /episode/result. `read_bag` reads
+such a bag as one RecordedEpisode a task (times counted from that task's start); `read_episode` reads a
+bag of one task. The bag is written again after every task, so an interrupted episode keeps the tasks it
+finished.
+
 `./dialfred replay BAG` (dialfred_bringup.replay) prints a bag's dialogue and actions and renders it.
 """
 
@@ -107,9 +114,10 @@ def typestore():
     return store
 
 
-def bag_name(task_id: str) -> str:
-    """The folder name of a task's bag: valid_unseen/000012 -> valid_unseen_000012."""
-    return task_id.replace('/', '_')
+def bag_name(task_id: str, chained: bool = False) -> str:
+    """The folder name of a task's bag: valid_unseen/000012 -> valid_unseen_000012; with `chained`, the bag of
+    the chained episode that starts with that task: valid_unseen_000012_chained."""
+    return task_id.replace('/', '_') + ('_chained' if chained else '')
 
 
 # --------------------------------------------------------------------------------------------- writing
@@ -118,26 +126,54 @@ class EpisodeRecorder:
     """Collects one episode's messages as they happen; `save` writes them as a bag.
 
     Steps count actions: `observation(0, ...)` is the frame after the reset, `action(k + 1, ...)` the
-    action decided on frame k, `question(k, ...)` a QA asked before that action."""
+    action decided on frame k, `question(k, ...)` a QA asked before that action. With `chained`, the
+    recorder holds a chained episode: after a task's `result`, `next_task` starts the next one, its steps
+    counted again from 0 on the bag's clock one step after the last task's end."""
 
     def __init__(self, task_id: str, scene: str, split: str, instruction: str, object_nouns: Sequence[str],
-                 image_format: str = 'raw'):
+                 image_format: str = 'raw', chained: bool = False):
         if image_format not in IMAGE_FORMATS:
             raise ValueError(f'image_format must be one of {", ".join(IMAGE_FORMATS)}, got {image_format!r}')
-        self.task_id, self.image_format = task_id, image_format
+        self.task_id, self.image_format, self.chained = task_id, image_format, bool(chained)
+        self.first_task_id = task_id
         self.store = typestore()
         self.messages: list[tuple[int, str, int, object]] = []    # (time, topic, sequence, message)
+        self.offset_ns = 0             # where the current task starts on the bag's clock
+        self._ended_ns: Optional[int] = None   # the current task's result time, once recorded
+        self._task_start = 0           # index in `messages` of the current task's /task message
         self._questions: dict[int, int] = {}
+        self._task(task_id, scene, split, instruction, object_nouns)
+
+    def _task(self, task_id: str, scene: str, split: str, instruction: str, object_nouns: Sequence[str]) -> None:
+        self._task_start = len(self.messages)
         self._add(0, '/task', self._t('dialfred_msgs/msg/TaskDescription')(
             task_id=task_id, scene=scene, split=split, instruction=instruction, object_nouns=list(object_nouns)))
+
+    def next_task(self, task_id: str, scene: str, split: str, instruction: str, object_nouns: Sequence[str]) -> None:
+        """Start the next task of a chained episode (after the last one's `result`)."""
+        if not self.chained:
+            raise ValueError('next_task: this recorder holds one task (EpisodeRecorder(..., chained=True) holds a '
+                             'chained episode)')
+        if self._ended_ns is None:
+            raise ValueError(f'next_task: {self.task_id} has no result yet (record it with result() first)')
+        self.offset_ns = (self._ended_ns // STEP_NS + 1) * STEP_NS
+        self.task_id, self._ended_ns, self._questions = task_id, None, {}
+        self._task(task_id, scene, split, instruction, object_nouns)
+
+    @property
+    def name(self) -> str:
+        """The bag's folder name: its task's, or `<first task>_chained` for a chained episode."""
+        return bag_name(self.first_task_id, self.chained)
 
     def _t(self, name: str):
         return self.store.types[name]
 
     def _add(self, time_ns: int, topic: str, msg) -> None:
-        self.messages.append((int(time_ns), topic, len(self.messages), msg))
+        """Add a message at `time_ns` of the current task (the bag's clock: plus the task's offset)."""
+        self.messages.append((self.offset_ns + int(time_ns), topic, len(self.messages), msg))
 
     def _header(self, time_ns: int, frame_id: str):
+        time_ns += self.offset_ns
         stamp = self._t('builtin_interfaces/msg/Time')(sec=time_ns // 1_000_000_000, nanosec=time_ns % 1_000_000_000)
         return self._t('std_msgs/msg/Header')(stamp=stamp, frame_id=frame_id)
 
@@ -216,14 +252,22 @@ class EpisodeRecorder:
         values = {'success': False, 'end_reason': '', 'error': '', 'last_action': '',
                   **{k: 0 for k in RESULT_FIELDS if k not in ('success', 'end_reason', 'error', 'last_action')},
                   **fields}
-        dialogue = [m for _, topic, _, m in self.messages if topic == '/dialogue/qa']    # the QAs recorded
+        if self._ended_ns is not None:
+            raise ValueError(f'{self.task_id}: its result is already recorded')
+        mine = self.messages[self._task_start:]        # this task's
+        dialogue = [m for _, topic, _, m in mine if topic == '/dialogue/qa']
+        actions = [m for _, topic, _, m in mine if topic == '/performer/action']
+        asked_at = np.array([(t - self.offset_ns) // STEP_NS for t, topic, _, _ in mine if topic == '/dialogue/qa'],
+                            dtype=np.uint32)
         self._add(int(values['steps']) * STEP_NS + RESULT_NS, '/episode/result',
-                  self._t('dialfred_msgs/action/RunTask_Result')(**values, dialogue=dialogue))
+                  self._t('dialfred_msgs/action/RunTask_Result')(**values, dialogue=dialogue, actions=actions,
+                                                                 asked_at=asked_at))
+        self._ended_ns = max(t for t, *_ in self.messages[self._task_start:])    # the task's last message
 
     def save(self, folder: Path) -> Path:
-        """Write the bag into `folder` (as `folder/<task>`, replacing an older one); returns its path."""
+        """Write the bag into `folder` (as `folder/<name>`, replacing an older one); returns its path."""
         folder = Path(folder)
-        return write_bag(folder / bag_name(self.task_id), self.messages, self.store)
+        return write_bag(folder / self.name, self.messages, self.store)
 
 
 def encode_image(rgb: np.ndarray, fmt: str) -> bytes:
@@ -283,6 +327,9 @@ class RecordedEpisode:
     actions: list = field(default_factory=list)      # (step, action, x, y, success, questions so far)
     result: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)       # topic -> messages
+    offset_ns: int = 0       # where the task starts on the bag's clock (0 but in a chained episode's bag)
+    place: int = 1           # the task's place in the bag (1: the first or only task) ...
+    of: int = 1              # ... of this many (more than 1: a chained episode's bag)
 
     def frame(self, step: int) -> np.ndarray:
         """The frame after `step` actions (the newest one before it if there is none at `step`)."""
@@ -299,8 +346,10 @@ def decode_image(msg, compressed: bool) -> np.ndarray:
     return image_array(msg)
 
 
-def read_episode(path: Path) -> RecordedEpisode:
-    """Read an episode bag (a folder written by `write_bag`, or its .mcap file); BagError if it is not one."""
+def read_bag(path: Path) -> list[RecordedEpisode]:
+    """Read a bag (a folder written by `write_bag`, or its .mcap file) as one RecordedEpisode per task, in the
+    order played: one for a task's bag, one a task for a chained episode's (each task's times counted from its
+    /task message). BagError if it is not an episode bag."""
     from rosbags.rosbag2 import Reader  # lazy: rosbags, which the rest of this module does without
     path = Path(path)
     folder = path.parent if path.suffix == '.mcap' else path
@@ -313,29 +362,47 @@ def read_episode(path: Path) -> RecordedEpisode:
                     for c, t, raw in reader.messages()]
     except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds for a cut or foreign file
         raise BagError(f'{folder}: cannot be read ({type(exc).__name__}: {exc})') from exc
-    tasks = [m for topic, _, _, m in rows if topic == '/task']
-    if len(tasks) != 1:
-        raise BagError(f'{folder}: {len(tasks)} /task messages, expected 1 (not an episode bag?)')
-    t = tasks[0]
-    ep = RecordedEpisode(folder, dict(task_id=t.task_id, scene=t.scene, split=t.split, instruction=t.instruction,
-                                      object_nouns=list(t.object_nouns)))
-    for topic, _, time_ns, m in rows:
-        ep.counts[topic] = ep.counts.get(topic, 0) + 1
-        step = time_ns // STEP_NS
-        if topic in ('/camera/image', '/camera/image/compressed'):
-            ep.frames.append((time_ns, step, decode_image(m, topic.endswith('compressed'))))
-        elif topic in ('/performer/map', '/performer/map/compressed'):
-            ep.maps.append((step + 1, decode_image(m, topic.endswith('compressed'))))
-        elif topic == '/agent/pose':
-            ep.poses.append((step, m.x, m.y, m.rotation_deg, m.horizon_deg))
-        elif topic == '/dialogue/qa':
-            ep.dialogue.append((step, m.question_type, m.object_noun, m.question, m.answer, bool(m.valid)))
-        elif topic == '/performer/feedback':
-            ep.actions.append((int(m.step), m.action.action, int(m.action.x), int(m.action.y), bool(m.action_success),
-                               int(m.questions)))
-        elif topic == '/episode/result':
-            ep.result = {k: getattr(m, k) for k in RESULT_FIELDS}
-    return ep
+    rows.sort(key=lambda row: (row[2], RANK.get(row[0], len(RANK))))    # the clock's order (stable within a time)
+    starts = [k for k, row in enumerate(rows) if row[0] == '/task']
+    if not starts or starts[0] != 0:
+        raise BagError(f'{folder}: {"no /task message" if not starts else "messages before the first /task"} '
+                       '(not an episode bag?)')
+    parts = []
+    for n, (a, b) in enumerate(zip(starts, starts[1:] + [len(rows)]), start=1):
+        offset, t = rows[a][2], rows[a][3]
+        ep = RecordedEpisode(folder, dict(task_id=t.task_id, scene=t.scene, split=t.split, instruction=t.instruction,
+                                          object_nouns=list(t.object_nouns)), offset_ns=offset, place=n)
+        for topic, _, time_ns, m in rows[a:b]:
+            ep.counts[topic] = ep.counts.get(topic, 0) + 1
+            time_ns -= offset
+            step = time_ns // STEP_NS
+            if topic in ('/camera/image', '/camera/image/compressed'):
+                ep.frames.append((time_ns, step, decode_image(m, topic.endswith('compressed'))))
+            elif topic in ('/performer/map', '/performer/map/compressed'):
+                ep.maps.append((step + 1, decode_image(m, topic.endswith('compressed'))))
+            elif topic == '/agent/pose':
+                ep.poses.append((step, m.x, m.y, m.rotation_deg, m.horizon_deg))
+            elif topic == '/dialogue/qa':
+                ep.dialogue.append((step, m.question_type, m.object_noun, m.question, m.answer, bool(m.valid)))
+            elif topic == '/performer/feedback':
+                ep.actions.append((int(m.step), m.action.action, int(m.action.x), int(m.action.y),
+                                   bool(m.action_success), int(m.questions)))
+            elif topic == '/episode/result':
+                ep.result = {k: getattr(m, k) for k in RESULT_FIELDS}
+        parts.append(ep)
+    for ep in parts:
+        ep.of = len(parts)
+    return parts
+
+
+def read_episode(path: Path) -> RecordedEpisode:
+    """Read the bag of one task (see `read_bag`); BagError if it is not one (a chained episode's bag holds
+    several: `read_bag` reads them)."""
+    parts = read_bag(path)
+    if len(parts) != 1:
+        raise BagError(f'{parts[0].path}: {len(parts)} /task messages, a chained episode\'s bag '
+                       '(dialfred_sim.bag.read_bag reads it a task at a time)')
+    return parts[0]
 
 
 class RecordingObserver(EpisodeObserver):
@@ -343,33 +410,44 @@ class RecordingObserver(EpisodeObserver):
     `folder`: the simulator's replies (their `raw` dialfred_msgs/Observation), the questions, the actions with
     their feedback and, when `picture` is given (a performer that keeps a map: its `picture()`), the belief map
     each action was decided on. `finish(result)` writes the bag with the result (anything with RESULT_FIELDS:
-    the episode's state, a RunTask result); with `save_on_end`, the episode's end does so itself. The one
-    recorder of the simulator-node and performer-node paths."""
+    the episode's state, a RunTask result); with `save_on_end`, the episode's end does so itself. With
+    `chained`, one observer sees the tasks of a chained episode in turn, and records them as one bag
+    (`<first task>_chained`), written again as each task ends. The one recorder of the simulator-node and
+    performer-node paths."""
 
-    def __init__(self, folder: Path, image_format: str = 'raw', picture=None, save_on_end: bool = True):
+    def __init__(self, folder: Path, image_format: str = 'raw', picture=None, save_on_end: bool = True,
+                 chained: bool = False):
         if image_format not in IMAGE_FORMATS:
             raise ValueError(f'image_format must be one of {", ".join(IMAGE_FORMATS)}, got {image_format!r}')
         self.folder, self.image_format, self.picture, self.save_on_end = Path(folder), image_format, picture, save_on_end
-        self.recorder = None          # the episode's EpisodeRecorder, from its start to finish()
+        self.chained = bool(chained)
+        self.recorder = None          # the episode's EpisodeRecorder, from its start to finish() (chained: to the last)
+        self._open = False            # a task is being recorded (started, not finished)
 
     def on_started(self, state, reply) -> None:
         t = reply.raw.task            # what the agent is told
-        self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
-                                        image_format=self.image_format)
+        if self.chained and self.recorder is not None:
+            if self._open:            # the last task never finished (its goal was dropped): close it as it stands
+                self.recorder.result(end_reason='error', error='the task was not finished')
+            self.recorder.next_task(t.task_id, t.scene, t.split, t.instruction, t.object_nouns)
+        else:
+            self.recorder = EpisodeRecorder(t.task_id, t.scene, t.split, t.instruction, t.object_nouns,
+                                            image_format=self.image_format, chained=self.chained)
+        self._open = True
         self.recorder.observation_msg(reply.raw.observation)
 
     def on_question(self, state, qa, step: int) -> None:
-        if self.recorder is not None:
+        if self._open:
             q = qa.question
             self.recorder.question(step, q.question_type, q.object_noun, q.text, qa.answer if qa.valid else '',
                                    bool(qa.valid))
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
-        if self.recorder is not None and self.picture is not None:
+        if self._open and self.picture is not None:
             self.recorder.belief_map(state.steps + 1, self.picture())
 
     def on_stepped(self, state, reply, action: str, x: int, y: int) -> None:
-        if self.recorder is not None:
+        if self._open:
             obs = reply.raw.observation
             self.recorder.action(int(obs.step_count), action, x, y, obs.last_action_success, state.questions)
             self.recorder.observation_msg(obs)
@@ -379,9 +457,13 @@ class RecordingObserver(EpisodeObserver):
             self.finish(state)
 
     def finish(self, result) -> Optional[Path]:
-        """Write the bag with `result` (None: no episode started); the recorder is done with either way."""
-        recorder, self.recorder = self.recorder, None
-        if recorder is None:
+        """Write the bag with the task's `result` (None: no task started). The recorder is done with either way,
+        but a chained one, which keeps its episode for the next task."""
+        recorder, was_open = self.recorder, self._open
+        self._open = False
+        if not self.chained:
+            self.recorder = None
+        if recorder is None or not was_open:
             return None
         recorder.result_msg(result)
         return recorder.save(self.folder)
