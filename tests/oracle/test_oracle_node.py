@@ -237,12 +237,14 @@ def test_the_human_mode_asks_a_person_on_standard_input(tmp_path):
         person.proc.stdin.flush()
         reply = ask(g, 'location', task_noun(), cli)
         assert reply.valid and reply.answer == 'It is next to the toaster.', (reply, list(person.tail))
+        reply = ask(g, 'location', task_noun(), cli)     # asked again in the same state: the person's answer, no prompt
+        assert reply.answer == 'It is next to the toaster.'
         person.proc.stdin.write('\n')                    # an empty line accepts the simulator's answer
         person.proc.stdin.flush()
-        reply = ask(g, 'location', task_noun(), cli)
+        reply = ask(g, 'appearance', task_noun(), cli)
         assert reply.valid and task_noun() in reply.answer, (reply, list(person.tail))
         person.proc.stdin.close()                         # nobody there any more
-        reply = ask(g, 'location', task_noun(), cli)
+        reply = ask(g, 'direction', '', cli)
         assert not reply.valid and 'no person' in reply.reason, (reply, list(person.tail))
         deadline = time.monotonic() + 5                   # the node's output is read by a thread: give it a moment
         while not any('Where is' in line for line in person.tail) and time.monotonic() < deadline:

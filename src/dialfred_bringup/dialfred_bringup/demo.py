@@ -149,11 +149,15 @@ class DemoConfig:
                                      'eval\'s)', metavar='PATH')
     resolution: Optional[int] = arg(None, 'camera pixels (none: the resolution the checkpoint was trained at)',
                                     metavar='PIXELS')
-    human: bool = arg(False, 'the oracle asks you in this terminal (the simulator\'s answer suggested)')
+    human: bool = arg(False, 'the oracle asks you in this terminal (the simulator\'s answer suggested); each '
+                      'question is put to you once, and the robot waits as long as you need (see --human-timeout)')
+    human_timeout: Optional[float] = arg(None, "with --human: seconds you may take to answer before the robot hears "
+                                         "\"I don't know.\" and goes on (none: as long as you need)", metavar='S')
     max_steps: int = arg(100, 'the simulator ends an episode after this many actions (the benchmark\'s limit is 1000)')
     seed: int = arg(0, 'the run\'s seed')
     out: Path = arg(Path('out/demo'), 'where the GIFs and the contact sheet go', metavar='DIR')
-    episode_timeout: float = arg(600.0, 'seconds one task may take before its goal is cancelled')
+    episode_timeout: float = arg(600.0, 'seconds one task may take before its goal is cancelled (not with --human: '
+                                 'the robot waits for its person)')
     foxglove: Optional[int] = foxglove_field()
     record: Optional[Path] = record_field()
     record_format: str = record_format_field()
@@ -162,7 +166,7 @@ class DemoConfig:
         """The evaluation the demo's worker plays: one performer node, this questioner."""
         return EvalConfig(split='valid_unseen', performer=self.performer, questioner=self.questioner, checkpoint=self.checkpoint,
                           resolution=self.resolution, seed=self.seed, workers=1, human=self.human,
-                          episode_timeout=max(self.episode_timeout, 3600.0) if self.human else self.episode_timeout,
+                          human_timeout=self.human_timeout, episode_timeout=self.episode_timeout,
                           foxglove=self.foxglove, record=self.record, record_format=self.record_format)
 
 

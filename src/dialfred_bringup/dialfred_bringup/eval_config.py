@@ -91,7 +91,10 @@ class EvalConfig:
                        "reads its answers does worse; dialfred_oracle/swap.py; results are named ..._swapped)",
                        choices=SWAP_MODES)
     human: bool = arg(False, 'the oracle asks you in this terminal (its answer suggested; an empty line takes it): '
-                      'through the graph, one worker; each request may then wait an hour')
+                      'through the graph, one worker; each question is put to you once, and the robot waits as long '
+                      'as you need (see --human-timeout)')
+    human_timeout: Optional[float] = arg(None, "with --human: seconds you may take to answer before the robot hears "
+                                         "\"I don't know.\" and goes on (none: as long as you need)", metavar='S')
     max_questions: int = arg(MAX_QUESTIONS, 'questions in a row without acting before an episode ends with an '
                              'error (the performer node\'s max_questions)', metavar='N')
     goal_rule: str = arg(DEFAULT_GOAL_RULE, "how a task's go-to is judged: dialfred = within 4 actions of the "
@@ -151,7 +154,7 @@ def default_resolution(config: EvalConfig) -> int:
 
 # Options added after runs were stamped with their configs, at the value that plays as before: left out of
 # `config_inputs`, so that a run stamped before them is not stale.
-LATER_DEFAULTS = {'protocol': DEFAULT_PROTOCOL}
+LATER_DEFAULTS = {'protocol': DEFAULT_PROTOCOL, 'human_timeout': None}
 
 
 def config_inputs(config: EvalConfig) -> dict:

@@ -114,6 +114,7 @@ class EvalRun:
                 raise ValueError(str(exc)) from None
         if o.human:
             o.request_timeout = max(o.request_timeout, 3600.0)      # a person takes time
+            o.episode_timeout = float('inf')       # the robot waits for its person: a goal is never cut off
         if check:
             self.check()
 
@@ -124,8 +125,11 @@ class EvalRun:
         self.make_agent()     # the node path too: a bad checkpoint or questioner fails before any node starts
         check_results_path(self.results_path)
         if o.human and (o.local or o.workers != 1 or not self.asks or o.perturb_type or o.answers != 'oracle'):
-            raise ValueError('--human answers through the graph (not --local), with one worker (--workers 1), a '
-                             'questioner (or an agent that asks), and no --perturb-type or --answers swapped')
+            raise ValueError('--human answers through the graph (not --local), with one worker (--workers 1: one '
+                             'person answers one question at a time), a questioner (or an agent that asks), and no '
+                             '--perturb-type or --answers swapped')
+        if o.human_timeout is not None and (not o.human or o.human_timeout <= 0):
+            raise ValueError('--human-timeout is a number of seconds above 0, with --human')
         if o.answers == 'swapped' and (not self.asks or o.perturb_type):
             raise ValueError('--answers swapped needs a questioner (--questioner, or an agent that asks) and no '
                              '--perturb-type')

@@ -100,6 +100,8 @@ class SimWorker(EpisodeObserver):
         self._request(next(self.episode))
 
     def overdue(self) -> bool:
+        if self.pending == 'question' and self.run.options.human:
+            return False          # a person answers at their own pace (the oracle's human_timeout bounds it)
         return self.busy and time.monotonic() - self.sent_at > self.run.options.request_timeout
 
     def close(self) -> None:
@@ -477,6 +479,8 @@ def worker_nodes(run, namespace: str, **sim_params) -> list:
                     'seed': run.options.seed} if run.options.perturb_type else {}
         if run.options.answers == 'swapped':
             withhold.update(answers='swapped', swap_resolution=run.options.resolution, **from_file)
+        if run.options.human and run.options.human_timeout:
+            withhold['human_timeout'] = run.options.human_timeout
         nodes.append(oracle_node(namespace, human=run.options.human, **withhold))
     if run.options.performer:
         if run.options.questioner:
@@ -489,7 +493,9 @@ def worker_nodes(run, namespace: str, **sim_params) -> list:
                                                         'model': run.options.performer,
                                                         'questioner': bool(run.options.questioner),
                                                         'max_questions': run.options.max_questions,
-                                                        'request_timeout': run.options.request_timeout, **record},
+                                                        'request_timeout': run.options.request_timeout,
+                                                        **({'answer_timeout': 1e9} if run.options.human else {}),
+                                                        **record},
                                  namespace=namespace))
     return nodes
 

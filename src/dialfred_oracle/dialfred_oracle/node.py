@@ -15,7 +15,11 @@ looks are kept per state too). Parameters:
   to the same question in another task of the split (`swap.AnswerSwap`, a control: does the performer
   read its answers?), seen at the simulator's resolution.
 - `human`: ask a person in the terminal instead (the simulator's answer is shown as a suggestion;
-  an empty line accepts it), as a robot running this stack would ask its human.
+  an empty line accepts it), as a robot running this stack would ask its human. A question is put to
+  the person once: a copy of it that the asker sends again while the person thinks (callers resend an
+  unanswered question after a few seconds, in case it was lost) is matched to the question asked, in
+  the same world state, and gets the person's answer without a second prompt. `human_timeout`: seconds
+  the person may take (0: as long as they need); after it the robot hears "I don't know." and goes on.
 - `log_file`: append every question and answer as a JSON line.
 - `sim_timeout`: seconds to wait for the simulator.
 - `cache_ground_truth` (true): keep the state as above; false fetches the whole world for every
@@ -27,6 +31,7 @@ A malformed request gets valid=false with the reason; the node keeps serving.
 from __future__ import annotations
 
 import json
+import queue
 import sys
 import threading
 import time
@@ -44,7 +49,8 @@ from dialfred_sim.ros_util import MAX_SEED, SERVICE_QOS, Param, declare_paramete
 
 from dialfred_sim.tasks.split_files import load_split, read_tasks_file
 
-from .answers import Answer, Perturbation, answer_now, question_text, refusal_on_its_face, situation_key
+from .answers import (WITHHELD, Answer, Perturbation, answer_now, question_text, refusal_on_its_face,
+                      situation_key)
 from .swap import SWAP_MODES, AnswerSwap
 
 
@@ -106,6 +112,8 @@ PARAMETERS = (
           span=(16, 1024)),
     Param('tasks_file', '', "swapped: the split file of the tasks played ('' = the shipped split of the task id)"),
     Param('human', False, 'ask a person in the terminal (see above)'),
+    Param('human_timeout', 0.0, 'human: seconds a person may take to answer before the robot hears "I don\'t know." '
+          '(0: as long as they need)', span=(0.0, 1e9)),
     Param('log_file', '', "append every question and answer as a JSON line (time, type, noun, valid, answer, "
           "reason, human); '' = none"),
     Param('sim_timeout', 5.0, 'seconds to wait for `sim/ground_truth`', span=(0.01, 3600.0)),
@@ -127,6 +135,9 @@ class OracleNode(Node):
         self.tasks_file = str(p('tasks_file').value)
         self._swaps: dict[str, AnswerSwap] = {}        # split name -> its swap, made on the first question
         self.human = bool(p('human').value)
+        self.human_timeout = float(p('human_timeout').value)
+        self._heard: dict = {}     # (state version, task, type, noun) -> the person's Answer, for the state now
+        self._lines: Optional[queue.Queue] = None    # the person's lines, read by a thread (human mode)
         self.log_file = p('log_file').value
         self.sim_timeout = float(p('sim_timeout').value)
         self.cache = bool(p('cache_ground_truth').value)
@@ -187,7 +198,11 @@ class OracleNode(Node):
         if withheld is not result:
             return withheld
         if self.human and result.valid:
-            result = self.ask_person(qtype, noun, result)
+            key = (state.version, snap.task_id, qtype, noun)
+            if key not in self._heard:     # a copy of a question already put to the person is not put again
+                self._heard = {k: v for k, v in self._heard.items() if k[0] == state.version}
+                self._heard[key] = self.ask_person(qtype, noun, result)
+            result = self._heard[key]
         return result
 
     def swap_for(self, task_id: str) -> AnswerSwap:
@@ -248,16 +263,33 @@ class OracleNode(Node):
         return reply
 
     def ask_person(self, qtype: str, noun: str, suggestion: Answer) -> Answer:
-        """Print the question and read a person's answer from standard input."""
+        """Print the question and read a person's answer from standard input, waiting as long as they need
+        (or `human_timeout` seconds, then "I don't know.")."""
+        limit = f'; after {self.human_timeout:g} s the robot hears "{WITHHELD}"' if self.human_timeout > 0 else ''
         print(f'\n[oracle] the agent asks ({qtype}): {question_text(qtype, noun)}', flush=True)
         print(f'[oracle] the simulator would say: {suggestion.text}', flush=True)
-        print('[oracle] your answer (empty line = use that): ', end='', flush=True)
-        line = sys.stdin.readline()
+        print(f'[oracle] waiting for your answer (Enter alone: the simulator\'s{limit}):', flush=True)
+        if self._lines is None:        # a thread reads the person's lines, so that waiting for one can time out
+            self._lines = queue.Queue()
+            threading.Thread(target=self._read_person, daemon=True).start()
+        try:
+            line = self._lines.get(timeout=self.human_timeout if self.human_timeout > 0 else None)
+        except queue.Empty:
+            print(f'[oracle] no answer in {self.human_timeout:g} s: the robot hears "{WITHHELD}" and goes on',
+                  flush=True)
+            return Answer(True, WITHHELD, question_type=qtype, object_noun=noun)
         if not line:
+            self._lines.put('')      # standard input stays closed for every later question
             return Answer(False, reason='no person answered (standard input is closed)', question_type=qtype,
                           object_noun=noun)
         text = line.strip() or suggestion.text
         return Answer(True, text, question_type=qtype, object_noun=noun, object_id=suggestion.object_id)
+
+    def _read_person(self) -> None:
+        """Standard input's lines into `_lines` as the person types them; '' once it is closed."""
+        for line in sys.stdin:
+            self._lines.put(line)
+        self._lines.put('')
 
     def destroy_node(self):
         self.sim_executor.shutdown()

@@ -33,6 +33,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
+from typing import Optional
 
 import torch
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -74,6 +75,8 @@ PARAMETERS = (
     Param('questioner', False, 'ask questioner/ask before every action (and oracle/answer what it asks)'),
     Param('request_timeout', 60.0, 'seconds one reset, step, question or answer may take before the goal '
           'fails', span=(0.1, 86_400.0), dynamic=True),
+    Param('answer_timeout', 0.0, "seconds the oracle's answer may take (0: request_timeout); a person's pace: the "
+          'launcher sets it with --human', span=(0.0, 1e9), dynamic=True),
     Param('max_questions', MAX_QUESTIONS, 'questions in a row without acting before the goal fails', span=(1, 1000),
           dynamic=True),
     Param('torch_threads', 1, 'torch intra-op threads (1: the simulators and other workers share the cores)',
@@ -233,15 +236,16 @@ class PerformerNode(Node):
             f'{want}x{want}: its frames are resized and it plays otherwise than in its evaluation; start the '
             f'simulator with resolution:={want}')
 
-    def call(self, client, request, resend: bool):
+    def call(self, client, request, resend: bool, timeout: Optional[float] = None):
         """The reply to `request`, waited for (this thread blocks; the executor's other threads
-        deliver it); GoalFailed after request_timeout. `resend`: send again after RESEND_AFTER_S
-        without a reply (only for requests that may be repeated)."""
-        timeout = float(self.get_parameter('request_timeout').value)
+        deliver it); GoalFailed after `timeout` s (none: request_timeout). `resend`: send again after
+        RESEND_AFTER_S without a reply (only for requests that may be repeated)."""
+        timeout = timeout or float(self.get_parameter('request_timeout').value)
         deadline = time.monotonic() + timeout
         if client.srv_name not in self._settled:
-            if not client.wait_for_service(timeout_sec=timeout):
-                raise GoalFailed(f'no {client.srv_name} service after {timeout:g} s')
+            appear = min(timeout, float(self.get_parameter('request_timeout').value))   # a service, not a person
+            if not client.wait_for_service(timeout_sec=appear):
+                raise GoalFailed(f'no {client.srv_name} service after {appear:g} s')
             self._settled.add(client.srv_name)
             # The reply path may match a moment after the service appears: a request the server
             # refuses without changing anything, resent until answered, proves it (as Graph.client).
@@ -326,7 +330,8 @@ class GoalRun(EpisodeObserver):
         if isinstance(request, Ask):
             q = request.question
             answer = node.call(node.oracle_cli, OracleAnswer.Request(question_type=q.question_type,
-                                                                     object_noun=q.object_noun), resend=True)
+                                                                     object_noun=q.object_noun), resend=True,
+                               timeout=float(node.get_parameter('answer_timeout').value) or None)
             return qa_from_answer(q, answer, self.goal_handle.request.task_id)
         reply = node.call(node.step_cli, SimStep.Request(action=Action(action=request.action, x=request.x, y=request.y),
                                                          with_depth=False, with_segmentation=False), resend=False)
