@@ -530,7 +530,7 @@ def test_a_second_run_into_the_same_results_file_is_refused_naming_the_first(tmp
         done = subprocess.run([sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', SPLIT, '--agent',
                                'random', '--limit', '2', '--local', '--workers', '1', '--out', str(out),
                                '--no-progress'], capture_output=True, text=True, timeout=120)
-        assert done.returncode == 1 and 'is being written by another run' in done.stderr, done.stderr
+        assert done.returncode == 2 and 'is being written by another run' in done.stderr, done.stderr
         assert not out.exists()
     report = run_eval(EvalConfig(split=SPLIT, agent='random', limit=2, workers=1, local=True, out=out), progress=False)
     assert report.ran == 2 and len(out.read_text().splitlines()) == 2       # free again once the owner is done

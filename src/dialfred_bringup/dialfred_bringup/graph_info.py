@@ -16,6 +16,8 @@ import time
 
 import rclpy
 
+from dialfred_sim.dataclass_cli import Parser
+
 ACTION_MARK = '/_action/'
 
 
@@ -49,7 +51,7 @@ def _parameter_service(name: str) -> bool:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog='./dialfred graph', description=__doc__,
+    ap = Parser(prog='./dialfred graph', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--wait', type=float, default=2.0, help='seconds of discovery before the graph is read (default 2)')
     ap.add_argument('--json', action='store_true', help='one JSON object instead of the lists')

@@ -43,7 +43,7 @@ from typing import Optional
 from dialfred_performer.model_registry import camera_resolution
 from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_sim.bag import EpisodeRecorder
-from dialfred_sim.dataclass_cli import add_fields, arg, from_args
+from dialfred_sim.dataclass_cli import Parser, add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION
 from dialfred_sim.protocol import QUESTION_TYPES, Question, image_array, scale_pixel
 from dialfred_sim.ros_util import RESEND_AFTER_S
@@ -302,7 +302,7 @@ JOBS = {'demo': (DemoConfig, run_demo), 'explore': (ExploreConfig, run_explore),
 
 def make_parser() -> argparse.ArgumentParser:
     """The launcher's command line: a subcommand per job, its options the fields of the job's config."""
-    parser = argparse.ArgumentParser(prog='./dialfred launch', description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = Parser(prog='./dialfred launch', description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
     for name, (config_class, _) in JOBS.items():
         summary = config_class.__doc__.split('\n\n')[0]
@@ -330,7 +330,10 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print('interrupted; nodes stopped', file=sys.stderr)
         return 130
-    except (NodeDied, TimeoutError, FileNotFoundError, ResultsFileError) as exc:
+    except (FileNotFoundError, ResultsFileError) as exc:     # input that cannot be used: a usage error
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    except (NodeDied, TimeoutError) as exc:                   # a run that failed on its way
         print(f'error: {exc}', file=sys.stderr)
         return 1
 

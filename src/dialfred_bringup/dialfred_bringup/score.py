@@ -31,6 +31,7 @@ from dialfred_oracle.answers import Perturbation
 from dialfred_oracle.in_process import answer_now
 from dialfred_oracle.swap import AnswerSwap
 from dialfred_sim import tasks as task_sets
+from dialfred_sim.dataclass_cli import Parser
 from dialfred_sim.chained import chain_episodes, reference_length
 from dialfred_sim.env import DialfredEnv
 from dialfred_sim.metrics import (DEFAULT_PROTOCOL, EpisodeResult, ResultsFileError, end_reason,
@@ -276,7 +277,7 @@ def score(path: Path, tasks: Optional[Path] = None, workers: int = 2, progress: 
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog='dialfred score', description=__doc__.split('\n\n')[0])
+    ap = Parser(prog='./dialfred score', description=__doc__.split('\n\n')[0])
     ap.add_argument('results', type=Path, help='a results file of `launch eval` (its .trace.jsonl, .run.json and, '
                     'for a tasks file, .tasks.json beside it)')
     ap.add_argument('--tasks', type=Path, default=None, metavar='PATH',

@@ -14,6 +14,8 @@ back; torch (with `policy`) is imported only for a name that is not a baseline's
 
 from __future__ import annotations
 
+import difflib
+
 from dialfred_sim.agents import load_class
 from dialfred_sim.protocol import Questioner
 
@@ -30,6 +32,8 @@ def make_questioner(name: str) -> Questioner:
     if learned_checkpoint(name) is not None:
         return learned_questioner(name)
     if ':' not in name:
-        raise ValueError(f'unknown questioner {name!r}; known: {", ".join(baselines.QUESTIONERS)}, '
-                         f'{", ".join(SHIPPED_LEARNED)}, learned:PATH, or package.module:ClassName')
+        near = difflib.get_close_matches(name, [*baselines.QUESTIONERS, *SHIPPED_LEARNED], n=1, cutoff=0.5)
+        raise ValueError(f'unknown questioner {name!r}{f" (did you mean {near[0]}?)" if near else ""}; known: '
+                         f'{", ".join(baselines.QUESTIONERS)}, {", ".join(SHIPPED_LEARNED)}, learned:PATH, or '
+                         'package.module:ClassName')
     return load_class(name, 'questioner', ('reset', 'ask', 'hear'))()

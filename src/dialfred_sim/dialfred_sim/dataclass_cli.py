@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
+import re
 import shlex
 import types
 import typing
@@ -184,10 +186,56 @@ def add_fields(cls, parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return parser
 
 
+_USED = '_dialfred_parser'     # the namespace attribute naming the innermost parser that read the arguments
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser whose usage error is one line on stderr (status 2) that names the (sub)command it
+    belongs to and suggests the nearest option or value: `./dialfred launch eval: error: unrecognized
+    arguments: --questoner (did you mean --questioner?); --help lists the options`. Subcommands made with
+    `add_subparsers` are Parsers too."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if not hasattr(namespace, _USED):          # a subcommand's parser returns first: it names itself
+            setattr(namespace, _USED, self)
+        return namespace, extras
+
+    def parse_args(self, args=None, namespace=None):
+        namespace, extras = self.parse_known_args(args, namespace)
+        used = getattr(namespace, _USED, self)
+        delattr(namespace, _USED)
+        if extras:
+            used.error(f'unrecognized arguments: {" ".join(extras)}')
+        return namespace
+
+    def options(self) -> list[str]:
+        return [o for a in self._actions for o in a.option_strings if o.startswith('--')]
+
+    def suggestion(self, message: str) -> str:
+        """' (did you mean X?)' for the misspelled option or value that `message` names, or ''."""
+        choice = (re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+                  or re.search(r"'([^']*)' is not one of (.*)", message))
+        if choice:
+            words = re.findall(r"'([^']*)'", choice.group(2)) or [w.strip() for w in choice.group(2).split(',')]
+            near = difflib.get_close_matches(choice.group(1), words, n=1, cutoff=0.5)
+            return f' (did you mean {near[0]}?)' if near else ''
+        wrong = re.findall(r'(?:unrecognized arguments: |ambiguous option: )(.*)', message)
+        for word in (wrong[0].split() if wrong else []):
+            if word.startswith('--'):
+                near = difflib.get_close_matches(word.split('=')[0], self.options(), n=1, cutoff=0.6)
+                if near:
+                    return f' (did you mean {near[0]}?)'
+        return ''
+
+    def error(self, message: str):
+        self.exit(2, f'{self.prog}: error: {message}{self.suggestion(message)}; {self.prog} --help lists the '
+                     'options\n')
+
+
 def parser_for(cls, description: str = '', prog: Optional[str] = None, **kwargs) -> argparse.ArgumentParser:
     """A parser of `cls`'s fields (each help text ends with the default); `kwargs` go to ArgumentParser."""
-    ap = argparse.ArgumentParser(prog=prog, description=description or (cls.__doc__ or '').split('\n\n')[0],
-                                 **kwargs)
+    ap = Parser(prog=prog, description=description or (cls.__doc__ or '').split('\n\n')[0], **kwargs)
     return add_fields(cls, ap)
 
 

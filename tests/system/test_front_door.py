@@ -1,0 +1,85 @@
+"""The front door: `./dialfred CMD --help` needs no set-up and never mixes set-up lines into the help; the
+help files a checkout without set-up prints are the commands' own help; `./dialfred run --help` is a usage."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def dialfred(*args, root: Path = REPO, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([str(root / 'dialfred'), *args], capture_output=True, text=True, timeout=120,
+                          stdin=subprocess.DEVNULL, env={**os.environ, 'COLUMNS': '100'}, **kw)
+
+
+def test_the_help_files_are_the_commands_own_help():
+    done = subprocess.run([str(REPO / '.venv' / 'bin' / 'python'), str(REPO / 'scripts' / 'cli_help.py'), '--check'],
+                          capture_output=True, text=True, timeout=300, env={**os.environ})
+    assert done.returncode == 0, done.stderr
+
+
+@pytest.mark.parametrize('args, key', [(('demo', '--help'), 'demo'), (('launch', 'eval', '-h'), 'launch-eval'),
+                                       (('score', '--help'), 'score')])
+def test_help_on_a_checkout_without_set_up_prints_at_once_and_sets_nothing_up(tmp_path, args, key):
+    shutil.copy2(REPO / 'dialfred', tmp_path / 'dialfred')
+    shutil.copytree(REPO / 'docs' / 'cli', tmp_path / 'docs' / 'cli')
+    done = dialfred(*args, root=tmp_path)
+    assert done.returncode == 0 and done.stderr == ''
+    assert done.stdout == (REPO / 'docs' / 'cli' / f'{key}.txt').read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['dialfred', 'docs']     # no .venv, no build
+
+
+def test_help_on_a_set_up_checkout_has_no_set_up_lines():
+    done = dialfred('demo', '--help')
+    assert done.returncode == 0 and '[dialfred]' not in done.stdout + done.stderr
+    assert done.stdout == (REPO / 'docs' / 'cli' / 'demo.txt').read_text()
+
+
+def test_run_help_is_a_usage_and_a_missing_executable_an_error_of_status_2():
+    done = dialfred('run', '--help')
+    assert done.returncode == 0 and done.stdout.startswith('usage: ./dialfred run PACKAGE EXECUTABLE')
+    assert 'error' not in done.stdout + done.stderr
+    done = dialfred('run', 'dialfred_oracle')
+    assert done.returncode == 2 and done.stderr.startswith('usage: ./dialfred run')
+
+
+def launch(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([str(REPO / '.venv' / 'bin' / 'python'), '-m', 'dialfred_bringup.launch', *args],
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL, cwd=REPO)
+
+
+@pytest.mark.parametrize('args, says', [
+    (('eval', '--questoner', 'all'), './dialfred launch eval: error: unrecognized arguments: --questoner all '
+                                     '(did you mean --questioner?)'),
+    (('evl',), "./dialfred launch: error: argument command: invalid choice: 'evl'"),
+    (('eval', '--split', 'valid_unsen'), "'valid_unsen' is not one of train, valid_seen, valid_unseen "
+                                          '(did you mean valid_unseen?)'),
+    (('demo', '--max-stpes', '5'), './dialfred launch demo: error: unrecognized arguments: --max-stpes 5 (did you mean '
+                                  '--max-steps?)'),
+])
+def test_a_misspelled_option_or_value_is_one_line_at_its_subcommand_with_a_suggestion_and_status_2(args, says):
+    done = launch(*args)
+    assert done.returncode == 2 and done.stdout == ''
+    assert len(done.stderr.splitlines()) == 1 and says in done.stderr, done.stderr
+    if args[0] == 'evl':
+        assert '(did you mean eval?)' in done.stderr
+
+
+def test_an_unknown_questioner_is_refused_with_the_nearest_name():
+    done = launch('eval', '--questioner', 'rl-anytme', '--local', '--limit', '1')
+    assert done.returncode == 2 and "unknown questioner 'rl-anytme' (did you mean rl-anytime?)" in done.stderr
+
+
+def test_a_results_file_of_another_seed_is_a_usage_error_of_status_2(tmp_path):
+    out = tmp_path / 'r.jsonl'
+    common = ('eval', '--agent', 'random', '--limit', '1', '--local', '--workers', '1', '--resolution', '64',
+              '--no-progress', '--out', str(out))
+    assert launch(*common).returncode == 0
+    done = launch(*common, '--seed', '7')
+    assert done.returncode == 2 and done.stderr.startswith('error: '), done.stderr
