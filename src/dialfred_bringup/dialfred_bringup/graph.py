@@ -146,6 +146,7 @@ class NodeProcess:
     capture_output: bool = True  # False: it talks to this terminal (the oracle asking a person)
     proc: Optional[subprocess.Popen] = None
     tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=40))
+    forced: bool = False         # the last stop() had to go past SIGINT (the node did not end in time)
 
     @property
     def label(self) -> str:
@@ -181,7 +182,9 @@ class NodeProcess:
     def stop(self, timeout: float = 5.0) -> Optional[int]:
         if self.proc is None or self.proc.poll() is not None:
             return None if self.proc is None else self.proc.returncode
+        self.forced = False
         for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+            self.forced = sig != signal.SIGINT
             try:
                 os.killpg(self.proc.pid, sig)
             except ProcessLookupError:
@@ -241,9 +244,16 @@ class Graph:
             self.client_node.destroy_node()
         if self.owns_context:
             rclpy.try_shutdown()
+        interrupted = bool(exc) and exc[0] is not None and issubclass(exc[0], KeyboardInterrupt)
         for n in self.nodes:
             code = n.stop()
-            if code not in (None, 0, -signal.SIGINT, 130):
+            if code in (None, 0, -signal.SIGINT, 130):
+                continue
+            if code in (-signal.SIGTERM, -signal.SIGKILL) and n.forced:
+                if not interrupted:      # after Ctrl-C, stopping what was running is what was asked for
+                    print(f'{n.label} node did not end within 5 s of the stop signal; it was stopped '
+                          f'({signal.Signals(-code).name})', file=sys.stderr)
+            else:
                 print(f'{n.label} node exited with code {code}', file=sys.stderr)
 
     def check(self) -> None:
