@@ -54,6 +54,13 @@ def test_the_demo_prints_the_dialogue_the_actions_and_the_outcome_and_saves_capt
         assert sheet.format == 'PNG'
     # the closing line: how many succeeded, and (a checkpoint not shipped) how to measure it on the whole split
     assert lines[-1].startswith('0 of 1 succeeded; ') and 'launch eval --local --split valid_unseen' in lines[-1]
+    # and one success to show, whatever the performer did: the expert's path on the same task, labelled as such
+    assert lines[-1].endswith(f"The expert's reference path on {task.task_id}: goal reached.")
+    assert any(line.startswith(f"For reference, the expert's path on {task.task_id}") and 'not the performer' in line
+               for line in lines)
+    with Image.open(out / f'{task.task_id.replace("/", "_")}_expert_reference.gif') as im:
+        n = len(task.expert_actions)
+        assert im.n_frames in (1 + n, 2 + n)       # the start, each expert action (and a Stop, if it needs one)
 
 
 def test_the_demos_tasks_are_one_of_each_family_by_type_and_its_reference_is_the_shipped_results_table(tmp_path):

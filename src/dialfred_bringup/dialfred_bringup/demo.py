@@ -24,7 +24,9 @@ from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
 from dialfred_performer.shipped import SHIPPED_CHECKPOINT
+from dialfred_sim.agents import ExpertAgent
 from dialfred_sim.dataclass_cli import arg
+from dialfred_sim.env import DialfredEnv
 from dialfred_sim.protocol import image_array
 from dialfred_sim.tasks import load_split
 
@@ -256,6 +258,43 @@ def play_demo_task(graph: Graph, worker, watcher: DemoWatcher, index: int, task,
     return bool(result.success)
 
 
+def play_expert_reference(task, resolution: int, max_steps: int, out: Path, sheet: list) -> bool:
+    """The expert's path on `task`, played in this process (no ROS) as a reference of what success looks like:
+    its GIF (`<task>_expert_reference.gif`) and a row of the contact sheet, labelled as the expert's. The demo
+    shows it whatever the performer did (the task is the demo's first, by the same fixed rule). Whether the
+    expert reached the goal."""
+    agent = ExpertAgent(resolution)
+    env = DialfredEnv(resolution=resolution, max_steps=max(max_steps, len(task.expert_actions) + 1))
+    try:
+        obs, _ = env.reset(options={'task': task})
+        agent.reset(task)
+        title = f'{task.task_id}: "{task.instruction}"'
+        label = "the expert's path (a reference, not the performer)"
+        film, durations, frames = [(obs['rgb'], [title, label, 'start'])], [int(1000 * QA_SECONDS)], [obs['rgb']]
+        success = False
+        for k in range(len(task.expert_actions) + 1):
+            name, x, y = agent.act(obs)
+            obs, reward, terminated, truncated, _ = env.step({'action': name, 'pixel': (x, y)})
+            success = reward > 0
+            target = f' at ({x}, {y})' if x >= 0 else ''
+            film.append((obs['rgb'], [title, label, f'expert action {k + 1}: {name}{target}']))
+            durations.append(int(1000 * ACTION_SECONDS))
+            frames.append(obs['rgb'])
+            if terminated or truncated:
+                break
+    finally:
+        env.close()
+    outcome = 'goal reached' if success else 'goal NOT reached'
+    film[-1][1].append(outcome)
+    durations[-1] = int(1000 * QA_SECONDS)
+    gif = out / f'{task.task_id.replace("/", "_")}_expert_reference.gif'
+    save_captioned_gif(film, gif, durations_ms=durations)
+    sheet.append((f"{task.task_id} the expert's path (reference): {outcome}", frames))
+    print(f"\nFor reference, the expert's path on {task.task_id} (privileged: it replays the task's recorded plan; "
+          f'not the performer): {len(frames) - 1} actions, {outcome}\n  saved {gif} ({len(film)} frames)')
+    return success
+
+
 def run_demo(demo: DemoConfig) -> int:
     """Start sim, oracle, questioner and performer nodes; play --tasks tasks as RunTask goals; print
     the dialogue, the actions and the outcomes; save a captioned GIF per task and a contact sheet."""
@@ -283,8 +322,10 @@ def run_demo(demo: DemoConfig) -> int:
             successes += play_demo_task(graph, worker, watcher, index, task, out, sheet)
         if config.foxglove is not None:
             view.close()
+    expert = play_expert_reference(chosen[0][1], config.resolution, demo.max_steps, out, sheet)
     if sheet:
         save_contact_sheet(sheet, out / 'contact_sheet.png')
         print(f'\ncontact sheet: {out / "contact_sheet.png"}')
-    print(f'\n{successes} of {len(chosen)} succeeded; {reference_line(config)}')
+    print(f'\n{successes} of {len(chosen)} succeeded; {reference_line(config)}. The expert\'s reference path on '
+          f'{chosen[0][1].task_id}: {"goal reached" if expert else "goal NOT reached"}.')
     return 0
