@@ -52,7 +52,7 @@ def test_a_local_run_resumes_and_refuses_what_needs_ros(tmp_path):
     more = run_eval(EvalConfig(split='valid_unseen', agent='random', limit=4, resolution=64, local=True, out=out),
                     progress=False)
     assert more.ran == 2 and comparable(more.results[:2]) == comparable(first.results)
-    for bad in (dict(agent='et', performer='et'), dict(record=tmp_path / 'bags'), dict(foxglove=8765)):
+    for bad in (dict(record=tmp_path / 'bags'), dict(foxglove=8765)):     # --performer: test_front_door.py
         with pytest.raises(ValueError, match='--local'):
             EvalRun(EvalConfig(split='valid_unseen', agent=bad.pop('agent', 'random'), local=True, **bad))
 

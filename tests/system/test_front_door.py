@@ -109,3 +109,23 @@ def test_ctrl_c_through_performer_nodes_ends_with_a_clean_message(tmp_path):
     assert proc.returncode == 130, text
     assert 'exited with code' not in text and 'did not end' not in text, text
     assert 'the same command resumes' in text
+
+
+def test_local_with_performer_is_local_with_that_agent_and_a_run_that_plays_nothing_keeps_the_summary(tmp_path):
+    import json
+
+    from dialfred_bringup.eval_run import EvalRun
+    from dialfred_bringup.evaluation import EvalConfig, run_eval
+    a = EvalRun(EvalConfig(split='valid_unseen', local=True, performer='map', limit=2))
+    b = EvalRun(EvalConfig(split='valid_unseen', local=True, agent='map', limit=2))
+    assert (a.options.agent, a.options.performer, a.results_path) == ('map', '', b.results_path)
+    out = tmp_path / 'r.jsonl'
+    report = run_eval(EvalConfig(split='valid_unseen', local=True, agent='random', limit=2, resolution=64, out=out),
+                      progress=False)
+    summary = json.loads(report.run.summary_path.read_text())
+    assert summary['through'] == 'local processes (no ROS)'
+    summary['through'] = 'performer node'           # as if the graph had played them
+    report.run.summary_path.write_text(json.dumps(summary))
+    again = run_eval(EvalConfig(split='valid_unseen', local=True, agent='random', limit=2, resolution=64, out=out),
+                     progress=False)
+    assert again.ran == 0 and json.loads(again.run.summary_path.read_text())['through'] == 'performer node'

@@ -79,8 +79,8 @@ def check_ranges(o: EvalConfig) -> None:
         raise ValueError(f'--record-format must be one of {", ".join(IMAGE_FORMATS)}, got {o.record_format!r}')
     if o.record is not None and Path(o.record).exists() and not Path(o.record).is_dir():
         raise ValueError(f'--record {o.record} exists and is not a folder')
-    if o.local and (o.performer or o.record is not None or o.foxglove is not None):
-        raise ValueError('--local plays without ROS: it cannot go with --performer, --record or --foxglove')
+    if o.local and (o.record is not None or o.foxglove is not None):
+        raise ValueError('--local plays without ROS: it cannot go with --record or --foxglove')
     if o.performer and o.performer not in PERFORMER_MODELS:
         raise ValueError(f'--performer must be one of {", ".join(PERFORMER_MODELS)} (the performer node\'s model), '
                          f'got {o.performer!r}')
@@ -107,6 +107,8 @@ class EvalRun:
         o = self.options = dataclasses.replace(config)
         if o.performer:
             o.agent = o.performer
+            if o.local:          # the same performer, without ROS: --local --performer et is --local --agent et
+                o.performer = ''
         if o.tasks_file:
             try:
                 o.split = self.tasks_source.split      # the split played is the file's

@@ -314,7 +314,8 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None)
     results = [done[t.task_id] for t in tasks]
     report = EvalReport(run, results, ran, startup_s, time.monotonic() - t0, summarize(results), restarts, code,
                         replayed)
-    write_text_atomically(run.summary_path, json.dumps(report.to_json(), indent=1) + '\n')
+    if ran or not run.summary_path.exists():     # a run that played nothing leaves the summary as it was
+        write_text_atomically(run.summary_path, json.dumps(report.to_json(), indent=1) + '\n')
     return report
 
 
