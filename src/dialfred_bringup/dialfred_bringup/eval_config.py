@@ -112,8 +112,8 @@ class EvalConfig:
                                  '(docs/scaling.md)', parse=parse_shard, show=show_shard, metavar='K/N')
     workers: int = arg(2, 'simulator nodes (or, with --local, processes) playing episodes in parallel')
     local: bool = arg(False, 'no ROS: each worker is a process with its own simulator, the oracle\'s rules and the '
-                      'agent (the same episodes as through the graph, faster; --performer M plays the agent M so; not with --record, '
-                      '--foxglove; dialfred_bringup/local.py)')
+                      'agent (the same episodes as through the graph, faster; --performer M plays the agent M so; '
+                      'not with --record, --foxglove; dialfred_bringup/local.py)')
     out: Optional[Path] = arg(None, 'the results file (none: out/eval/<split>_<agent>[+<questioner>].jsonl)',
                               metavar='PATH')
     seed: int = arg(0, 'the run\'s seed: episode k of the split is seeded with (seed, k)')
