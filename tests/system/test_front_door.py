@@ -129,3 +129,17 @@ def test_local_with_performer_is_local_with_that_agent_and_a_run_that_plays_noth
     again = run_eval(EvalConfig(split='valid_unseen', local=True, agent='random', limit=2, resolution=64, out=out),
                      progress=False)
     assert again.ran == 0 and json.loads(again.run.summary_path.read_text())['through'] == 'performer node'
+
+
+def test_a_users_module_beside_the_project_leaves_runs_clean_and_names_hold_no_colon():
+    from dialfred_bringup.eval_run import EvalRun
+    from dialfred_bringup.evaluation import EvalConfig
+    from dialfred_sim.metrics import changes_code
+    assert not changes_code(['?? my_questioner.py', '?? mine/agents.py', ''])
+    assert changes_code(['?? src/dialfred_sim/dialfred_sim/new_rule.py'])
+    assert changes_code([' M src/dialfred_sim/dialfred_sim/env.py']) and changes_code(['M  README.md'])
+    run = EvalRun(EvalConfig(split='valid_unseen', local=True, agent='examples.direction_follower:DirectionFollower',
+                             questioner='examples.direction_follower:AskForDirections', limit=1))
+    assert run.results_path.name == ('valid_unseen_examples.direction_follower.DirectionFollower+'
+                                     'examples.direction_follower.AskForDirections.jsonl')
+    assert ':' in run.agent_name          # the results lines still name the classes as given

@@ -249,7 +249,8 @@ class EvalRun:
         perturbed += f'_{o.protocol}' if o.protocol != DEFAULT_PROTOCOL else ''
         source = self.tasks_source
         tasks = f'{source.split}-{source.sha256[:8]}' if source else o.split   # a file: named by its content
-        return REPO / 'out' / 'eval' / f'{tasks}_{self.agent_name}{perturbed}{shard_suffix(o.shard)}.jsonl'
+        name = self.agent_name.replace(':', '.')      # package.module:Class: no colon in a file name
+        return REPO / 'out' / 'eval' / f'{tasks}_{name}{perturbed}{shard_suffix(o.shard)}.jsonl'
 
     @property
     def tasks_record_path(self) -> Path:

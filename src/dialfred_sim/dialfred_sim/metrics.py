@@ -338,15 +338,24 @@ class TruncatedResultsWarning(UserWarning):
     """The last line of a results file was cut off (an interrupted write) and was skipped."""
 
 
+def changes_code(status_lines) -> bool:
+    """Whether `git status --porcelain --untracked-files=all` lines change the project's code: a tracked file
+    changed, or a new file under src/ (a new file elsewhere, such as a user's module at the root, does not)."""
+    return any(not line.startswith('?? ') or line[3:].lstrip('"').startswith('src/') for line in status_lines
+               if line.strip())
+
+
 def git_commit() -> str:
-    """The commit of the code that runs: of the repository this file is in (with '+dirty' for uncommitted changes), or 'unknown'."""
+    """The commit of the code that runs: of the repository this file is in (with '+dirty' for uncommitted changes
+    to its files, or a new file in its packages under src/), or 'unknown'. A user's own module saved beside the
+    project (an agent or questioner of `--agent package.module:Class`, named in the results) leaves it clean."""
     here = Path(__file__).resolve().parent
     try:
         head = subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=here, capture_output=True, text=True,
                               timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(['git', 'status', '--porcelain'], cwd=here, capture_output=True, text=True,
-                               timeout=10).stdout.strip()
-        return head + ('+dirty' if dirty else '')
+        status = subprocess.run(['git', 'status', '--porcelain', '--untracked-files=all'], cwd=here,
+                                capture_output=True, text=True, timeout=10).stdout.splitlines()
+        return head + ('+dirty' if changes_code(status) else '')
     except (OSError, subprocess.SubprocessError):
         return 'unknown'
 
