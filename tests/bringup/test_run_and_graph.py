@@ -48,3 +48,31 @@ def test_a_node_started_with_run_is_listed_by_graph_with_its_services_and_topics
             node.wait(timeout=20)
         except subprocess.TimeoutExpired:
             node.kill()
+
+
+def test_graph_flags_a_node_name_taken_twice_and_all_shows_what_ros_lists():
+    nodes = [subprocess.Popen([DIALFRED, 'run', 'dialfred_oracle', 'node', '--ros-args', '-r', '__ns:=/duptest'],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
+    try:
+        graph = {}
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            done = subprocess.run([DIALFRED, 'graph', '--json', '--all'], capture_output=True, text=True, timeout=120)
+            assert done.returncode == 0, done.stderr[-2000:]
+            graph = json.loads(done.stdout)
+            if graph['duplicates']:
+                break
+        assert '/duptest/dialfred_oracle' in graph['duplicates'] and graph['settled']
+        assert '/rosout' in graph['topics'] and '/duptest/dialfred_oracle/get_parameters' in graph['services']
+        lists = subprocess.run([DIALFRED, 'graph'], capture_output=True, text=True, timeout=120)
+        line = next(x for x in lists.stdout.splitlines() if x.startswith('  /duptest/dialfred_oracle'))
+        assert 'WARNING: more than one node has this name' in line
+        assert '/rosout' not in lists.stdout          # without --all, as before
+    finally:
+        for node in nodes:
+            node.send_signal(signal.SIGINT)
+        for node in nodes:
+            try:
+                node.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                node.kill()
