@@ -22,7 +22,8 @@ Or as one agent that asks by itself (`DirectionAsker`: a protocol.DialogueAgent,
     ./dialfred launch eval --agent examples.direction_follower:DirectionAsker
 
 Run from the repository's root, `examples` is importable as it is (with `--local` too). On valid_unseen
-it reaches the goal in 151 of the 163 Move tasks (92.6%). The random agent reaches 5.5% of them.
+it reaches the goal in 125 of the 169 Move tasks (74.0%, 15.1 questions a task; the Move row of the
+first command's table, with `--local`).
 """
 
 from __future__ import annotations
