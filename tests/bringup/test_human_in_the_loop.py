@@ -159,6 +159,7 @@ def human_run(tmp_path, monkeypatch, delay: float, **settings):
     return report, people
 
 
+@pytest.mark.slow    # a whole evaluation with a person; fast: the oracle node's 8 s person above
 def test_the_in_process_agent_waits_8_s_for_its_person_with_one_prompt_a_question(tmp_path, monkeypatch):
     report, (person,) = human_run(tmp_path, monkeypatch, 8.0, agent='random', limit=2)
     assert [r.questions for r in report.results] == [1, 1] and person.prompts == 2

@@ -10,6 +10,8 @@ import subprocess
 import time
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[2]
 DIALFRED = str(REPO / 'dialfred')
 
@@ -50,6 +52,7 @@ def test_a_node_started_with_run_is_listed_by_graph_with_its_services_and_topics
             node.kill()
 
 
+@pytest.mark.slow   # two more nodes and three graph reads; fast: the graph test above
 def test_graph_flags_a_node_name_taken_twice_and_all_shows_what_ros_lists():
     nodes = [subprocess.Popen([DIALFRED, 'run', 'dialfred_oracle', 'node', '--ros-args', '-r', '__ns:=/duptest'],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]

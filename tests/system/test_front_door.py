@@ -77,6 +77,7 @@ def test_an_unknown_questioner_is_refused_with_the_nearest_name():
     assert done.returncode == 2 and "unknown questioner 'rl-anytme' (did you mean rl-anytime?)" in done.stderr
 
 
+@pytest.mark.slow   # two launcher processes; fast: the exit statuses of misspelled options above
 def test_a_results_file_of_another_seed_is_a_usage_error_of_status_2(tmp_path):
     out = tmp_path / 'r.jsonl'
     common = ('eval', '--agent', 'random', '--limit', '1', '--local', '--workers', '1', '--resolution', '64',
