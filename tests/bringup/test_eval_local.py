@@ -1,5 +1,5 @@
 """`launch eval --local` (dialfred_bringup/local.py) plays the episodes the ROS graph plays: for every kind of
-questioner, a perturbed oracle, swapped answers and the random agent, the results of both paths are equal field by field
+questioner, a perturbed oracle, swapped answers, an answerer's words and the random agent, the results of both paths are equal field by field
 (but for wall_s); and what cannot go without ROS is refused."""
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ CASES = {
     'performer + random QA, location withheld': dict(agent='et', questioner='random', perturb_type='location'),
     'performer + model confusion': dict(agent='et', questioner='confusion'),
     'performer + all QAs, answers swapped': dict(agent='et', questioner='all', answers='swapped'),
+    'performer + all QAs, held-out wording': dict(agent='et', questioner='all',
+                                                  answers='dialfred_oracle.wording:HeldOutWording'),
     # RL anytime with a chance at every step (the shipped rl-anytime asks about once in 25 episodes)
     'performer + RL anytime (learned)': dict(agent='et', questioner='rl-anytime-1'),
 }

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from dialfred_oracle.swap import SWAP_MODES
 from dialfred_performer.model_registry import PERFORMER_MODELS, SHIPPED_CHECKPOINT, camera_resolution
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import arg
@@ -86,10 +85,14 @@ class EvalConfig:
     perturb_type: str = arg('', 'the paper\'s ablation: the oracle withholds answers of this type ("I don\'t know.")',
                             choices=QUESTION_TYPES, aliases={'none': ''})
     perturb_probability: float = arg(0.5, 'how often it withholds them (0.5 in the paper)')
-    answers: str = arg('oracle', "oracle: the oracle's own answers; swapped: a control, each answer replaced by the "
-                       "oracle's answer to the same question in another task of the split (a performer that "
-                       "reads its answers does worse; dialfred_oracle/swap.py; results are named ..._swapped)",
-                       choices=SWAP_MODES)
+    answers: str = arg('oracle', "who words the answers: oracle (its own templates); swapped (a control: each answer "
+                       "replaced by the oracle's answer to the same question in another task of the split, "
+                       "dialfred_oracle/swap.py; results ..._swapped); human (a person in this terminal, as --human); "
+                       "FILE (JSON lines {task, type, noun, answer}: a person's words, for runs that repeat); or "
+                       "package.module:ClassName (say(asked, content) -> words; e.g. "
+                       "dialfred_oracle.wording:HeldOutWording, words no performer was trained on); results record "
+                       "the answerer and are named ..._answers-<label> (dialfred_oracle/answerers.py)",
+                       metavar='WHO')
     human: bool = arg(False, 'the oracle asks you in this terminal (its answer suggested; an empty line takes it): '
                       'through the graph, one worker; each question is put to you once, and the robot waits as long '
                       'as you need (see --human-timeout)')

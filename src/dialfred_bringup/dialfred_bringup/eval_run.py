@@ -25,7 +25,7 @@ import tempfile
 from pathlib import Path
 from typing import Optional
 
-from dialfred_oracle.swap import SWAP_MODES
+from dialfred_oracle.answerers import ANSWERER_PREFIX, AnswersError, answerer_label, is_answerer_spec, load_answerer
 from dialfred_performer.model_registry import PERFORMER_MODELS, load_policy
 from dialfred_questioner.baselines import with_questioner
 from dialfred_questioner.questioners import make_questioner
@@ -86,8 +86,11 @@ def check_ranges(o: EvalConfig) -> None:
                          f'got {o.performer!r}')
     if o.protocol not in PROTOCOLS:
         raise ValueError(f'--protocol must be one of {", ".join(PROTOCOLS)}, got {o.protocol!r}')
-    if o.answers not in SWAP_MODES:
-        raise ValueError(f'--answers must be one of {", ".join(SWAP_MODES)}, got {o.answers!r}')
+    if is_answerer_spec(o.answers):
+        try:
+            load_answerer(o.answers)
+        except AnswersError as exc:
+            raise ValueError(str(exc)) from None
     if o.perturb_type and o.perturb_type not in QUESTION_TYPES:
         raise ValueError(f'--perturb-type must be one of {", ".join(QUESTION_TYPES)}, got {o.perturb_type!r}')
     if o.perturb_type and not 0.0 <= o.perturb_probability <= 1.0:
@@ -114,6 +117,8 @@ class EvalRun:
                 o.split = self.tasks_source.split      # the split played is the file's
             except FileNotFoundError as exc:
                 raise ValueError(str(exc)) from None
+        if o.answers == 'human':         # --answers human is --human
+            o.human, o.answers = True, 'oracle'
         if o.human:
             o.request_timeout = max(o.request_timeout, 3600.0)      # a person takes time
             o.episode_timeout = float('inf')       # the robot waits for its person: a goal is never cut off
@@ -129,11 +134,14 @@ class EvalRun:
         if o.human and (o.local or o.workers != 1 or not self.asks or o.perturb_type or o.answers != 'oracle'):
             raise ValueError('--human answers through the graph (not --local), with one worker (--workers 1: one '
                              'person answers one question at a time), a questioner (or an agent that asks), and no '
-                             '--perturb-type or --answers swapped')
+                             '--perturb-type or other --answers')
         if o.human_timeout is not None and (not o.human or o.human_timeout <= 0):
             raise ValueError('--human-timeout is a number of seconds above 0, with --human')
         if o.answers == 'swapped' and (not self.asks or o.perturb_type):
             raise ValueError('--answers swapped needs a questioner (--questioner, or an agent that asks) and no '
+                             '--perturb-type')
+        if self.answerer and (not self.asks or o.perturb_type):
+            raise ValueError(f'--answers {o.answers} needs a questioner (--questioner, or an agent that asks) and no '
                              '--perturb-type')
         if o.perturb_type and not self.asks:
             raise ValueError('a perturbed oracle needs a questioner (--questioner, or an agent that asks)')
@@ -213,11 +221,27 @@ class EvalRun:
         return f'{agent}+{self.questioner_label}' if o.questioner else agent
 
     @property
+    def answerer(self) -> str:
+        """The --answers of an answerer of dialfred_oracle.answerers (a FILE or a class), '' for a built-in."""
+        return self.options.answers if is_answerer_spec(self.options.answers) else ''
+
+    @functools.cached_property
+    def answerer_label(self) -> str:
+        """The answerer as results record it (answerers.answerer_label: a file by its name and digest)."""
+        try:
+            return answerer_label(self.answerer) if self.answerer else ''
+        except AnswersError as exc:
+            raise ValueError(str(exc)) from None
+
+    @property
     def oracle(self) -> str:
-        """How the oracle answers, as results record it: '' exactly, 'location:0.5' perturbed."""
+        """How the oracle answers, as results record it: '' exactly, 'location:0.5' perturbed, 'swapped',
+        'human', 'answers:<label>' worded by an answerer."""
         o = self.options
         if o.answers == 'swapped':
             return 'swapped'
+        if self.answerer:
+            return ANSWERER_PREFIX + self.answerer_label
         if o.human:
             return 'human'
         return f'{o.perturb_type}:{o.perturb_probability:g}' if o.perturb_type else ''
@@ -245,6 +269,7 @@ class EvalRun:
             return Path(o.out)
         perturbed = f'_withhold-{o.perturb_type}-{o.perturb_probability:g}' if o.perturb_type else ''
         perturbed += '_swapped' if o.answers == 'swapped' else ''
+        perturbed += f'_answers-{self.answerer_label}' if self.answerer else ''
         perturbed += f'_goal-{o.goal_rule}' if o.goal_rule != DEFAULT_GOAL_RULE else ''
         perturbed += f'_{o.protocol}' if o.protocol != DEFAULT_PROTOCOL else ''
         source = self.tasks_source

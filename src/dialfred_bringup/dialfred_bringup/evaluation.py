@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS
+from dialfred_oracle.answerers import resolved_spec
 from dialfred_sim.chained import chain_episodes
 from dialfred_sim.dataclass_cli import add_fields, from_args
 from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, git_commit, load_results,
@@ -143,7 +144,10 @@ def resumable_results(run: EvalRun, task_ids: list) -> dict:
 
 def run_record(run: EvalRun) -> dict:
     """What a results file's episodes were played with beyond what each result line records."""
-    return {'resolution': int(run.options.resolution), 'max_questions': int(run.options.max_questions)}
+    record = {'resolution': int(run.options.resolution), 'max_questions': int(run.options.max_questions)}
+    if run.answerer:      # where `score` finds the answerer again
+        record['answers'] = resolved_spec(run.answerer)
+    return record
 
 
 def check_run_record(run: EvalRun, has_results: bool) -> None:

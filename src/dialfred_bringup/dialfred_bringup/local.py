@@ -24,6 +24,7 @@ import torch
 
 from dialfred_oracle.answers import Perturbation
 from dialfred_oracle.in_process import EnvServer
+from dialfred_oracle.answerers import speaking
 from dialfred_oracle.swap import AnswerSwap
 from dialfred_sim.agents import task_view
 from dialfred_sim.chained import ChainedEpisode, expert_reference, reference_length
@@ -51,8 +52,9 @@ def _init_worker(run, silent: Optional[tuple[str, str]] = None) -> None:
     _W['agent'] = run.make_agent()
     _W['perturbation'] = (Perturbation(o.options.perturb_type, o.options.perturb_probability, o.options.seed)
                           if o.options.perturb_type else None)
+    # whoever words the answers: the swap's other task, or an answerer (dialfred_oracle.answerers); None: the oracle
     _W['swap'] = (AnswerSwap(run.split_tasks(), o.options.resolution, o.options.goal_rule)
-                  if o.options.answers == 'swapped' else None)
+                  if o.options.answers == 'swapped' else speaking(run.answerer) if run.answerer else None)
 
 
 def _play_any(job) -> list:
@@ -91,7 +93,8 @@ def _play_job(job: tuple):
 
 def play_state(run, env, agent, perturbation, index: int, task, swap=None, observers=()):
     """One episode of `task` (at `index` in the split) in `env` with `agent`, for `run` (an eval_run.EvalRun):
-    the episode loop's final EpisodeState. `swap`: a dialfred_oracle.swap.AnswerSwap for --answers swapped."""
+    the episode loop's final EpisodeState. `swap`: a dialfred_oracle.swap.AnswerSwap for --answers swapped, or an
+    answerers.Speaking for an answerer of the user's: who words the oracle's answers."""
     episode = play(agent, seed=episode_seed(run.options.seed, index), told=task_view(agent, task), asks=run.asks,
                    max_questions=run.options.max_questions, observers=observers)
     return run_episode(episode, EnvServer(env, task, perturbation, swap, with_depth=False, with_segmentation=False))

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
+from dialfred_oracle.answerers import ANSWERER_PREFIX
 from dialfred_sim.bag import BagError, bag_name, read_bag
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
 from dialfred_sim.metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
@@ -140,6 +141,8 @@ def oracle_text(oracle: str) -> str:
     """How the oracle answered: '' exactly; 'location:0.5' withholding that type's answers that often."""
     if not oracle:
         return 'exact answers'
+    if oracle.startswith(ANSWERER_PREFIX):
+        return f'the oracle\'s answers worded by {oracle[len(ANSWERER_PREFIX):]}'
     kind, _, probability = oracle.partition(':')
     return f'withholds {kind} answers with probability {probability}' if probability else oracle
 

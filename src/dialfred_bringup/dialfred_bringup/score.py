@@ -23,10 +23,11 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Optional
 
+from dialfred_oracle.answerers import ANSWERER_PREFIX, AnswersError, resolved_spec, same_answerer, speaking
 from dialfred_oracle.answers import Perturbation
 from dialfred_oracle.in_process import answer_now
 from dialfred_oracle.swap import AnswerSwap
@@ -63,6 +64,7 @@ class Setting:
     oracle: str
     seed: int
     resolution: int
+    answers: str = ''        # an answerer's --answers (dialfred_oracle.answerers), from the run record
 
 
 # ------------------------------------------------------------------------------------------ the replay
@@ -153,6 +155,8 @@ def _init(setting: Setting, tasks_path: Optional[str], split: str) -> None:
     perturbation = swap = None
     if setting.oracle == 'swapped':
         swap = AnswerSwap(tasks, setting.resolution, setting.goal_rule)
+    elif setting.oracle.startswith(ANSWERER_PREFIX):
+        swap = answerer_of(setting)       # words the oracle's answers where the swap would
     elif setting.oracle not in ('', 'human'):
         kind, _, p = setting.oracle.partition(':')
         perturbation = Perturbation(kind, float(p), setting.seed)
@@ -192,11 +196,36 @@ def read_setting(path: Path, results: list) -> Setting:
                                        f'{getattr(r, name)!r}, at {r.task_id})')
     record = path.with_suffix('.run.json')
     try:
-        resolution = int(json.loads(record.read_text())['resolution'])
+        held = json.loads(record.read_text())
+        resolution = int(held['resolution'])
     except (OSError, ValueError, KeyError, TypeError):
         raise ResultsFileError(f'{record}: no record of the camera the episodes were played with (written by '
                                '`launch eval` beside its results)') from None
-    return Setting(first.protocol, first.goal_rule or 'visible', first.oracle, first.seed, resolution)
+    answers = held.get('answers', '')
+    if first.oracle.startswith(ANSWERER_PREFIX) and not (isinstance(answers, str) and answers):
+        raise ResultsFileError(f'{record}: no record of the answerer that worded the answers ({first.oracle})')
+    return Setting(first.protocol, first.goal_rule or 'visible', first.oracle, first.seed, resolution, answers)
+
+
+def answerer_of(setting: Setting, given: Optional[Path] = None):
+    """The answerer of a results file's answers (dialfred_oracle.answerers.Speaking), None without one:
+    the recorded one, or `given` (an answers file moved or renamed since), checked to be the one that answered
+    (a file by its content's digest)."""
+    if not setting.oracle.startswith(ANSWERER_PREFIX):
+        if given is not None:
+            raise ResultsFileError(f'--answers {given}: these results were not worded by an answerer '
+                                   f'(oracle {setting.oracle or "exact"!r})')
+        return None
+    spec = str(given) if given is not None else setting.answers
+    try:
+        answerer = speaking(spec)
+    except AnswersError as exc:
+        raise ResultsFileError(f'the answerer of these results: {exc} (--answers FILE where it lies now)') from None
+    want = setting.oracle[len(ANSWERER_PREFIX):]
+    if answerer is None or not same_answerer(answerer.label, want):
+        raise ResultsFileError(f'--answers {spec} is {answerer.label if answerer else spec!r}, not the answerer '
+                               f'that answered these results ({want})')
+    return answerer
 
 
 def tasks_source(path: Path, given: Optional[Path], split: str) -> Optional[Path]:
@@ -217,7 +246,8 @@ def tasks_source(path: Path, given: Optional[Path], split: str) -> Optional[Path
     return source.path
 
 
-def score(path: Path, tasks: Optional[Path] = None, workers: int = 2, progress: bool = True) -> dict:
+def score(path: Path, tasks: Optional[Path] = None, workers: int = 2, progress: bool = True,
+          answers: Optional[Path] = None) -> dict:
     """Replay every episode of the results file `path`: {'results', 'summary', 'refused': None or
     (task_id, what), 'tasks', 'episodes', 'wall_s'}. ResultsFileError for a file that cannot be scored."""
     t0 = time.monotonic()
@@ -232,6 +262,9 @@ def score(path: Path, tasks: Optional[Path] = None, workers: int = 2, progress: 
     if not results:
         raise ResultsFileError(f'{path} holds no results')
     setting = read_setting(path, results)
+    if answers is not None or setting.oracle.startswith(ANSWERER_PREFIX):
+        answerer_of(setting, answers)            # refused here, not in every worker
+        setting = replace(setting, answers=resolved_spec(str(answers)) if answers is not None else setting.answers)
     source = tasks_source(path, tasks, results[0].split)
     missing = [r.task_id for r in results if r.task_id not in traces]
     if missing:
@@ -282,6 +315,9 @@ def main(argv=None) -> int:
                     'for a tasks file, .tasks.json beside it)')
     ap.add_argument('--tasks', type=Path, default=None, metavar='PATH',
                     help='the tasks file it was played on (default: the one its .tasks.json records, or its shipped split)')
+    ap.add_argument('--answers', type=Path, default=None, metavar='FILE',
+                    help='the answers file that worded its answers, where it lies now (default: the path its '
+                         '.run.json records; checked by its digest)')
     ap.add_argument('--workers', type=int, default=2, help='processes replaying episodes (default: 2)')
     ap.add_argument('--progress', action=argparse.BooleanOptionalAction, default=True,
                     help='a progress bar on stderr (default: --progress)')
@@ -289,7 +325,7 @@ def main(argv=None) -> int:
     if args.workers < 1:
         ap.error('--workers must be at least 1')
     try:
-        report = score(args.results, args.tasks, args.workers, args.progress)
+        report = score(args.results, args.tasks, args.workers, args.progress, args.answers)
     except (ResultsFileError, FileNotFoundError, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2

@@ -19,6 +19,7 @@ from types import SimpleNamespace
 from rclpy.action import ActionClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from dialfred_oracle.answerers import resolved_spec
 from dialfred_sim.agents import task_view
 from dialfred_sim.bag import RecordingObserver
 from dialfred_sim.chained import ChainedEpisode, expert_reference, reference_length
@@ -479,6 +480,8 @@ def worker_nodes(run, namespace: str, **sim_params) -> list:
                     'seed': run.options.seed} if run.options.perturb_type else {}
         if run.options.answers == 'swapped':
             withhold.update(answers='swapped', swap_resolution=run.options.resolution, **from_file)
+        elif run.answerer:       # the node may run elsewhere: a file by its absolute path
+            withhold['answers'] = resolved_spec(run.answerer)
         if run.options.human and run.options.human_timeout:
             withhold['human_timeout'] = run.options.human_timeout
         nodes.append(oracle_node(namespace, human=run.options.human, **withhold))

@@ -13,7 +13,8 @@ looks are kept per state too). Parameters:
   (`answers.Perturbation`), so runs repeat exactly, and asking again in the same place does not help.
 - `answers` (`oracle`), `swap_resolution`, `tasks_file`: `swapped` answers every question with the answer
   to the same question in another task of the split (`swap.AnswerSwap`, a control: does the performer
-  read its answers?), seen at the simulator's resolution.
+  read its answers?), seen at the simulator's resolution. A FILE of a person's words, or
+  `package.module:ClassName`: an answerer (answerers.py) puts each answer the oracle gives into its words.
 - `human`: ask a person in the terminal instead (the simulator's answer is shown as a suggestion;
   an empty line accepts it), as a robot running this stack would ask its human. A question is put to
   the person once: a copy of it that the asker sends again while the person thinks (callers resend an
@@ -51,7 +52,8 @@ from dialfred_sim.tasks.split_files import load_split, read_tasks_file
 
 from .answers import (WITHHELD, Answer, Perturbation, answer_now, question_text, refusal_on_its_face,
                       situation_key)
-from .swap import SWAP_MODES, AnswerSwap
+from .answerers import AnswersError, speaking
+from .swap import AnswerSwap
 
 
 class SimulatorUnavailable(RuntimeError):
@@ -107,7 +109,8 @@ PARAMETERS = (
     Param('seed', 0, 'seeds which answers are withheld', span=(0, MAX_SEED)),
     Param('answers', 'oracle', "oracle: its own answers; swapped: a control, each answer replaced by the answer to "
           'the same question in another task of the split (swap.AnswerSwap; tasks of the shipped split named in the '
-          'task id, or of tasks_file)', choices=SWAP_MODES),
+          "task id, or of tasks_file); a FILE of a person's words or package.module:ClassName: an answerer that words "
+          'the answers (answerers.py)'),
     Param('swap_resolution', 64, 'swapped: the camera pixels the partner tasks are seen at (the simulator\'s)',
           span=(16, 1024)),
     Param('tasks_file', '', "swapped: the split file of the tasks played ('' = the shipped split of the task id)"),
@@ -130,7 +133,9 @@ class OracleNode(Node):
         p = self.get_parameter
         self.perturbation = Perturbation(p('perturb_type').value, float(p('perturb_probability').value),
                                          int(p('seed').value))
-        self.swapped = p('answers').value == 'swapped'
+        spec = str(p('answers').value)
+        self.swapped = spec == 'swapped'
+        self.speaking = speaking(spec)      # an answerer of the user's (ValueError: the node does not start)
         self.swap_resolution = int(p('swap_resolution').value)
         self.tasks_file = str(p('tasks_file').value)
         self._swaps: dict[str, AnswerSwap] = {}        # split name -> its swap, made on the first question
@@ -163,7 +168,7 @@ class OracleNode(Node):
         self._about = ''        # the task the answer is about: set once the simulator's state is read
         try:
             result = self.answer(qtype, noun)
-        except SimulatorUnavailable as exc:
+        except (SimulatorUnavailable, AnswersError) as exc:
             result = Answer(False, reason=str(exc), question_type=qtype, object_noun=noun)
         except Exception as exc:   # a bad question must never take the node down
             self.get_logger().error(f'answering {qtype!r} {noun[:80]!r} failed: {exc!r}')
@@ -197,6 +202,8 @@ class OracleNode(Node):
         withheld = self.perturbation.apply(result, situation_key(snap, qtype, noun))
         if withheld is not result:
             return withheld
+        if self.speaking is not None:
+            return self.speaking.apply(result, snap.task_id, noun)
         if self.human and result.valid:
             key = (state.version, snap.task_id, qtype, noun)
             if key not in self._heard:     # a copy of a question already put to the person is not put again

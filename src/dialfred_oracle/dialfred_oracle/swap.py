@@ -28,8 +28,6 @@ from dialfred_sim.protocol import names_object
 from .answers import WITHHELD, Answer, parse_question_type
 from .in_process import answer_now
 
-SWAP_MODES = ('oracle', 'swapped')   # how the oracle answers: its own answers, or the swap's
-
 
 class AnswerSwap:
     """The partner's answers for the tasks of one split. `tasks`: every task of the split in order (a
