@@ -383,3 +383,16 @@ def test_chained_cost_plays_both_protocols_and_reports_their_ratio():
     assert row['expert']['SR'] == 100.0 and row['chained']['SR'] == 100.0
     assert row['chained']['actions_per_task'] >= row['expert']['actions_per_task']    # the stretch and a Stop
     assert row['ratio_chained_over_expert']['s_per_task'] > 0
+
+
+@pytest.mark.slow   # a benchmark script end to end; the answerers have fast tests: tests/oracle/test_answerers.py
+def test_answer_wording_plays_the_oracles_words_and_an_answerers_on_the_same_tasks(tmp_path):
+    report = run_bench('answer_wording', '--limit', '4', '--agents', 'et', '--workers', '1', '--base',
+                       '--out', str(tmp_path))
+    row = report['agents']['et']
+    assert row['tasks'] == 4 and row['oracle']['NQ'] == row['answerer']['NQ'] > 0
+    assert row['instruction only']['NQ'] == 0
+    lo, hi = row['SR_lost_to_wording_95']
+    assert lo <= row['SR_lost_to_wording'] <= hi
+    assert 0 < row['answer_words']['share_not_in_templates'] < 1
+    assert len(list(tmp_path.glob('*_answers-dialfred_oracle.wording.HeldOutWording.jsonl'))) == 1
