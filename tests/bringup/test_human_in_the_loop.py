@@ -173,3 +173,11 @@ def test_a_person_who_takes_70_s_gets_through_the_performer_node_with_one_prompt
     (r,) = report.results
     assert r.questions == 1 and person.prompts == 1 and r.end_reason != 'error', r
     assert r.dialogue[0]['answer'] == 'It is by the window 1.'
+
+
+def test_the_person_sees_what_the_map_performer_took_from_their_words(tmp_path, monkeypatch, capfd):
+    report, (person,) = human_run(tmp_path, monkeypatch, 0.2, performer='map', limit=1)
+    (r,) = report.results
+    assert r.questions == 1 and person.prompts == 1
+    # the map performer reads the oracle's templates, not these words: the person is told so
+    assert '[robot] heard: nothing it can read' in capfd.readouterr().err.splitlines()

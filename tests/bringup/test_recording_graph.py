@@ -134,3 +134,16 @@ def test_the_dialogue_job_records_its_questions_and_the_experts_actions(tmp_path
     assert [q[5] for q in ep.dialogue][3:5] == [False, False]             # the unicorn and the colour question
     assert ep.dialogue[-1][0] == len(ep.actions) - 1                      # asked before the expert's last action
     assert ep.result['success'] and len(ep.frames) == len(ep.actions) + 1
+
+
+def test_the_map_performer_node_says_what_it_heard_on_dialogue_qa_and_its_bags_keep_it(tmp_path):
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_sim.protocol import QA, Question
+    report = run_eval(EvalConfig(split='valid_unseen', performer='map', questioner='all', limit=1, workers=1,
+                                 out=tmp_path / 'm.jsonl', record=tmp_path / 'bags'), progress=False)
+    r, = report.results
+    ep = read_episode(tmp_path / 'bags' / bag_name(r.task_id))
+    reader = MapAgent.__new__(MapAgent)
+    heard = [q[6] for q in ep.dialogue]
+    assert len(heard) == r.questions > 0 and all(heard[k] for k, q in enumerate(ep.dialogue) if q[5])
+    assert heard == [reader.understood(QA(Question(q[1], q[2]), q[5], q[4])) for q in ep.dialogue]

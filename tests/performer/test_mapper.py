@@ -51,6 +51,35 @@ def test_answers_become_facts():
     assert parse_answer('location', "I don't know.") is None
 
 
+def test_what_the_reader_took_from_an_answer_is_said_in_its_fields_and_recorded_with_the_question(tmp_path):
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_questioner.baselines import QuestioningAgent
+    from dialfred_questioner.questioners import make_questioner
+    from dialfred_sim.bag import EpisodeRecorder, read_episode
+    from dialfred_sim.protocol import QA, Question, heard_by
+    cases = {('location', 'The apple is to your left in the fridge.'): 'Apple, to your left, in the Fridge',
+             ('location', 'You are holding the mug.'): 'Mug, in your hand',
+             ('appearance', 'The apple is red and made of food.'): 'Apple: red',
+             ('direction', 'You should turn around.'): 'turn around',
+             ('direction', "You don't need to move."): 'stay here',
+             ('location', 'it is by the worktop, hang a left'): 'nothing it can read'}
+    agent = MapAgent.__new__(MapAgent)          # the reader needs none of the agent's state
+    for (qtype, text), said in cases.items():
+        qa = QA(Question(qtype, 'apple' if qtype != 'direction' else ''), True, text)
+        assert agent.understood(qa) == said and heard_by(agent, qa) == said
+    invalid = QA(Question('location', 'plum'), False, '', 'no plum here')
+    assert agent.understood(invalid) == ''
+    # through a questioner, the performer's reading; an agent that reads no fields says nothing
+    assert heard_by(QuestioningAgent(agent, make_questioner('all')), qa) == 'nothing it can read'
+    assert heard_by(object(), qa) == ''
+    rec = EpisodeRecorder('valid_unseen/000000', 's', 'valid_unseen', 'Go.', ('counter',))
+    rec.observation(0, np.zeros((8, 8, 3), np.uint8), (0.0, 0.0, 0.0, 0.0), 0.9)
+    rec.question(0, 'direction', '', 'Which direction should I turn to?', 'You should turn around.', True,
+                 'turn around')
+    rec.result(success=False, steps=0, questions=1, end_reason='stop')
+    assert read_episode(rec.save(tmp_path)).dialogue[0][6] == 'turn around'
+
+
 def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():
     from dialfred_sim.env import DialfredEnv
     env = DialfredEnv(resolution=32)

@@ -51,7 +51,7 @@ def test_question_types():
         'location', 'appearance', 'direction')
     assert QAPair.get_fields_and_field_types() == {
         'question_type': 'string', 'object_noun': 'string', 'question': 'string',
-        'answer': 'string', 'valid': 'boolean'}
+        'answer': 'string', 'valid': 'boolean', 'heard': 'string'}
 
 
 def test_observation_fields():

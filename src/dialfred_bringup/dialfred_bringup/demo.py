@@ -212,7 +212,8 @@ class DemoWatcher:
     def heard(self, qa) -> None:
         if self.record is not None:
             self.record.dialogue.append(qa)
-            print(f'  Q: {qa_question(qa)}\n  A: {qa_answer(qa)}', flush=True)
+            heard = f'\n     heard: {qa.heard}' if qa.heard else ''
+            print(f'  Q: {qa_question(qa)}\n  A: {qa_answer(qa)}{heard}', flush=True)
 
     def seen(self, obs) -> None:
         if self.record is not None:

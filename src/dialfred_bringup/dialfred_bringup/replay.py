@@ -27,7 +27,7 @@ def transcript(ep: RecordedEpisode) -> list[str]:
     """The episode as lines of text: the task, each QA and action in order, the outcome."""
     lines = [f'{where(ep)}{ep.task["task_id"]} in {ep.task["scene"]}: "{ep.task["instruction"]}"']
     events = [(s, 0, k, f'  Q [{q[1]}{": " + q[2] if q[2] else ""}] -> '
-                        f'{q[4] if q[5] else "(the oracle could not answer)"}')
+                        f'{q[4] if q[5] else "(the oracle could not answer)"}' + (f' (heard: {q[6]})' if q[6] else ''))
               for k, q in enumerate(ep.dialogue) for s in [q[0]]]
     events += [(a[0] - 1, 1, k, f'{a[0]:>4} {a[1]:<10} {f"({a[2]}, {a[3]})" if a[2] >= 0 else "":<10} '
                                 f'{"ok" if a[4] else "failed"}') for k, a in enumerate(ep.actions)]
@@ -84,7 +84,7 @@ def film(ep: RecordedEpisode) -> list:
         while qi < len(qas) and qas[qi][0] < a[0]:
             q = qas[qi]
             out.append((shot(q[0]), [title, f'Q [{q[1]}{": " + q[2] if q[2] else ""}]',
-                                     f'A: {q[4] if q[5] else "(no answer)"}']))
+                                     f'A: {q[4] if q[5] else "(no answer)"}'] + ([f'heard: {q[6]}'] if q[6] else [])))
             qi += 1
         target = f' at ({a[2]}, {a[3]})' if a[2] >= 0 else ''
         out.append((shot(a[0]), [title, f'{a[0]}: {a[1]}{target} {"ok" if a[4] else "failed"}']))

@@ -25,7 +25,7 @@ from dialfred_sim.bag import RecordingObserver
 from dialfred_sim.chained import ChainedEpisode, expert_reference, reference_length
 from dialfred_sim.episode import Ask, EpisodeObserver, Failed, Reset, play
 from dialfred_sim.metrics import OUTCOME_FIELDS, dialogue_entry, episode_result
-from dialfred_sim.protocol import MapPainter, episode_seed, image_array
+from dialfred_sim.protocol import MapPainter, episode_seed, heard_by, image_array
 from dialfred_sim.ros_util import RESEND_AFTER_S, SETTLE_S
 from dialfred_sim.traces import make_trace
 
@@ -89,7 +89,7 @@ class SimWorker(EpisodeObserver):
                 self.recorder = RecordingObserver(
                     self.run.options.record, self.run.options.record_format,
                     picture=self.agent.picture if isinstance(self.agent, MapPainter) else None,
-                    chained=self.chain is not None)
+                    chained=self.chain is not None, heard=lambda qa: heard_by(self.agent, qa))
         if self.recorder is not None:
             observers.append(self.recorder)
         if self.live is not None:
@@ -153,6 +153,9 @@ class SimWorker(EpisodeObserver):
     def on_question(self, state, qa, step: int) -> None:
         if self.live is not None:
             self.live.qa(qa.question.question_type, qa.question.object_noun, qa.answer, qa.valid)
+        heard = heard_by(self.agent, qa)
+        if heard and self.run.options.human:      # the person sees what the robot took from their words
+            print(f'[robot] heard: {heard}', file=sys.stderr, flush=True)
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
         self.traces[self.task.task_id].append((action, x, y))
@@ -204,6 +207,11 @@ class PerformerWorker:
             if time.monotonic() > deadline:
                 raise TimeoutError(f'action server {self.name} not available after 60 s')
         self.graph, self.namespace, self.run = graph, namespace, run
+        if run.options.human:      # the person sees what the robot took from their words (QAPair.heard)
+            from dialfred_msgs.msg import QAPair  # lazy: the ROS messages, which the rest of this module does without
+            self.heard_sub = graph.client_node.create_subscription(
+                QAPair, f'{namespace.rstrip("/")}/dialogue/qa',
+                lambda m: print(f'[robot] heard: {m.heard}', file=sys.stderr, flush=True) if m.heard else None, 100)
         self._prove_paths(deadline)
         self.on_feedback = on_feedback    # called with (task, RunTask.Feedback) as each step's feedback comes
         self.future = self.goal_handle = self.cancel_future = None

@@ -48,7 +48,7 @@ from dialfred_msgs.srv import OracleAnswer, QuestionerAsk, SimReset, SimStep
 from dialfred_sim.episode import Ask, EpisodeObserver, EpisodeState, Reset, play, run
 from dialfred_sim.messages import qa_from_answer, qa_msg, sim_reply, task_description_msg
 from dialfred_sim.protocol import (MAX_QUESTIONS, PROTOCOLS, QA, ConfusionSource, Continuing, MapPainter, Question,
-                                  top2_gap)
+                                  heard_by, top2_gap)
 from dialfred_sim.bag import IMAGE_FORMATS, RecordingObserver
 from dialfred_sim.ros_util import (RESEND_AFTER_S, SERVICE_QOS, SETTLE_S, Param, declare_parameters, refused_request,
                                    run_node)
@@ -197,7 +197,8 @@ class PerformerNode(Node):
             else:
                 self.recorder = RecordingObserver(Path(self.record_dir), self.record_format,
                                                   picture=policy.picture if isinstance(policy, MapPainter) else None,
-                                                  save_on_end=False, chained=chained)
+                                                  save_on_end=False, chained=chained,
+                                                  heard=lambda qa, policy=policy: heard_by(policy, qa))
             self.chain_recorder = self.recorder if chained else None
             observers.append(self.recorder)
         episode = play(goal_run, seed=int(goal.seed), asks=self.use_questioner,
@@ -348,9 +349,10 @@ class GoalRun(EpisodeObserver):
     def on_question(self, state: EpisodeState, qa: QA, step: int) -> None:
         self.result.questions += 1
         self.result.invalid_questions += not qa.valid
-        self.result.dialogue.append(qa_msg(qa))
+        msg = qa_msg(qa, heard_by(self.policy, qa))     # with what the performer took from it
+        self.result.dialogue.append(msg)
         self.result.asked_at.append(int(step))
-        self.node.qa_pub.publish(qa_msg(qa))
+        self.node.qa_pub.publish(msg)
 
     def on_action(self, state: EpisodeState, action: str, x: int, y: int) -> None:
         node = self.node

@@ -28,7 +28,7 @@ from typing import Any, Optional
 import numpy as np
 
 from dialfred_sim.agents import public_view, task_nouns, task_view
-from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Continuing, Decision, Listener,
+from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Continuing, Decision, Listener, heard_by,
                                   PerformerAware, Question, Questioner, every_question, is_privileged, names_object,
                                   top2_gap)
 
@@ -202,6 +202,10 @@ class QuestioningAgent:
         self.questioner.hear(qa)
         if isinstance(self.performer, Listener):
             self.performer.hear(qa)
+
+    def understood(self, qa: QA) -> str:
+        """What the performer took from `qa` (protocol.heard_by), '' if it reads no fields."""
+        return heard_by(self.performer, qa)
 
     def act(self, observation: Any) -> Decision:
         self._steps += 1

@@ -14,7 +14,7 @@ dialfred_msgs install):
 | /camera/image/compressed | sensor_msgs/msg/CompressedImage (png or jpeg) | instead, with `image_format` |
 | /agent/pose | dialfred_msgs/msg/AgentPose | with every frame |
 | /agent/pose_stamped | geometry_msgs/msg/PoseStamped (frame `map`, yaw only) | with every frame, for 3D views |
-| /dialogue/qa | dialfred_msgs/msg/QAPair | every question and the oracle's answer |
+| /dialogue/qa | dialfred_msgs/msg/QAPair | every question, the oracle's answer and what the performer took from it |
 | /performer/action | dialfred_msgs/msg/Action | every action command |
 | /performer/map | sensor_msgs/msg/Image (rgb8) | with every action command of a performer that keeps a map (the map performer): a picture of its belief |
 | /performer/map/compressed | sensor_msgs/msg/CompressedImage | instead, with `image_format` |
@@ -220,20 +220,21 @@ class EpisodeRecorder:
 
     def question_msg(self, step: int, qa) -> None:
         """Record a dialfred_msgs/QAPair asked on the frame after `step` actions."""
-        self.question(step, qa.question_type, qa.object_noun, qa.question, qa.answer, qa.valid)
+        self.question(step, qa.question_type, qa.object_noun, qa.question, qa.answer, qa.valid, qa.heard)
 
     def result_msg(self, result) -> None:
         """Record a dialfred_msgs RunTask result (or anything with its fields)."""
         self.result(**{k: getattr(result, k) for k in RESULT_FIELDS})
 
     def question(self, step: int, question_type: str, object_noun: str, question: str, answer: str,
-                 valid: bool) -> None:
-        """A QA asked on the frame after `step` actions (before the next action)."""
+                 valid: bool, heard: str = '') -> None:
+        """A QA asked on the frame after `step` actions (before the next action); `heard`: what the performer
+        took from it (QAPair.heard)."""
         k = self._questions.get(step, 0) + 1
         self._questions[step] = k
         self._add(step * STEP_NS + k * QA_NS, '/dialogue/qa', self._t('dialfred_msgs/msg/QAPair')(
             question_type=question_type, object_noun=object_noun, question=question,
-            answer=answer if valid else '', valid=bool(valid)))
+            answer=answer if valid else '', valid=bool(valid), heard=heard))
 
     def action(self, step: int, name: str, x: int, y: int, success: bool, questions: int) -> None:
         """Action number `step` (1-based): its command, then its result (as the RunTask feedback says it)."""
@@ -323,7 +324,7 @@ class RecordedEpisode:
     frames: list = field(default_factory=list)       # (time_ns, step, rgb array)
     maps: list = field(default_factory=list)         # (step of the action decided on it, rgb array)
     poses: list = field(default_factory=list)        # (step, x, y, rotation_deg, horizon_deg)
-    dialogue: list = field(default_factory=list)     # (step, question_type, object_noun, question, answer, valid)
+    dialogue: list = field(default_factory=list)     # (step, question_type, object_noun, question, answer, valid, heard)
     actions: list = field(default_factory=list)      # (step, action, x, y, success, questions so far)
     result: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)       # topic -> messages
@@ -383,7 +384,8 @@ def read_bag(path: Path) -> list[RecordedEpisode]:
             elif topic == '/agent/pose':
                 ep.poses.append((step, m.x, m.y, m.rotation_deg, m.horizon_deg))
             elif topic == '/dialogue/qa':
-                ep.dialogue.append((step, m.question_type, m.object_noun, m.question, m.answer, bool(m.valid)))
+                ep.dialogue.append((step, m.question_type, m.object_noun, m.question, m.answer, bool(m.valid),
+                                    getattr(m, 'heard', '')))
             elif topic == '/performer/feedback':
                 ep.actions.append((int(m.step), m.action.action, int(m.action.x), int(m.action.y),
                                    bool(m.action_success), int(m.questions)))
@@ -409,18 +411,19 @@ class RecordingObserver(EpisodeObserver):
     """Records the episode it observes (the episode loop's observer, `episode.play(observers=...)`) as a bag in
     `folder`: the simulator's replies (their `raw` dialfred_msgs/Observation), the questions, the actions with
     their feedback and, when `picture` is given (a performer that keeps a map: its `picture()`), the belief map
-    each action was decided on. `finish(result)` writes the bag with the result (anything with RESULT_FIELDS:
+    each action was decided on, and with `heard` (qa -> str: protocol.heard_by), what the performer took
+    from each answer. `finish(result)` writes the bag with the result (anything with RESULT_FIELDS:
     the episode's state, a RunTask result); with `save_on_end`, the episode's end does so itself. With
     `chained`, one observer sees the tasks of a chained episode in turn, and records them as one bag
     (`<first task>_chained`), written again as each task ends. The one recorder of the simulator-node and
     performer-node paths."""
 
     def __init__(self, folder: Path, image_format: str = 'raw', picture=None, save_on_end: bool = True,
-                 chained: bool = False):
+                 chained: bool = False, heard=None):
         if image_format not in IMAGE_FORMATS:
             raise ValueError(f'image_format must be one of {", ".join(IMAGE_FORMATS)}, got {image_format!r}')
         self.folder, self.image_format, self.picture, self.save_on_end = Path(folder), image_format, picture, save_on_end
-        self.chained = bool(chained)
+        self.chained, self.heard = bool(chained), heard
         self.recorder = None          # the episode's EpisodeRecorder, from its start to finish() (chained: to the last)
         self._open = False            # a task is being recorded (started, not finished)
 
@@ -440,7 +443,7 @@ class RecordingObserver(EpisodeObserver):
         if self._open:
             q = qa.question
             self.recorder.question(step, q.question_type, q.object_noun, q.text, qa.answer if qa.valid else '',
-                                   bool(qa.valid))
+                                   bool(qa.valid), self.heard(qa) if self.heard is not None else '')
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
         if self._open and self.picture is not None:

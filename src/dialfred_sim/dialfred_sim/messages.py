@@ -18,11 +18,12 @@ from .episode import SimReply
 from .tasks.schema import PublicTask
 
 
-def qa_msg(qa: QA) -> QAPair:
-    """The QAPair of `qa` (an invalid answer's reason is not carried: the answer is then empty)."""
+def qa_msg(qa: QA, heard: str = '') -> QAPair:
+    """The QAPair of `qa` (an invalid answer's reason is not carried: the answer is then empty), with what the
+    performer took from it (`heard`, protocol.heard_by)."""
     q = qa.question
     return QAPair(question_type=q.question_type, object_noun=q.object_noun, question=q.text,
-                  answer=qa.answer if qa.valid else '', valid=bool(qa.valid))
+                  answer=qa.answer if qa.valid else '', valid=bool(qa.valid), heard=heard)
 
 
 def qa_from_msg(msg: QAPair) -> QA:

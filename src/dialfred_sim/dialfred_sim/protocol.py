@@ -257,6 +257,28 @@ class MapPainter(Protocol):
 
 
 @runtime_checkable
+class AnswerReader(Protocol):
+    """An agent that reads answers into fields (the map performer's parser): `understood(qa)` says what it
+    took from one, so that a person can see it ("heard: Fridge, to your left"), on the terminal and on
+    `dialogue/qa` (QAPair.heard)."""
+
+    def understood(self, qa: QA) -> str:
+        """What the agent took from `qa`'s answer; '' when there is nothing to say."""
+
+
+def heard_by(agent: Any, qa: QA) -> str:
+    """What `agent` took from `qa` (AnswerReader.understood), '' for an agent that reads no fields or fails
+    to say (what it heard is shown, never relied on)."""
+    if not isinstance(agent, AnswerReader):
+        return ''
+    try:
+        said = agent.understood(qa)
+    except Exception:  # noqa: BLE001 - a user's agent: showing what it heard must never end its episode
+        return ''
+    return said if isinstance(said, str) else ''
+
+
+@runtime_checkable
 class Privileged(Protocol):
     """A reference agent that is told the whole task (the expert): only built-in ones may say True, and
     results mark them."""

@@ -253,3 +253,21 @@ def parse_answer(question_type: str, answer: str) -> Optional[Fact]:
     except InstructionError:
         return None
     return None
+
+
+def describe_fact(fact: Optional[Fact]) -> str:
+    """What a reader took from an answer, for a person to check: 'Fridge, to your left', 'Apple, in
+    your hand', 'Mug: white', 'turn around'; 'nothing it can read' for None."""
+    if fact is None:
+        return 'nothing it can read'
+    if fact.kind == 'direction':
+        return 'stay here' if fact.stay else {90: 'turn left', -90: 'turn right', 180: 'turn around',
+                                              0: 'go straight ahead'}.get(fact.turn_deg, f'turn {fact.turn_deg} deg')
+    if fact.kind == 'held':
+        return (f'{fact.object_type}, in the {fact.receptacle} in your hand' if fact.receptacle
+                else f'{fact.object_type}, in your hand')
+    if fact.kind == 'appearance':
+        return f'{fact.object_type}: {fact.colour}'
+    where = DIRECTION_BINS[int(round(fact.bearing_deg / 45.0)) % 8] if fact.bearing_deg is not None else ''
+    place = f'{"in" if fact.inside else "on"} the {fact.receptacle}' if fact.receptacle else ''
+    return ', '.join(part for part in (fact.object_type, where, place) if part)

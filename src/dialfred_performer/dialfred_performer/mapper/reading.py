@@ -13,7 +13,7 @@ from dialfred_oracle.colours import colour_name
 from dialfred_sim.protocol import QA
 
 from .geometry import Pose, STEP_M, off_bearing
-from .language import Step, parse_answer
+from .language import Step, describe_fact, parse_answer
 from .rules import ANSWER_CONE_DEG
 
 
@@ -24,6 +24,10 @@ class AnswerReading:
         """A QA of the dialogue: location, appearance and direction answers become facts (taken in
         when the step's frame has been perceived: `_observe`)."""
         self._heard.append(qa)
+
+    def understood(self, qa: QA) -> str:
+        """What the reader takes from `qa`'s answer (protocol.AnswerReader): '' for an invalid one."""
+        return describe_fact(parse_answer(qa.question.question_type, qa.answer)) if qa.valid else ''
 
     def _take_in(self, qa: QA) -> None:
         self.answers += 1
