@@ -209,3 +209,25 @@ def tiny_checkpoint(path: Path, favour: str = '', resolution: int = 64) -> Path:
             model.action_head.linear.bias[ACTIONS.index(favour)] += 50.0
     save_checkpoint(path, model, vocab, command='tests/helpers.py tiny_checkpoint')
     return path
+
+
+def interrupt_after(cmd: list, path: Path, lines: int, within_s: float, settle_s: float = 0.0, **popen) -> tuple:
+    """Start `cmd`, wait until its results file `path` holds `lines` lines (within `within_s` seconds), then
+    `settle_s` more, and press Ctrl-C (SIGINT): (its exit status, its output, stdout and stderr together)."""
+    import signal
+    import subprocess
+    import time
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, **popen)
+    try:
+        deadline = time.monotonic() + within_s
+        while not (path.exists() and path.read_text().count('\n') >= lines):
+            assert proc.poll() is None, proc.stdout.read()
+            assert time.monotonic() < deadline, f'{lines} episodes did not finish in {within_s:g} s'
+            time.sleep(0.02)
+        time.sleep(settle_s)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return proc.returncode, out

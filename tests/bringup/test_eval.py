@@ -14,7 +14,6 @@ import dataclasses
 import io
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -30,6 +29,7 @@ from dialfred_sim.tasks import ExpertAction
 
 from dialfred_bringup.evaluation import EvalConfig, EvalRun, print_report, run_eval
 from dialfred_bringup.graph import Graph, NodeProcess, sim_service
+from helpers import interrupt_after
 
 REPO = Path(__file__).resolve().parents[2]
 SPLIT = 'valid_unseen'
@@ -199,19 +199,8 @@ def test_a_run_interrupted_by_ctrl_c_resumes_where_it_stopped(tmp_path):
     path = tmp_path / 'interrupted.jsonl'
     cmd = [sys.executable, '-m', 'dialfred_bringup.launch', 'eval', '--split', SPLIT, '--agent', 'expert',
            '--limit', '40', '--out', str(path), '--no-progress']
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        deadline = time.monotonic() + 30
-        while not (path.exists() and path.read_text().count('\n') >= 2):
-            assert proc.poll() is None, proc.stdout.read()
-            assert time.monotonic() < deadline, 'no episode finished in 30 s'
-            time.sleep(0.02)
-        proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=20)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, out
+    code, out = interrupt_after(cmd, path, lines=2, within_s=30)
+    assert code == 130, out
     assert 'the same command resumes' in out
     before = path.read_text().splitlines()
     assert 2 <= len(before) < 40

@@ -6,10 +6,11 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import time
 from pathlib import Path
 
 import pytest
+
+from helpers import interrupt_after
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -89,25 +90,12 @@ def test_a_results_file_of_another_seed_is_a_usage_error_of_status_2(tmp_path):
 
 @pytest.mark.slow   # a graph run of performer nodes interrupted mid-episode
 def test_ctrl_c_through_performer_nodes_ends_with_a_clean_message(tmp_path):
-    import signal
     out = tmp_path / 'r.jsonl'
-    proc = subprocess.Popen([str(REPO / '.venv' / 'bin' / 'python'), '-m', 'dialfred_bringup.launch', 'eval',
-                             '--performer', 'map', '--questioner', 'all', '--limit', '40', '--workers', '1',
-                             '--out', str(out), '--no-progress'], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, stdin=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 240
-        while not (out.exists() and out.read_text().count('\n') >= 1):
-            assert proc.poll() is None, proc.stdout.read()
-            assert time.monotonic() < deadline, 'no episode finished in 240 s'
-            time.sleep(0.05)
-        time.sleep(1.0)                   # inside the next episode
-        proc.send_signal(signal.SIGINT)
-        text, _ = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, text
+    code, text = interrupt_after([str(REPO / '.venv' / 'bin' / 'python'), '-m', 'dialfred_bringup.launch', 'eval',
+                                  '--performer', 'map', '--questioner', 'all', '--limit', '40', '--workers', '1',
+                                  '--out', str(out), '--no-progress'], out, lines=1, within_s=240, settle_s=1.0,
+                                 cwd=REPO, stdin=subprocess.DEVNULL)   # Ctrl-C inside the next episode
+    assert code == 130, text
     assert 'exited with code' not in text and 'did not end' not in text, text
     assert 'the same command resumes' in text
 
