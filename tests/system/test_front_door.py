@@ -118,6 +118,16 @@ def test_local_with_performer_is_local_with_that_agent_and_a_run_that_plays_noth
     again = run_eval(EvalConfig(split='valid_unseen', local=True, agent='random', limit=2, resolution=64, out=out),
                      progress=False)
     assert again.ran == 0 and json.loads(again.run.summary_path.read_text())['through'] == 'performer node'
+    # every line says how it was played; a file played two ways says both, whatever its summary claims
+    lines = out.read_text().splitlines()
+    assert all(json.loads(line)['played'] == 'local processes (no ROS)' for line in lines)
+    out.write_text(lines[0] + '\n' + lines[1].replace('local processes (no ROS)', 'performer node') + '\n')
+    third = run_eval(EvalConfig(split='valid_unseen', local=True, agent='random', limit=3, resolution=64, out=out),
+                     progress=False)
+    assert third.ran == 1 and third.to_json()['through'] == 'local processes (no ROS): 2, performer node: 1'
+    from dialfred_bringup.report import run_settings
+    settings = dict(run_settings(third.results, {'through': 'performer node'})[0])
+    assert settings['played'] == 'local processes (no ROS): 2, performer node: 1'
 
 
 def test_a_users_module_beside_the_project_leaves_runs_clean_and_names_hold_no_colon():

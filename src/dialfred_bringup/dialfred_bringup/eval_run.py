@@ -247,6 +247,12 @@ class EvalRun:
         return f'{o.perturb_type}:{o.perturb_probability:g}' if o.perturb_type else ''
 
     @property
+    def played(self) -> str:
+        """How this run plays its episodes, as its results lines record it (EpisodeResult.played)."""
+        o = self.options
+        return 'performer node' if o.performer else ('local processes (no ROS)' if o.local else 'in-process agent')
+
+    @property
     def identity(self) -> dict:
         """What every results line of this run carries (metrics.episode_result's keywords)."""
         return {'agent': self.agent_name, 'oracle': self.oracle, 'seed': self.options.seed,

@@ -39,7 +39,7 @@ from dialfred_oracle.answerers import resolved_spec
 from dialfred_sim.chained import chain_episodes
 from dialfred_sim.dataclass_cli import add_fields, from_args
 from dialfred_sim.metrics import (ResultsFileError, append_result, failures, format_table, git_commit, load_results,
-                                  played_at, results_by_task, results_lock, summarize, write_text_atomically)
+                                  played_at, played_through, results_by_task, results_lock, summarize, write_text_atomically)
 from dialfred_sim.tasks.goals import under_rule
 from dialfred_sim.traces import append_trace
 
@@ -75,7 +75,7 @@ class EvalReport:
             'oracle': run.oracle, 'seed': c.seed, 'resolution': c.resolution, 'goal_rule': c.goal_rule,
             **({'protocol': c.protocol} if c.protocol != 'expert' else {}),
             'workers': c.workers,
-            'through': 'performer node' if c.performer else ('local processes (no ROS)' if c.local else 'in-process agent'),
+            'through': played_through(self.results),
             'checkpoint': ({'path': str(run.checkpoint_path), 'sha256': run.checkpoint_sha256}
                            if c.agent in PERFORMER_MODELS else None),
             'limit': c.limit, 'shard': {'index': c.shard[0], 'count': c.shard[1]} if c.shard else None,
@@ -272,7 +272,7 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None)
             nonlocal ran
             if result.task_id in done:       # a replayed chained episode's task that the file holds
                 return
-            result = dataclasses.replace(result, code=code)
+            result = dataclasses.replace(result, code=code, played=run.played)
             if result.trace is not None:     # first: a results line never lacks its trace
                 append_trace(run.results_path, result.task_id, result.trace)
             append_result(run.results_path, result)

@@ -37,7 +37,8 @@ from typing import Callable, Optional
 from dialfred_oracle.answerers import ANSWERER_PREFIX
 from dialfred_sim.bag import BagError, bag_name, read_bag
 from dialfred_sim.dataclass_cli import REQUIRED, arg, parse
-from dialfred_sim.metrics import END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results, summarize
+from dialfred_sim.metrics import (END_REASONS, EpisodeResult, TruncatedResultsWarning, intervals, load_results,
+                                  played_through, summarize)
 from dialfred_sim.tasks.split_files import get_task
 
 from .film import save_captioned_gif
@@ -164,9 +165,10 @@ def run_settings(results: list[EpisodeResult], run: Optional[dict]) -> tuple[lis
     elif agent.startswith('et-'):
         settings.append(('checkpoint', f'sha256 {agent[3:]}... (from the agent name)'))
     settings.append(('tasks', str(len(results))))
+    recorded = {'through': played_through(results)} if any(r.played for r in results) else {}
     for key, label in (('tasks_file', 'tasks file'), ('resolution', 'resolution'), ('through', 'played'),
                        ('workers', 'workers'), ('limit', 'limit'), ('shard', 'shard')):
-        value = run.get(key)
+        value = recorded.get(key, run.get(key))      # how the episodes were played: their lines say
         if value is not None:
             if key == 'shard':
                 value = f'{value.get("index")}/{value.get("count")}'

@@ -74,6 +74,10 @@ class EpisodeResult:
     protocol: str = DEFAULT_PROTOCOL   # how it was played: 'expert' (from the expert's state) or 'chained'
     episode_id: str = ''               # chained: the episode ('valid_unseen/ep000003') whose tasks were played in order
     held_at_start: bool = False        # chained: its whole goal held when it began (scored as not done)
+    # How it was played: 'local processes (no ROS)', 'in-process agent' (through the simulator and oracle
+    # nodes) or 'performer node' ('' in results written before it was recorded); the same episode either way,
+    # so two results that differ only here are equal.
+    played: str = field(default='', compare=False)
     # Not in the line: how the episode got there (traces.make_trace), which a run writes to its trace file.
     trace: Optional[dict] = field(default=None, compare=False, repr=False)
 
@@ -192,9 +196,19 @@ _FIELD_TYPES = {'task_id': str, 'task_type': str, 'split': str, 'success': bool,
                 'goal_conditions_total': int, 'steps': int, 'expert_length': int, 'questions': int,
                 'invalid_questions': int, 'failed_actions': int, 'end_reason': str, 'error': str, 'agent': str,
                 'oracle': str, 'seed': int, 'wall_s': float, 'privileged': bool, 'dialogue': list, 'code': str,
-                'goal_rule': str, 'protocol': str, 'episode_id': str, 'held_at_start': bool}
+                'goal_rule': str, 'protocol': str, 'episode_id': str, 'held_at_start': bool, 'played': str}
 # Fields that say how and where an episode was played, not what happened in it.
-RUN_FIELDS = ('wall_s', 'code')
+RUN_FIELDS = ('wall_s', 'code', 'played')
+
+
+def played_through(results) -> str:
+    """How the results were played (EpisodeResult.played): the one way, or each way with its count."""
+    counts: dict = {}
+    for r in results:
+        counts[r.played or 'unrecorded'] = counts.get(r.played or 'unrecorded', 0) + 1
+    if len(counts) == 1:
+        return next(iter(counts))
+    return ', '.join(f'{way}: {n}' for way, n in counts.items())
 
 
 def played_at(results) -> dict:
