@@ -48,7 +48,7 @@ from .geometry import Pose
 from .language import Fact, InstructionError, Step, parse_instruction
 from .picture import belief_picture
 from .reading import AnswerReading
-from .rules import EXPLORING, INTERACTIONS, MAX_STEP_ACTIONS, REACH_M, REPLAN, SURE, WALKING
+from .rules import EXPLORING, INTERACTIONS, MAX_STEP_ACTIONS, REACH_M, REPLAN, SURE, THERE, WALKING
 from .semantic_map import SemanticMap
 from .sensing import Sensing
 from .targets import Targets
@@ -104,6 +104,9 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self._just_put: Optional[str] = None     # the type put down by the last action, if it was a Put
         self.facts: dict[tuple[str, str], tuple[Fact, Pose]] = {}
         self.turns: deque[str] = deque()
+        self.direction: Optional[tuple[Fact, int]] = None     # the last direction answer and the step it came at
+        self.turn_aside = 'RotateLeft'         # following directions: the side to step to when a move is blocked
+        self.sidestep = False                  # the macro is that step aside (wayfinding._follow)
         self.last: Optional[tuple[str, Step, tuple]] = None     # (action, step, (x, y) map point)
         self.step = 0
         self.step_actions = 0
@@ -239,13 +242,27 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self.step_actions += 1
         if depth > 4:
             return 'Stop', -1, -1, None
+        if not self.macro:
+            self.sidestep = False
         if self.macro:
             action = self.macro.popleft()
             if action == 'MoveAhead' and (self.map.blocked and self.pose.forward() in self.map.blocked):
                 self.macro.clear()
+                if self.sidestep:        # the step aside is blocked too: the other side next time
+                    self.turn_aside = 'RotateRight' if self.turn_aside == 'RotateLeft' else 'RotateLeft'
             else:
                 self.confidence = WALKING
                 return action, -1, -1, None
+        follow = self._follow()        # a direction answer of this step: the way to where the expert ended
+        if follow == THERE and step.kind == 'goto':      # the agent stands there: the go-to is done
+            self.plan.popleft()
+            self.step_actions = 0
+            return self._decide(depth + 1)
+        if follow == THERE and step.kind == 'stop':
+            self.confidence = SURE
+            return 'Stop', -1, -1, None
+        if step.kind == 'stop' and follow is not None:
+            return follow, -1, -1, None
         if step.kind == 'stop':
             move = self._stand()
             if move is not None:
@@ -279,6 +296,8 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
             (r, c), point = target
             self.last_ray = float(self.ray[r, c])
             return INTERACTIONS[step.kind], r, c, point
+        if follow not in (None, THERE):      # nothing to act on in reach: walk where the answer says
+            return follow, -1, -1, None
         move = self._navigate(k, step)
         if move == REPLAN:
             return self._decide(depth + 1)

@@ -41,6 +41,7 @@ class AnswerReading:
         elif fact.kind == 'location' and fact.object_type == self.held and not self.held_confirmed:
             self.held = None                      # it is somewhere in the room, so not in hand
         elif fact.kind == 'direction':
+            self.direction = (fact, self.step)      # followed at this step (wayfinding._follow)
             if fact.turn_deg == 90:
                 self.turns = deque(['RotateLeft'])
             elif fact.turn_deg == -90:

@@ -19,6 +19,7 @@ SCAN_TURNS = 3                   # turns of the first look around
 SURE, WALKING, EXPLORING = 0.9, 0.7, 0.35
 ANSWER_CONE_DEG = 67.5           # half a location answer's 45-degree direction bin, and one bin more either side
 REPLAN = 'replan'                # _navigate changed the plan: decide again
+THERE = 'there'                  # _follow: the direction answer says the agent stands where the expert ended
 INTERACTIONS = {'pickup': 'Pickup', 'put': 'Put', 'open': 'Open', 'close': 'Close', 'toggle_on': 'ToggleOn',
                 'toggle_off': 'ToggleOff', 'slice': 'Slice'}
 HAND_M = (0.42, -0.16, 0.95)      # where the simulator's hand carries an object (ahead, left, height)

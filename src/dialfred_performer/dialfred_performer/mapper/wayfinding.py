@@ -17,6 +17,7 @@ how often). The agent is not told whether its task has a go-to (an instruction m
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Optional
 
 import numpy as np
@@ -24,7 +25,11 @@ import numpy as np
 from .geometry import CAMERA_HEIGHT_M, HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, bearing_deg, off_bearing
 from .language import Step
 from .semantic_map import TIGHT_CELLS, UNREACHABLE, distance_field, next_move, reach_goals, unexamined_goals
-from .rules import ANSWER_CONE_DEG, EXPLORING, REPLAN, SCAN_TURNS, STAND_MAX_ACTIONS, WALKING
+from .rules import ANSWER_CONE_DEG, EXPLORING, REPLAN, SCAN_TURNS, STAND_MAX_ACTIONS, THERE, WALKING
+
+
+# A direction answer's turn (language.Fact.turn_deg, counter-clockwise): the first turn towards it.
+TURN_FOR = {90: 'RotateLeft', -90: 'RotateRight', 180: 'RotateLeft'}
 
 
 class Navigation:
@@ -190,6 +195,28 @@ class Navigation:
         return move if self._loop_guard(move) else None
 
     # ------------------------------------------------------------------ the last stand
+
+    def _follow(self) -> Optional[str]:
+        """What a direction answer heard at this step says to do: THERE when the expert ended where the agent
+        stands, else the turn or the move towards where it ended (a MoveAhead into a point a failed move found
+        blocked becomes a step aside, and the next answer says the rest);
+        None without such an answer. The turns an older answer queued give way to it."""
+        if self.direction is None or self.direction[1] != self.step:
+            return None
+        fact = self.direction[0]
+        self.turns.clear()
+        self.confidence = WALKING
+        if fact.stay:
+            return THERE
+        if fact.turn_deg in TURN_FOR:
+            return TURN_FOR[fact.turn_deg]
+        if self.pose.forward() in self.map.blocked:     # a move failed into it (the map's clearance is not asked)
+            # A step aside, then the next answer: around the obstacle on one side, the other side once a step
+            # aside is blocked too (agent._decide's macro).
+            self.macro = deque(['MoveAhead'])
+            self.sidestep = True
+            return self.turn_aside
+        return 'MoveAhead'
 
     def _stand(self) -> Optional[str]:
         """Before the final Stop: the next move, turn or look towards the designated pose of the object
