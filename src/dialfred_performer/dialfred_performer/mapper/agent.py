@@ -166,16 +166,7 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
             self.plan = deque([Step('stop')])
 
 
-
-    # ------------------------------------------------------------------ perception
-
-
-
-
-
-
-
-    # ------------------------------------------------------------------ the plan
+    # ------------------------------------------------------------------ the plan (perception: sensing.py)
 
     def _step_done(self, action: str) -> None:
         step = self.plan.popleft() if self.plan else None
@@ -311,20 +302,6 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         return move, -1, -1, None
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
     def _observe(self, observation: Observation) -> tuple:
         """Perceive the frame (once per step), then take in the answers heard since; its key."""
         if self.task is None:
@@ -388,13 +365,3 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self.last = (action, step, point)
         self.step += 1
         return action, x, y
-
-
-
-
-
-
-
-
-
-
