@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 import pytest
@@ -78,6 +79,33 @@ def test_what_the_reader_took_from_an_answer_is_said_in_its_fields_and_recorded_
                  'turn around')
     rec.result(success=False, steps=0, questions=1, end_reason='stop')
     assert read_episode(rec.save(tmp_path)).dialogue[0][6] == 'turn around'
+
+
+def test_a_direction_answer_is_followed_at_the_step_it_comes_round_what_blocks_the_way():
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.rules import THERE
+    from dialfred_sim.protocol import QA, Question
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(_a_walk())
+
+    def told(text):
+        agent._take_in(QA(Question('direction', ''), True, text))
+        return agent._follow()
+
+    assert agent._follow() is None                                   # nothing heard
+    assert told('You should turn left.') == 'RotateLeft' and not agent.turns     # its turn is this step's
+    assert told('You should turn around.') == 'RotateLeft'
+    assert told('You should go straight ahead.') == 'MoveAhead'
+    assert told("You don't need to move.") == THERE
+    agent.step += 1
+    assert agent._follow() is None                                   # an answer of an earlier step is spent
+    agent.map.blocked.add(agent.pose.forward())                      # a move failed into the point ahead
+    assert told('You should go straight ahead.') == 'RotateLeft' and list(agent.macro) == ['MoveAhead']
+    # a go-to the answer says is done here ends at once: the Stop of a Move task
+    agent.macro.clear()
+    agent.plan = deque([Step('goto', 'CounterTop'), Step('stop')])
+    told("You don't need to move.")
+    assert agent._decide()[0] == 'Stop' and [s.kind for s in agent.plan] == ['stop']
 
 
 def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():
