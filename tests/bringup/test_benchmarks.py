@@ -396,3 +396,14 @@ def test_answer_wording_plays_the_oracles_words_and_an_answerers_on_the_same_tas
     assert lo <= row['SR_lost_to_wording'] <= hi
     assert 0 < row['answer_words']['share_not_in_templates'] < 1
     assert len(list(tmp_path.glob('*_answers-dialfred_oracle.wording.HeldOutWording.jsonl'))) == 1
+
+
+@pytest.mark.slow   # a benchmark script end to end; the reader has fast tests: tests/performer/test_mapper.py
+def test_answer_reading_reads_the_templates_whole_and_scores_every_wording_source():
+    report = run_bench('answer_reading', '--limit', '6')
+    rows = report['sources']
+    assert rows['templates']['types']['all']['recall'] == 1.0 == rows['templates']['types']['all']['precision']
+    for source in ('annotator', 'held-out'):
+        row = rows[source]['types']['all']
+        assert row['answers'] == rows['templates']['types']['all']['answers'] > 10
+        assert 0 < row['recall'] <= 1 and row['right'] <= row['read']

@@ -108,6 +108,30 @@ def test_a_direction_answer_is_followed_at_the_step_it_comes_round_what_blocks_t
     assert agent._decide()[0] == 'Stop' and [s.kind for s in agent.plan] == ['stop']
 
 
+@pytest.mark.parametrize('qtype, noun, words, read', [
+    ('direction', '', 'turn around and walk forward', ('direction', 180, False)),
+    ('direction', '', "don't turn, just go forward", ('direction', 0, False)),
+    ('direction', '', 'stay where you are', ('direction', 0, True)),
+    ('direction', '', 'you should turn to your right', ('direction', -90, False)),
+    ('location', 'apple', "it's right behind you", ('location', 'Apple', 180.0, '', False)),
+    ('location', 'apple', 'at 3 o\'clock, inside the fridge', ('location', 'Apple', 270.0, 'Fridge', True)),
+    ('location', 'apple', 'ahead and to the left, on the counter', ('location', 'Apple', 45.0, 'CounterTop', False)),
+    ('location', 'apple', 'you can find it on the dining table', ('location', 'Apple', None, 'DiningTable', False)),
+    ('location', 'mug', "you're holding it", ('held', 'Mug')),
+    ('appearance', 'mug', 'a greyish one', ('appearance', 'Mug', 'gray')),
+    ('appearance', 'mug', 'dark blue, made of plastic', ('appearance', 'Mug', 'navy')),
+])
+def test_a_persons_words_are_read_into_the_oracles_fields(qtype, noun, words, read):
+    from dialfred_performer.mapper.words import read_answer
+    f = read_answer(qtype, words, noun)
+    got = {'direction': lambda: (f.kind, f.turn_deg, f.stay), 'held': lambda: (f.kind, f.object_type),
+           'appearance': lambda: (f.kind, f.object_type, f.colour),
+           'location': lambda: (f.kind, f.object_type, f.bearing_deg, f.receptacle, f.inside)}[read[0]]()
+    assert got == read
+    assert read_answer('location', "I'm not sure, sorry", 'apple') is None
+    assert read_answer('location', 'The apple is to your left in the fridge.').receptacle == 'Fridge'   # templates
+
+
 def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():
     from dialfred_sim.env import DialfredEnv
     env = DialfredEnv(resolution=32)

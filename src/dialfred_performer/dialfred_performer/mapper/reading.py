@@ -1,5 +1,5 @@
 """`AnswerReading`, a part of `MapAgent` (mapper/agent.py): the dialogue as the map performer reads it:
-answers become facts (`language.parse_answer`), taken in against the pose the frame of their step was
+answers become facts (`words.read_answer`: the oracle's templates, or a person's words), taken in against the pose the frame of their step was
 seen from."""
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from dialfred_oracle.colours import colour_name
 from dialfred_sim.protocol import QA
 
 from .geometry import Pose, STEP_M, off_bearing
-from .language import Step, describe_fact, parse_answer
+from .language import Step, describe_fact
+from .words import read_answer
 from .rules import ANSWER_CONE_DEG
 
 
@@ -27,13 +28,14 @@ class AnswerReading:
 
     def understood(self, qa: QA) -> str:
         """What the reader takes from `qa`'s answer (protocol.AnswerReader): '' for an invalid one."""
-        return describe_fact(parse_answer(qa.question.question_type, qa.answer)) if qa.valid else ''
+        return describe_fact(read_answer(qa.question.question_type, qa.answer, qa.question.object_noun)) \
+            if qa.valid else ''
 
     def _take_in(self, qa: QA) -> None:
         self.answers += 1
         if not qa.valid:
             return
-        fact = parse_answer(qa.question.question_type, qa.answer)
+        fact = read_answer(qa.question.question_type, qa.answer, qa.question.object_noun)
         if fact is None:
             return
         if fact.kind == 'held' and fact.receptacle == '':
@@ -59,6 +61,8 @@ class AnswerReading:
         if fact is None or type_name in self.anchors or type_name in self.cone_spent:
             return None
         f, at = fact
+        if f.bearing_deg is None:            # the words named a place, not a side
+            return None
         return off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
 
     def _colour_wanted(self, step: Step) -> Optional[str]:

@@ -142,7 +142,7 @@ class Targets:
         if anchor is not None:
             return 100.0 * math.hypot(p[0] - anchor[0], p[1] - anchor[1])
         fact = self.facts.get(('location', type_name))
-        if fact is not None:
+        if fact is not None and fact[0].bearing_deg is not None:
             f, at = fact
             diff = float(off_bearing(at, f.bearing_deg, p[:1], p[1:2])[0])
             return 2.0 * diff + (500.0 if diff > ANSWER_CONE_DEG else 0.0)

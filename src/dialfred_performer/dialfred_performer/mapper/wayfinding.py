@@ -128,7 +128,8 @@ class Navigation:
                 cx, cy, height = self.map.object_cells(rk)
                 if len(cx):
                     x, y = self.map.cell_centre(cx, cy)
-                    keep = off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
+                    keep = (off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG if f.bearing_deg is not None
+                            else np.ones(len(x), bool))          # a place named without a side: any of them
                     if keep.any():
                         goals = reach_goals(self.map, cx[keep], cy[keep])
                         if f.inside and f.receptacle in self.opened:
@@ -164,7 +165,7 @@ class Navigation:
         goals = unexamined_goals(self.map, free)
         for (i, j) in self.map.visited:
             goals[i + off, j + off] = False
-        if fact is not None and goals.any():
+        if fact is not None and fact[0].bearing_deg is not None and goals.any():
             toward = goals & self._cone(fact[1], fact[0].bearing_deg)
             goals = toward if toward.any() else goals
         if goals.any():
