@@ -179,5 +179,6 @@ def test_the_person_sees_what_the_map_performer_took_from_their_words(tmp_path, 
     report, (person,) = human_run(tmp_path, monkeypatch, 0.2, performer='map', limit=1)
     (r,) = report.results
     assert r.questions == 1 and person.prompts == 1
-    # the map performer reads the oracle's templates, not these words: the person is told so
-    assert '[robot] heard: nothing it can read' in capfd.readouterr().err.splitlines()
+    # the person is told what the map performer's reader took from their words ("It is by the window 1.")
+    heard = [line for line in capfd.readouterr().err.splitlines() if line.startswith('[robot] heard: ')]
+    assert len(heard) == 1 and heard[0].endswith('on the Window'), heard

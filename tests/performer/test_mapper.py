@@ -63,7 +63,7 @@ def test_what_the_reader_took_from_an_answer_is_said_in_its_fields_and_recorded_
              ('appearance', 'The apple is red and made of food.'): 'Apple: red',
              ('direction', 'You should turn around.'): 'turn around',
              ('direction', "You don't need to move."): 'stay here',
-             ('location', 'it is by the worktop, hang a left'): 'nothing it can read'}
+             ('location', 'somewhere over by the worktop, I think'): 'nothing it can read'}
     agent = MapAgent.__new__(MapAgent)          # the reader needs none of the agent's state
     for (qtype, text), said in cases.items():
         qa = QA(Question(qtype, 'apple' if qtype != 'direction' else ''), True, text)

@@ -22,7 +22,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dialfred_sim.actions import LOOK_STEP
+from dialfred_sim.actions import LOOK_STEP, REACH
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.protocol import ACTIONS, MAX_STEPS
 from dialfred_sim.world.camera import HORIZON_MAX, HORIZON_MIN, START_HORIZON, ray_lengths, reach_lengths
@@ -92,7 +92,7 @@ def build_visual(config: PerformerConfig) -> nn.Module:
 
 
 # The reach input (PerformerConfig.reach_input): the simulator's reach, and what the action head reads.
-REACH_METRES = 1.5
+REACH_METRES = REACH
 REACH_FEATURES = ('expected distance / 2 m', 'pointer mass within reach', 'distance at the best pixel / 2 m')
 
 

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from .geometry import CAMERA_HEIGHT_M
+
 STRUCTURE = 4                    # label classes below this are nothing, Floor, Wall, Ceiling
 FLOOR = 1
 REACH_M = 1.3                    # stay inside the simulator's 1.5 m by more than the predicted depth's usual error
@@ -37,7 +39,7 @@ def hand_cell(horizon: float, size: int) -> tuple[int, int]:
     """(row, col) of the cell where the hand's object appears in a size x size grid at `horizon`."""
     pitch = math.radians(-horizon)
     cp, sp = math.cos(pitch), math.sin(pitch)
-    f, l, up = HAND_M[0], HAND_M[1], HAND_M[2] - 1.5
+    f, l, up = HAND_M[0], HAND_M[1], HAND_M[2] - CAMERA_HEIGHT_M
     z = f * cp + up * sp
     u = -l / z
     v = (-f * sp + up * cp) / z

@@ -22,6 +22,9 @@ from typing import Optional
 
 import numpy as np
 
+from dialfred_sim.actions import REACH as SIM_REACH_M
+from dialfred_sim.tasks.expert import MARGIN as EXPERT_MARGIN_M
+
 from .geometry import CAMERA_HEIGHT_M, HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, bearing_deg, off_bearing
 from .language import Step
 from .semantic_map import TIGHT_CELLS, UNREACHABLE, distance_field, next_move, reach_goals, unexamined_goals
@@ -107,7 +110,7 @@ class Navigation:
             return 'RotateLeft' if self._loop_guard('RotateLeft') else None
         if b < -45:
             return 'RotateRight' if self._loop_guard('RotateRight') else None
-        want = math.degrees(math.atan2(1.5 - float(height[n]), max(float(d[n]), 0.05)))
+        want = math.degrees(math.atan2(CAMERA_HEIGHT_M - float(height[n]), max(float(d[n]), 0.05)))
         want = min(max(round(want / LOOK_DEG) * LOOK_DEG, HORIZON_MIN), HORIZON_MAX)
         if want > self.pose.horizon + 1e-6:
             return 'LookDown' if self._loop_guard('LookDown') else None
@@ -297,7 +300,7 @@ class Navigation:
 # ALFRED's designated pose (dialfred_sim.tasks.expert): the eye this far from the target's centre at least,
 # and the target's nearest point within the simulator's reach less the expert's margin.
 PULL_BACK_M = 0.5
-DESIGNATED_REACH_M = 1.5 - 0.08
+DESIGNATED_REACH_M = SIM_REACH_M - EXPERT_MARGIN_M
 
 
 def _connected(cx: np.ndarray, cy: np.ndarray, seed: int) -> np.ndarray:

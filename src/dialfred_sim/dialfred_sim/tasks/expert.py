@@ -24,7 +24,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..actions import LOOK_STEP, Action, execute, interact
+from ..actions import LOOK_STEP, REACH, Action, execute, interact
 from ..world.rooms import GRID
 from ..world.camera import CAMERA_HEIGHT, HORIZON_MAX, HORIZON_MIN
 from ..world.scene import World
@@ -177,7 +177,7 @@ class Expert:
             if np.linalg.norm(eye - centre) < PULL_BACK:
                 continue
             # Every target's nearest point must be within reach of the agent's axis, or no view of it can be.
-            if any(np.linalg.norm(eye[:2] - np.clip(eye[:2], lo[:2], hi[:2])) > 1.5 - MARGIN for lo, hi in boxes):
+            if any(np.linalg.norm(eye[:2] - np.clip(eye[:2], lo[:2], hi[:2])) > REACH - MARGIN for lo, hi in boxes):
                 continue
             if not self._clear_to_open(focus, i, j):
                 continue
@@ -223,7 +223,7 @@ class Expert:
 
     def _pixels(self, object_id: str, depth: np.ndarray, seg: np.ndarray) -> list[tuple[int, int]]:
         """The pixels of `object_id` within reach, nearest the middle of all its pixels first."""
-        near = reachable_mask(self.world, object_id, depth, seg, 1.5 - MARGIN)
+        near = reachable_mask(self.world, object_id, depth, seg, REACH - MARGIN)
         ys, xs = np.nonzero(near)
         if len(xs) == 0:
             return []
