@@ -82,6 +82,11 @@ def is_class_spec(spec: str) -> bool:
         all(part.isidentifier() for part in module.split('.'))
 
 
+def _names_a_class(spec: str) -> bool:
+    """A class spec that is not also the name of a file here (a file of that name wins)."""
+    return is_class_spec(spec) and not Path(spec).expanduser().exists()
+
+
 # ------------------------------------------------------------------------------------------ a file
 
 def file_key(task_id: str, question_type: str, noun: str) -> tuple[str, str, str]:
@@ -174,7 +179,7 @@ def load_answerer(spec: str):
     package.module:ClassName; AnswersError saying what is wrong otherwise."""
     if not is_answerer_spec(spec):
         raise AnswersError(f'--answers {spec!r} is built in, not an answerer')
-    if is_class_spec(spec) and not Path(spec).expanduser().exists():
+    if _names_a_class(spec):
         try:
             cls = load_class(spec, kind='answerer', methods=('say',))
             return cls()
@@ -192,7 +197,7 @@ def answerer_label(spec: str, answerer=None) -> str:
     """What results record for the answerer `spec` (made from `answerer` when given)."""
     if isinstance(answerer, AnswersFile):
         return answerer.label
-    if is_class_spec(spec) and not Path(spec).expanduser().exists():
+    if _names_a_class(spec):
         return class_label(spec)
     return AnswersFile(spec).label
 
@@ -206,7 +211,7 @@ def same_answerer(label: str, other: str) -> bool:
 
 def resolved_spec(spec: str) -> str:
     """The spec as another process (a node elsewhere) can load it: a file's absolute path."""
-    if is_class_spec(spec) and not Path(spec).expanduser().exists():
+    if _names_a_class(spec):
         return spec
     return str(Path(spec).expanduser().resolve())
 
