@@ -34,7 +34,7 @@ import time
 import numpy as np
 
 from dialfred_bringup.graph import Graph, oracle_node, sim_node, use_private_ros_domain
-from dialfred_sim.world.palette import COLOUR_NAMES as COLOURS
+from dialfred_sim.palette import COLOUR_NAMES as COLOURS
 
 TYPES = ('location', 'appearance', 'direction')
 BINS = ('in front of you', 'to your front right', 'to your right', 'to your rear right', 'behind you',
@@ -62,7 +62,7 @@ LARGE_M = 1.0
 
 
 def large_types() -> set[str]:
-    from dialfred_sim.world.catalog import load_catalog
+    from dialfred_sim.catalog import load_catalog
     return {n for n, t in load_catalog().items() if t.dims and max(t.dims[:2]) >= LARGE_M}
 
 

@@ -65,7 +65,7 @@ def spawn_held(env, type_name: str, colour: Optional[str] = None):
 
 
 def _colour(type_name: str) -> str:
-    from dialfred_sim.world.catalog import load_catalog
+    from dialfred_sim.catalog import load_catalog
     return load_catalog()[type_name].colours[0]
 
 

@@ -12,12 +12,13 @@ from dialfred_oracle.answers import (DIRECTION_BINS, MAX_NOUN_CHARS, QUESTION_TY
                                      TURN_RIGHT, GO_STRAIGHT, Answer, Perturbation, answer, answer_now,
                                      check_answer, direction_bin, question_text, refusal_on_its_face,
                                      situation_key)
-from dialfred_oracle.colours import (SHADE_MAX, SHADE_MIN, _nearest_shaded_colour, colour_name, measure_shade_range,
+from dialfred_oracle.colours import (SHADE_MAX, SHADE_MIN, _nearest_shaded_colour, colour_name,
                                      pixel_labels)
 from dialfred_sim.ground_truth import (Appearance, ObjectFact, Snapshot, appearance, snapshot,
                                        task_object_ids)
 from dialfred_sim.tasks import load_split
-from dialfred_sim.world.palette import COLOUR_NAMES, PALETTE
+from dialfred_sim.palette import COLOUR_NAMES, PALETTE
+from dialfred_sim.world.shading import measure_shade_range
 
 from helpers import face, first_of, reset, rerender, spawn_held, spawn_on
 

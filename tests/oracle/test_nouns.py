@@ -12,7 +12,7 @@ from dialfred_oracle.nouns import EVERYDAY_NAMES, key, meanings, singular
 from dialfred_sim.ground_truth import ObjectFact, Snapshot, snapshot, task_object_ids
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.expert import replay
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 
 from helpers import rerender
 

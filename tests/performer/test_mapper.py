@@ -305,7 +305,7 @@ def _first_puts_that_miss(agent, env):
     agent cannot tell from an empty hand. A Put into a closed receptacle, or refused by a closed drawer or
     door, has a rule of its own (open it first)."""
     from dialfred_sim.tasks.split_files import load_split
-    from dialfred_sim.world.catalog import object_type
+    from dialfred_sim.catalog import object_type
     for task in load_split('valid_unseen'):
         if task.task_type != 'Put' or object_type(task.primitives[0].receptacle.rsplit('_', 1)[0]).openable:
             continue
@@ -661,7 +661,7 @@ def test_a_grid_point_a_move_failed_into_is_never_a_goal():
 def test_an_appearance_answer_picks_the_mask_of_its_colour_among_pickupable_things_only():
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.mapper.language import Fact
-    from dialfred_sim.world.palette import PALETTE
+    from dialfred_sim.palette import PALETTE
     agent = MapAgent.from_checkpoint(SHIPPED)
     agent.reset(type('T', (), {'instruction': 'Pick up the apple.'})())
     s, px = 32, 128                                     # the perception grid and the camera's pixels

@@ -12,7 +12,7 @@ import pytest
 from dialfred_sim.ground_truth import closeup_pixels
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.demonstrations import play_demonstration
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 from dialfred_sim.world.culling import frustum_planes, shape_radius
 from dialfred_sim.world.shapes import shape_for
 

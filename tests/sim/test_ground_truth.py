@@ -13,7 +13,7 @@ from dialfred_sim.ground_truth import (MAX_APPEARANCE_PIXELS, MIN_SEEN_PIXELS, A
                                        task_object_ids)
 from dialfred_sim.tasks import load_split
 from dialfred_sim.tasks.expert import replay
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 from dialfred_sim.world.rooms import GRID
 
 from helpers import agent_pose, face, first_of, reset, rerender, spawn_held, spawn_on

@@ -14,7 +14,7 @@ import math
 
 import pytest
 
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 from dialfred_sim.world.rooms import GRID, footprint
 
 from helpers import rerender, reset, spawn_held, spawn_on

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dialfred_sim.world.catalog import ROOM_TYPES, load_catalog
+from dialfred_sim.catalog import ROOM_TYPES, load_catalog
 from dialfred_sim.world.rooms import all_scenes, room_layout
 
 from helpers import act, reset, snapshot

@@ -139,3 +139,47 @@ def test_the_rule_finds_an_unexplained_inner_import_and_accepts_explained_ones(t
         'def b():\n    import torch  # lazy: torch\n    import json\n'
         'def c():\n    # lazy: the ROS messages\n    from x import y\n    from x import z\n')
     assert unexplained_inner_imports(tmp_path / 'm.py') == ['m.py:2: import json', 'm.py:5: import json']
+
+
+# The simulator's seam (docs/simulator.md, "Another simulator"): agents and the oracle know the robot's body from
+# protocol.BODY and the world from Snapshots and observations, never from the pybullet world's own modules.
+AGENT_PACKAGES = ('dialfred_oracle', 'dialfred_performer', 'dialfred_questioner')
+SIMULATOR_INTERNALS = ('dialfred_sim.world', 'dialfred_sim.actions', 'pybullet', 'pybullet_utils')
+
+
+def internals_imported(name: str, path: Path) -> list[str]:
+    """'module:line: target' of each import (module level or inside a function) of `path` that reaches into
+    SIMULATOR_INTERNALS."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ''
+            if node.level:
+                anchor = package.split('.')[:len(package.split('.')) - (node.level - 1)]
+                base = '.'.join(anchor + ([base] if base else []))
+            targets = [base, *(f'{base}.{alias.name}' for alias in node.names)]
+        else:
+            continue
+        bad = [t for t in targets if any(t == b or t.startswith(b + '.') for b in SIMULATOR_INTERNALS)]
+        found += [f'{name}:{node.lineno}: {bad[0]}'] if bad else []
+    return found
+
+
+def test_agents_and_the_oracle_import_nothing_of_the_pybullet_world():
+    modules = {n: p for n, p in source_modules().items() if n.split('.')[0] in AGENT_PACKAGES}
+    assert len(modules) > 50
+    found = [line for n, p in sorted(modules.items()) for line in internals_imported(n, p)]
+    assert not found, 'read the body from dialfred_sim.protocol.BODY and the world from a Snapshot:\n' + '\n'.join(found)
+
+
+def test_the_seam_rule_finds_a_reach_into_the_world(tmp_path):
+    (tmp_path / 'm.py').write_text('from dialfred_sim.world.camera import ray_lengths\n'
+                                   'def f():\n    import pybullet  # lazy\n    from dialfred_sim import actions\n'
+                                   'from dialfred_sim.protocol import BODY\n')
+    assert internals_imported('dialfred_performer.m', tmp_path / 'm.py') == [
+        'dialfred_performer.m:1: dialfred_sim.world.camera', 'dialfred_performer.m:3: pybullet',
+        'dialfred_performer.m:4: dialfred_sim.actions']

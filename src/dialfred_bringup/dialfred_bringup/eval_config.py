@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_performer.model_registry import PERFORMER_MODELS, SHIPPED_CHECKPOINT, camera_resolution
+from dialfred_questioner.shipped import shipped_list
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
@@ -74,10 +75,7 @@ class EvalConfig:
         'all = location + appearance of every instruction object, then direction; '
         'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
         'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
-        'pretrained, rl-begin, rl-anytime (every 5 steps), rl-anytime-1, rl-anytime-10, '
-        'rl-mc (when the performer is unsure), rl-anytime-withhold-location|appearance|direction, '
-        'rl-anytime-no-dialogue, map-rl-anytime (fine-tuned against the map performer), rl-anytime-chained and '
-        'map-rl-anytime-chained (fine-tuned under the chained protocol) (the checkpoints shipped in '
+        f'{shipped_list()} (the checkpoints shipped in '
         'dialfred_questioner/checkpoints), or learned:PATH (any '
         'questioner checkpoint; results are named learned-<file stem>-<sha256[:8]>); '
         'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))',

@@ -34,7 +34,7 @@ from dialfred_sim.ground_truth import snapshot
 from dialfred_sim.protocol import QUESTION_TYPES, question_text
 from dialfred_sim.tasks.instructions import tokenize
 from dialfred_sim.tasks.split_files import SPLIT_CODES
-from dialfred_sim.world.catalog import object_type
+from dialfred_sim.catalog import object_type
 
 from .answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT, Answer, direction_bin
 from .answers import answer as oracle_answer

@@ -1,13 +1,14 @@
 """Colour names from rendered pixels: what colour word a person would give an object's image.
 
 The simulator paints every object with one of the 20 palette colours
-(`dialfred_sim.world.palette.PALETTE`) and renders it with pybullet's tiny renderer, which multiplies
+(`dialfred_sim.palette.PALETTE`) and renders it with pybullet's tiny renderer, which multiplies
 a surface's colour by `0.6 ambient + 0.35 max(0, n.l) + 0.05 specular` and truncates to integers
 (no textures, no shadows here).
 A rendered palette colour is therefore the palette RGB scaled by a factor in [SHADE_MIN, SHADE_MAX].
 Measured by rendering a sphere and a box of every palette colour from several viewpoints under the
-world's light (`measure_shade_range`, re-run by tests/oracle/test_answers.py): every rendered channel lies
-at floor(c * s) for s in [0.593, 0.993].
+world's light (`dialfred_sim.world.shading.measure_shade_range`, re-run by tests/oracle/test_answers.py):
+every rendered channel lies at floor(c * s) for s in [0.593, 0.993]. This module reads pixels only: it draws
+nothing and needs no simulator.
 
 `colour_name` labels each pixel with the nearest shaded palette colour in CIELAB and returns the
 name most pixels agree on. The simulator's appearance samples (dialfred_sim.ground_truth) hold only
@@ -23,8 +24,7 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.world.camera import LIGHT_DIRECTION
-from dialfred_sim.world.palette import COLOUR_NAMES, PALETTE, rgba
+from dialfred_sim.palette import COLOUR_NAMES, PALETTE
 
 SHADE_MIN, SHADE_MAX = 0.58, 1.0     # measured 0.593-0.993 (see module docstring), with a margin
 _SHADE_STEPS = 43                    # about one shade per 0.01
@@ -98,46 +98,3 @@ def colour_name(pixels: np.ndarray) -> Optional[str]:
     the name that explains most pixels (ties: palette order). None for an empty sample."""
     votes = colour_votes(pixels)
     return next(iter(votes)) if votes else None
-
-
-def measure_shade_range(size: int = 64) -> tuple[float, float]:
-    """Render a sphere and a box of every palette colour under the world's light from several
-    viewpoints in a private pybullet client; return the (min, max) ratio of rendered to palette
-    channel values (channels below 100 are skipped: integer truncation dominates there)."""
-    from dialfred_sim.world.bodies import ShapeCache  # lazy: pybullet, which the rest of this module does without
-    # lazy: pybullet, which the rest of this module does without
-    from dialfred_sim.world.bullet import bullet_client, pybullet
-
-    client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        cache = ShapeCache(client)
-        proj = client.computeProjectionMatrixFOV(60, 1, 0.02, 5)
-        eyes = [(0.5, 0.0, 0.3), (0.0, 0.5, 0.3), (-0.5, 0.0, 0.3), (0.0, -0.5, 0.3), (0.35, 0.35, -0.2),
-                (0.01, 0.0, 0.6)]
-        lo, hi = np.inf, -np.inf
-        for name in COLOUR_NAMES:
-            base = np.array(PALETTE[name], dtype=np.float64)
-            bodies = [client.createMultiBody(0, -1, cache.visual('sphere', (0.1, 0.1, 0.1), rgba(name)), [0, 0, 0]),
-                      client.createMultiBody(0, -1, cache.visual('box', (0.08, 0.08, 0.08), rgba(name)),
-                                             [0, 0, 0], client.getQuaternionFromEuler((0.3, 0.2, 0.7)))]
-            for body in bodies:
-                others = [b for b in bodies if b != body]
-                for b in others:
-                    client.resetBasePositionAndOrientation(b, (0, 0, -10), (0, 0, 0, 1))
-                client.resetBasePositionAndOrientation(body, (0, 0, 0), client.getQuaternionFromEuler((0.3, 0.2, 0.7)))
-                for eye in eyes:
-                    view = client.computeViewMatrix(eye, (0, 0, 0), (0, 0, 1))
-                    _, _, px, _, seg = client.getCameraImage(size, size, view, proj, renderer=client.ER_TINY_RENDERER,
-                                                             shadow=0, lightDirection=LIGHT_DIRECTION)
-                    px = np.asarray(px, np.uint8).reshape(size, size, 4)[:, :, :3]
-                    seg = np.asarray(seg).reshape(size, size)
-                    p = px[seg == body].astype(np.float64)
-                    ok = base >= 100
-                    if len(p) and ok.any():
-                        ratio = p[:, ok] / base[ok]
-                        lo, hi = min(lo, float(ratio.min())), max(hi, float(ratio.max()))
-            for b in bodies:
-                client.removeBody(b)
-        return lo, hi
-    finally:
-        client.disconnect()

@@ -24,7 +24,7 @@ import functools
 import re
 from dataclasses import dataclass
 
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 
 # Everyday names -> catalog nouns, tried in this order (hand-made: common British and American
 # English for household objects; where a name fits two types, both, the likelier first).

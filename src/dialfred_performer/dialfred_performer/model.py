@@ -22,10 +22,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dialfred_sim.actions import LOOK_STEP, REACH
 from dialfred_sim.metrics import git_commit
-from dialfred_sim.protocol import ACTIONS, MAX_STEPS
-from dialfred_sim.world.camera import HORIZON_MAX, HORIZON_MIN, START_HORIZON, ray_lengths, reach_lengths
+from dialfred_sim.protocol import ACTIONS, BODY, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig, native_bf16
@@ -92,7 +90,7 @@ def build_visual(config: PerformerConfig) -> nn.Module:
 
 
 # The reach input (PerformerConfig.reach_input): the simulator's reach, and what the action head reads.
-REACH_METRES = REACH
+REACH_METRES = BODY.reach
 REACH_FEATURES = ('expected distance / 2 m', 'pointer mass within reach', 'distance at the best pixel / 2 m')
 
 
@@ -101,13 +99,13 @@ LOOK_UP, LOOK_DOWN = ACTIONS.index('LookUp'), ACTIONS.index('LookDown')
 
 def camera_pitches(previous_actions: torch.Tensor) -> torch.Tensor:
     """Previous action ids [..., T] -> the camera's pitch at each step [..., T] (degrees, down positive),
-    dead reckoned as the simulator moves it: START_HORIZON at the start, LOOK_STEP per LookDown or LookUp,
+    dead reckoned as the simulator moves it: BODY.start_horizon at the start, BODY.look_step per LookDown or LookUp,
     held at the limits, where the simulator refuses a look (so no success flag is needed)."""
-    delta = LOOK_STEP * ((previous_actions == LOOK_DOWN).float() - (previous_actions == LOOK_UP).float())
+    delta = BODY.look_step * ((previous_actions == LOOK_DOWN).float() - (previous_actions == LOOK_UP).float())
     out = torch.empty_like(delta)
-    pitch = torch.full(delta.shape[:-1], START_HORIZON)
+    pitch = torch.full(delta.shape[:-1], BODY.start_horizon)
     for t in range(delta.shape[-1]):
-        pitch = (pitch + delta[..., t]).clamp(HORIZON_MIN, HORIZON_MAX)
+        pitch = (pitch + delta[..., t]).clamp(BODY.horizon_min, BODY.horizon_max)
         out[..., t] = pitch
     return out
 
@@ -120,8 +118,8 @@ def axis_factors(pitch: torch.Tensor, cells: int) -> torch.Tensor:
     the pitch through a few values only."""
     size = round(cells ** 0.5)
     pitches, index = torch.unique(pitch.float(), return_inverse=True)
-    rays = ray_lengths(size, size)
-    table = torch.stack([torch.from_numpy(reach_lengths(size, size, p) / rays).float().flatten()
+    rays = BODY.ray_lengths(size, size)
+    table = torch.stack([torch.from_numpy(BODY.reach_lengths(size, size, p) / rays).float().flatten()
                          for p in pitches.tolist()])
     return table.to(pitch.device)[index]     # the camera's tables are numpy; the pitch may live on a GPU
 

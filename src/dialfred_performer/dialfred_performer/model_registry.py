@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Optional
 
 from .shipped import SHIPPED_CHECKPOINT
 
@@ -30,7 +30,9 @@ _PERF = 'src/dialfred_performer/dialfred_performer'
 class PerformerModel:
     """A performer model. `load(path)`: its policy (a protocol.Agent) from checkpoint `path`;
     `camera(path)`: the frame size it plays at with that checkpoint. Both raise FileNotFoundError for a
-    missing file and ValueError for one the model cannot use."""
+    missing file and ValueError for one the model cannot use. `fixed_camera`: the frame size it plays at
+    whatever the checkpoint, or None where that is the checkpoint's training resolution (so a pipeline that
+    trains the checkpoint knows the camera before it exists)."""
 
     name: str
     description: str
@@ -38,6 +40,7 @@ class PerformerModel:
     camera: Callable[[Path], int]
     checkpoint: Path
     sources: tuple[str, ...]
+    fixed_camera: Optional[int] = None
 
 
 PERFORMER_MODELS: dict[str, PerformerModel] = {}
@@ -103,4 +106,4 @@ register(PerformerModel('et', 'the Episodic Transformer performer of the checkpo
                         SHIPPED_CHECKPOINT, ET_SOURCES))
 register(PerformerModel('map', "the map-and-plan performer over the checkpoint's perception network "
                         '(dialfred_performer.mapper)', _load_map, lambda path: MAP_CAMERA, SHIPPED_CHECKPOINT,
-                        MAP_SOURCES))
+                        MAP_SOURCES, fixed_camera=MAP_CAMERA))

@@ -34,8 +34,8 @@ from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations, probe_values
 from dialfred_sim.tasks.splits import SPLIT_SIZES
-from dialfred_sim.world.catalog import load_catalog
-from dialfred_sim.world.palette import COLOUR_NAMES
+from dialfred_sim.catalog import load_catalog
+from dialfred_sim.palette import COLOUR_NAMES
 
 from .data import DIALOGUES_FILE, dialogue_line, task_dialogue, vocabulary_texts
 from .malloc import ensure_malloc_settings

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 
 from .model import NEEDS_OBJECT, TYPE_TOKENS
 

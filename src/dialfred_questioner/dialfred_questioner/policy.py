@@ -38,16 +38,11 @@ from dialfred_sim.protocol import QA, ConfusionSource, Observation, Question, as
 from .data import pad_language
 from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
 from .rollout import Timing
+from .shipped import CHECKPOINTS, SHIPPED_LEARNED  # noqa: F401 - the names policy's callers find here
 
 # The timing of a checkpoint that stores none (a pre-trained one: its annotators asked at the start).
 DEFAULT_TIMING = Timing('begin')
 
-# The shipped questioner checkpoints: name -> CHECKPOINTS / (name with '_' for '-') + '.pt'.
-CHECKPOINTS = Path(__file__).resolve().parent / 'checkpoints'
-SHIPPED_LEARNED = ('pretrained', 'rl-begin', 'rl-anytime', 'rl-anytime-1', 'rl-anytime-10', 'rl-mc',
-                   'rl-anytime-withhold-location', 'rl-anytime-withhold-appearance',
-                   'rl-anytime-withhold-direction', 'rl-anytime-no-dialogue', 'map-rl-anytime',
-                   'rl-anytime-chained', 'map-rl-anytime-chained')
 LEARNED_PREFIX = 'learned:'       # 'learned:PATH': the questioner of any checkpoint file
 
 

@@ -14,14 +14,14 @@ from typing import Optional
 
 import numpy as np
 
-from .protocol import ACTIONS
+from .protocol import ACTIONS, BODY
 from .world.rooms import AGENT_RADIUS, GRID, footprint
 from .world.camera import HORIZON_MAX, HORIZON_MIN
 from .world.objects import COLD, HOT, WorldObject
 from .world.scene import SLICES_PER_OBJECT, DEFAULT_SLICES, World
 
-REACH = 1.5            # metres from the agent's vertical axis to the point under the target pixel (AI2-THOR's)
-LOOK_STEP = 15.0       # degrees per LookUp / LookDown
+REACH = BODY.reach            # metres from the agent's vertical axis to the point under the target pixel
+LOOK_STEP = BODY.look_step    # degrees per LookUp / LookDown
 
 
 # The 13 actions, in the order of the Gymnasium action space: protocol.ACTIONS, numbered from 0.
@@ -291,9 +291,9 @@ def execute(world: World, action: Action, pixel, depth: np.ndarray, seg: np.ndar
     if action == Action.MoveAhead:
         return move_ahead(world)
     if action == Action.RotateLeft:
-        return rotate(world, 90)
+        return rotate(world, BODY.turn_step)
     if action == Action.RotateRight:
-        return rotate(world, -90)
+        return rotate(world, -BODY.turn_step)
     if action == Action.LookUp:
         return look(world, -LOOK_STEP)
     if action == Action.LookDown:

@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .actions import ACTION_NAMES, Action, ActionResult, execute, parse_action
-from .protocol import DEFAULT_PROTOCOL, MAX_FAILURES, MAX_STEPS, PROTOCOLS
+from .protocol import BODY, DEFAULT_PROTOCOL, MAX_FAILURES, MAX_STEPS, PROTOCOLS
 from .tasks import get_task
 from .tasks.expert import replay
 from .tasks.generator import apply_setup
@@ -27,7 +27,7 @@ from .world.rooms import all_scenes, room_layout, scene_number
 from .world.camera import FAR, FOV_DEG, HORIZON_MAX, HORIZON_MIN, NEAR
 from .world.scene import World
 
-DEFAULT_RESOLUTION = 128   # see docs/figures.md: 4x the frame rate of 300x300 on this CPU
+DEFAULT_RESOLUTION = BODY.resolution   # see docs/figures.md: 4x the frame rate of 300x300 on this CPU
 # pybullet 3.2.7 keeps about 0.5 KB for every body made and removed (0.14 MB per reset here) and
 # frees it only with its client, so the world moves to a fresh client every so many rooms. A fresh
 # client hands out the same body ids, so frames and segmentation do not change (tested).
@@ -275,7 +275,7 @@ class DialfredEnv(gym.Env):
     def frames(self) -> Optional[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """The current frame's colour (HxWx3 uint8), depth (HxW float32 metres) and segmentation (HxW int32
         body ids, -1 where none), or None before reset(). For privileged tools that read the simulator's
-        own labels (benchmarks/map_perception_ceiling.py): the graph and the local path give agents RGB only."""
+        own labels (the ground truth, benchmarks/map_perception_ceiling.py): the graph and the local path give agents RGB only."""
         return self._frame
 
     def _connect(self) -> None:

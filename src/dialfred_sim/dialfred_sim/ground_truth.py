@@ -191,7 +191,7 @@ def _task_objects(env) -> dict[str, str]:
 def snapshot(env, appearance_of: Sequence[str] = ()) -> Snapshot:
     """The ground truth of `env` (a DialfredEnv after reset) now, with the appearance of each
     object id in `appearance_of` (ids not in the scene are skipped). Changes nothing in `env`."""
-    if env._frame is None:
+    if env.frames() is None:
         raise RuntimeError('snapshot() before reset()')
     world = env.world
     a = world.agent
@@ -203,7 +203,7 @@ def snapshot(env, appearance_of: Sequence[str] = ()) -> Snapshot:
     view = _PartView(world)    # rendered once, if any of them is in view
     appearances = {oid: _appearance(env, oid, MIN_APPEARANCE_PIXELS, view) for oid in dict.fromkeys(appearance_of)
                    if oid in world.objects}
-    _, depth, segmentation = env._frame
+    _, depth, segmentation = env.frames()
     seen = seen_positions(world, depth, segmentation)
     return Snapshot(
         agent=(float(a.x), float(a.y), float(a.rotation), float(a.horizon)),
@@ -234,7 +234,7 @@ class GroundTruthCache:
         self._view: Optional[_PartView] = None
 
     def _sync(self) -> None:
-        frame = self.env._frame
+        frame = self.env.frames()
         if frame is None:
             raise RuntimeError('snapshot() before reset()')
         if frame is not self._frame:
@@ -321,7 +321,7 @@ def appearance(env, object_id: str, min_pixels: int = MIN_APPEARANCE_PIXELS) -> 
 def _appearance(env, object_id: str, min_pixels: int, view: _PartView) -> Appearance:
     world = env.world
     obj = world.objects[object_id]
-    if env._frame is not None and int((env._frame[2] == obj.body).sum()) >= min_pixels:
+    if env.frames() is not None and int((env.frames()[2] == obj.body).sum()) >= min_pixels:
         rgb, seg = view.image()
         mask = np.isin(seg, _body_part_ids(obj))
         if int(mask.sum()) >= min_pixels:

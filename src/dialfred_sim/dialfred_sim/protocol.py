@@ -28,6 +28,9 @@ Everything two packages must agree on is defined here once, and every package im
   `Continuing` (an agent that keeps what it knows from one chained task to the next: the map performer),
   `PerformerAware` (a questioner that attaches to its performer) and `GapQuestioner` (a questioner that
   may ask given the performer's top-2 gap).
+- `Body` and `BODY`: the robot's body, the one description of its camera (field of view, default resolution,
+  height, look limits), its grid step, turn and look steps and its reach, with the camera's ray geometry. The
+  simulator is built from it and agents read it from here (docs/simulator.md, "Another simulator").
 - `episode_seed`, `scale_pixel`, `top2_gap`: small rules every driver of an episode applies the same way.
 - `image_array` / `fill_image`: the one conversion between sensor_msgs/Image and arrays (duck-typed: no rclpy).
 """
@@ -35,6 +38,8 @@ Everything two packages must agree on is defined here once, and every package im
 from __future__ import annotations
 
 import array as pyarray
+import functools
+import math
 from dataclasses import dataclass
 from typing import Any, Optional, Protocol, runtime_checkable
 
@@ -105,6 +110,57 @@ def every_question(nouns) -> list['Question']:
 
 # How a split's tasks are played (dialfred_sim.chained): each from the expert's state at its first action
 # (the paper's protocol, the default), or an episode's tasks in order on the agent's own state.
+@dataclass(frozen=True)
+class Body:
+    """The robot's body as every package sees it: AI2-THOR's agent as ALFRED uses it.
+
+    Angles are degrees; a positive horizon looks down. Reach is measured as AI2-THOR measures its
+    `visibilityDistance`: horizontally from the agent's vertical axis to the point under the target pixel."""
+
+    fov_deg: float = 90.0            # the camera's field of view, across the frame's height
+    resolution: int = 128            # the simulator's default square frame, pixels (docs/figures.md)
+    camera_height: float = 1.5       # metres above the floor
+    horizon_min: float = -30.0       # LookUp limit
+    horizon_max: float = 60.0        # LookDown limit
+    start_horizon: float = 30.0      # ALFRED starts every episode looking 30 degrees down
+    grid_step: float = 0.25          # metres per MoveAhead
+    turn_step: int = 90              # degrees per RotateLeft / RotateRight
+    look_step: float = 15.0          # degrees per LookUp / LookDown
+    reach: float = 1.5               # metres
+
+    def pixel_rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v) [height, width]: each pixel centre's offset on the image plane at unit depth along the view
+        axis (right, up), for a `width` x `height` frame with `fov_deg` across its height."""
+        t = math.tan(math.radians(self.fov_deg) / 2)
+        u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
+        v = (1 - (np.arange(height) + 0.5) / height * 2) * t
+        return np.broadcast_to(u[None, :], (height, width)), np.broadcast_to(v[:, None], (height, width))
+
+    def ray_lengths(self, width: int, height: int) -> np.ndarray:
+        """[height, width]: the length of each pixel's ray per metre of depth along the view axis."""
+        u, v = self.pixel_rays(width, height)
+        return np.sqrt(1 + u ** 2 + v ** 2)
+
+    def reach_lengths(self, width: int, height: int, horizon: float) -> np.ndarray:
+        """Per pixel of a `width` x `height` frame taken at camera pitch `horizon`, the horizontal distance from
+        the agent's vertical axis of the point seen there, per metre of depth along the view axis (reach is
+        measured so, whatever the point's height, not from the eye). Cached and read-only."""
+        return _reach_lengths(self, width, height, horizon)
+
+
+@functools.lru_cache(maxsize=32)
+def _reach_lengths(body: Body, width: int, height: int, horizon: float) -> np.ndarray:
+    u, v = body.pixel_rays(width, height)
+    pitch = math.radians(horizon)
+    along = math.cos(pitch) + v * math.sin(pitch)     # along the heading, per metre of depth
+    lengths = np.sqrt(along ** 2 + u ** 2).astype(np.float32)
+    lengths.flags.writeable = False     # shared by every caller (cached)
+    return lengths
+
+
+BODY = Body()
+
+
 PROTOCOLS = ('expert', 'chained')
 DEFAULT_PROTOCOL = 'expert'
 

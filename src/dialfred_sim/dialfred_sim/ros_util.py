@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -166,8 +168,6 @@ class Param:
         return None
 
     def descriptor(self):
-        # lazy: the ROS messages, which the rest of this module does without
-        from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
         text = self.description + ('' if self.dynamic else ' (read only: set when the node starts)')
         d = ParameterDescriptor(description=text, read_only=not self.dynamic)
         if self.span is not None and isinstance(self.default, float):
@@ -182,9 +182,6 @@ def declare_parameters(node, params) -> None:
     node was started with (ValueError naming the parameter: the node does not start), and refuse a
     later change that breaks a Param's rules with the reason (NaN and infinity included, which
     ROS's own range check lets through)."""
-    # lazy: the ROS messages, which the rest of this module does without
-    from rcl_interfaces.msg import SetParametersResult
-    from rclpy.exceptions import InvalidParameterValueException
     by_name = {p.name: p for p in params}
     for p in params:
         try:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .world.catalog import load_catalog
+from .catalog import load_catalog
 
 # Stay a little inside the simulator's 1.5 m. The explorer measures from the eye (it does not track its
 # pitch); the simulator measures from the agent's vertical axis, which is never farther: what it finds

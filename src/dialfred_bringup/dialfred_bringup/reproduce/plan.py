@@ -10,7 +10,7 @@ from typing import Optional
 
 from dialfred_oracle.annotator import dialogue_path
 from dialfred_performer.model import read_state, state_digest
-from dialfred_performer.model_registry import MAP_CAMERA
+from dialfred_performer.model_registry import performer_model
 from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_questioner.frames import default_path
 from dialfred_sim.dataclass_cli import arg
@@ -377,9 +377,10 @@ class Plan:
 
 
 def camera(model: str) -> int:
-    """The camera pixels a performer model plays at (dialfred_performer.model_registry.camera_resolution): the E.T.
-    at the resolution the pipeline trains it at, the map performer at its own camera."""
-    return MAP_CAMERA if model == 'map' else RESOLUTION
+    """The camera pixels a performer model plays at: its registered fixed camera (the map performer's), else
+    the resolution the pipeline trains the checkpoint at (the E.T.'s: model_registry.camera_resolution)."""
+    fixed = performer_model(model).fixed_camera
+    return RESOLUTION if fixed is None else fixed
 
 
 TRAINING = ('demos', 'perception', 'performer', 'dialogues', 'frames', 'pretrain', 'rl')

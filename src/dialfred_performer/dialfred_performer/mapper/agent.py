@@ -40,7 +40,7 @@ import torch
 
 from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observation
 from dialfred_sim.tasks.demonstrations import label_classes
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 
 from ..model import load_checkpoint, read_state
 from ..perception import PERCEPTION_FORMAT, load_perception

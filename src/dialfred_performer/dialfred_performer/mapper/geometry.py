@@ -18,12 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dialfred_sim.actions import LOOK_STEP as LOOK_DEG       # LookDown (+) / LookUp (-): positive looks down
-from dialfred_sim.world.rooms import GRID as STEP_M          # MoveAhead
-from dialfred_sim.world.camera import CAMERA_HEIGHT as CAMERA_HEIGHT_M
-from dialfred_sim.world.camera import HORIZON_MAX, HORIZON_MIN, pixel_rays, ray_lengths
+from dialfred_sim.protocol import BODY
 
-TURN_DEG = 90                  # RotateLeft (+) / RotateRight (-)
+# The robot's body (protocol.BODY) in the mapper's names.
+STEP_M = BODY.grid_step        # MoveAhead
+TURN_DEG = BODY.turn_step      # RotateLeft (+) / RotateRight (-)
+LOOK_DEG = BODY.look_step      # LookDown (+) / LookUp (-): positive looks down
+CAMERA_HEIGHT_M = BODY.camera_height
+HORIZON_MIN, HORIZON_MAX = BODY.horizon_min, BODY.horizon_max
 HORIZONS = tuple(float(h) for h in range(int(HORIZON_MIN), int(HORIZON_MAX) + 1, int(LOOK_DEG)))
 
 
@@ -68,7 +70,7 @@ HEADING_STEPS = {0: (1, 0), 90: (0, 1), 180: (-1, 0), 270: (0, -1)}
 def points_in_agent_frame(depth: np.ndarray, horizon: float) -> np.ndarray:
     """depth [S, S] (metres along the optical axis) -> points [S, S, 3] (forward, left, height above
     the floor) for a camera pitched `horizon` degrees down."""
-    u, v = pixel_rays(depth.shape[0], depth.shape[0])
+    u, v = BODY.pixel_rays(depth.shape[0], depth.shape[0])
     pitch = math.radians(-horizon)
     cp, sp = math.cos(pitch), math.sin(pitch)
     forward = depth * (cp - v * sp)
@@ -88,7 +90,7 @@ def to_map_frame(points: np.ndarray, pose: Pose) -> np.ndarray:
 
 def ray_distance(depth: np.ndarray) -> np.ndarray:
     """Distance from the eye to each cell's point (how far out the map takes points)."""
-    return depth * ray_lengths(depth.shape[0], depth.shape[0])
+    return depth * BODY.ray_lengths(depth.shape[0], depth.shape[0])
 
 
 def axis_distance(points: np.ndarray) -> np.ndarray:

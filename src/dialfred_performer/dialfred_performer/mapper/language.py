@@ -29,7 +29,7 @@ from typing import Optional
 from dialfred_oracle.answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT
 from dialfred_oracle.nouns import meanings
 from dialfred_sim.tasks.instructions import SYNONYMS
-from dialfred_sim.world.catalog import load_catalog
+from dialfred_sim.catalog import load_catalog
 
 # Steps the agent carries out; every one but 'stop' names the object type it acts on.
 STEP_KINDS = ('goto', 'pickup', 'put', 'open', 'close', 'toggle_on', 'toggle_off', 'slice', 'stop')

@@ -21,7 +21,7 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.actions import REACH as REACH_M          # the simulator's reach, from the agent's axis
+from dialfred_sim.protocol import BODY
 
 from .geometry import HEADING_STEPS, STEP_M, Pose
 
@@ -213,14 +213,14 @@ def next_move(dist: np.ndarray, pose: Pose, offset: int) -> Optional[str]:
 
 def reach_goals(smap: SemanticMap, cx: np.ndarray, cy: np.ndarray,
                 margin_m: float = 0.3, facing_deg: Optional[float] = None) -> np.ndarray:
-    """[nodes, nodes] bool: grid points from which one of the cells (cx, cy) is within reach (REACH_M
+    """[nodes, nodes] bool: grid points from which one of the cells (cx, cy) is within reach (BODY.reach
     from the agent's vertical axis less `margin_m`, at any height, as in AI2-THOR), and not nearer than
     one step."""
     goals = np.zeros((smap.nodes, smap.nodes), bool)
     if len(cx) == 0:
         return goals
     xs, ys = smap.cell_centre(cx, cy)
-    horizontal = np.full(len(cx), REACH_M - margin_m)
+    horizontal = np.full(len(cx), BODY.reach - margin_m)
     off = smap.node_offset()
     ii = (np.arange(smap.nodes) - off) * STEP_M
     for x, y, r in zip(xs.tolist(), ys.tolist(), horizontal.tolist()):

@@ -22,7 +22,7 @@ from typing import Optional
 
 import numpy as np
 
-from dialfred_sim.actions import REACH as SIM_REACH_M
+from dialfred_sim.protocol import BODY
 from dialfred_sim.tasks.expert import MARGIN as EXPERT_MARGIN_M
 
 from .geometry import CAMERA_HEIGHT_M, HORIZON_MAX, HORIZON_MIN, LOOK_DEG, STEP_M, bearing_deg, off_bearing
@@ -300,7 +300,7 @@ class Navigation:
 # ALFRED's designated pose (dialfred_sim.tasks.expert): the eye this far from the target's centre at least,
 # and the target's nearest point within the simulator's reach less the expert's margin.
 PULL_BACK_M = 0.5
-DESIGNATED_REACH_M = SIM_REACH_M - EXPERT_MARGIN_M
+DESIGNATED_REACH_M = BODY.reach - EXPERT_MARGIN_M
 
 
 def _connected(cx: np.ndarray, cy: np.ndarray, seed: int) -> np.ndarray:

@@ -27,7 +27,7 @@ import re
 from typing import Optional
 
 from dialfred_oracle.answers import DIRECTION_BINS
-from dialfred_sim.world.palette import COLOUR_NAMES
+from dialfred_sim.palette import COLOUR_NAMES
 
 from .language import Fact, InstructionError, _noun_types, object_type, parse_answer
 

@@ -17,14 +17,14 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dialfred_sim.world.camera import ray_lengths
+from dialfred_sim.protocol import BODY
 
 POOLED = 4          # the coarse map is pooled to POOLED x POOLED cells for the frame embedding
 
 
 def pixel_ray_lengths(size: int) -> torch.Tensor:
     """[size, size]: the length of each pixel's ray per metre of view-axis depth (the camera's rays)."""
-    return torch.from_numpy(ray_lengths(size, size)).float()
+    return torch.from_numpy(BODY.ray_lengths(size, size)).float()
 
 
 class PerceivedFrames(nn.Module):

@@ -46,7 +46,7 @@ from ..dataclass_cli import REQUIRED, arg, from_args, parser_for
 from ..metrics import write_text_atomically
 from ..processes import worker_pool
 from ..protocol import scale_pixel
-from ..world.catalog import load_catalog
+from ..catalog import load_catalog
 from .splits import SPLIT_SIZES, load_split
 
 CACHE_ENV = 'DIALFRED_DEMO_DIR'

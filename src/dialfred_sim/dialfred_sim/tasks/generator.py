@@ -13,7 +13,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..world.catalog import load_catalog
+from ..catalog import load_catalog
 from ..world.objects import WorldObject
 from ..world.scene import World
 from .expert import Expert, ExpertFailed, replay

@@ -27,7 +27,7 @@ from collections import defaultdict
 
 from ..actions import Action
 from ..env import DialfredEnv
-from ..world.catalog import load_catalog
+from ..catalog import load_catalog
 from ..world.rooms import GRID, SCENE_RANGES, room_layout
 from .generator import rebuild
 

@@ -19,7 +19,7 @@ from typing import Any, Sequence
 
 from .bullet import pybullet
 
-from . import palette
+from .. import palette
 from .geometry import Part, ShapeSpec, Vec3
 
 _DARK = 0.55   # 'dark' = main * _DARK

@@ -2,53 +2,27 @@
 frames it renders (colour, depth in metres, segmentation) and the world point behind a pixel.
 
 `AgentView` is a part of `scene.World`, which inherits it: it reads the world's agent pose, image size,
-projection and pybullet client. The constants here are the one place of the camera's numbers.
+projection and pybullet client. The camera's numbers are the robot body's (`protocol.BODY`).
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Optional
 
 import numpy as np
 
-CAMERA_HEIGHT = 1.5          # metres above the floor
-FOV_DEG = 90.0               # AI2-THOR's default field of view
+from ..protocol import BODY
+
+# The camera's numbers come from the robot's body (protocol.BODY); the world keeps its own drawing constants.
+CAMERA_HEIGHT = BODY.camera_height
+FOV_DEG = BODY.fov_deg
 NEAR, FAR = 0.05, 12.0       # clipping planes, metres
-HORIZON_MIN, HORIZON_MAX = -30.0, 60.0   # look up / down limits (positive = down), as in AI2-THOR
-START_HORIZON = 30.0         # ALFRED starts every episode looking 30 degrees down
+HORIZON_MIN, HORIZON_MAX = BODY.horizon_min, BODY.horizon_max
+START_HORIZON = BODY.start_horizon
 LIGHT_DIRECTION = (0.3, 0.5, 1.0)
 EYE_SHIFT = 0.0007           # metres the drawn eye sits behind the true one (see AgentView.view_matrix)
-
-
-def pixel_rays(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """(u, v) [height, width]: each pixel centre's offset on the image plane at unit depth along the view
-    axis (right, up), for a `width` x `height` frame with FOV_DEG across its height."""
-    t = math.tan(math.radians(FOV_DEG) / 2)
-    u = ((np.arange(width) + 0.5) / width * 2 - 1) * t * (width / height)
-    v = (1 - (np.arange(height) + 0.5) / height * 2) * t
-    return np.broadcast_to(u[None, :], (height, width)), np.broadcast_to(v[:, None], (height, width))
-
-
-def ray_lengths(width: int, height: int) -> np.ndarray:
-    """[height, width]: the length of each pixel's ray per metre of depth along the view axis."""
-    u, v = pixel_rays(width, height)
-    return np.sqrt(1 + u ** 2 + v ** 2)
-
-
-@functools.lru_cache(maxsize=32)
-def reach_lengths(width: int, height: int, horizon: float) -> np.ndarray:
-    """Per pixel of a `width` x `height` frame taken at camera pitch `horizon` (degrees, down positive),
-    the horizontal distance from the agent's vertical axis of the point seen there, per metre of depth
-    along the view axis. Reach is measured so, as AI2-THOR measures its `visibilityDistance`: from the
-    agent's central vertical axis, whatever the point's height, not from the eye."""
-    u, v = pixel_rays(width, height)
-    pitch = math.radians(horizon)
-    along = math.cos(pitch) + v * math.sin(pitch)     # along the heading, per metre of depth
-    lengths = np.sqrt(along ** 2 + u ** 2).astype(np.float32)
-    lengths.flags.writeable = False     # shared by every caller (cached)
-    return lengths
+pixel_rays, ray_lengths, reach_lengths = BODY.pixel_rays, BODY.ray_lengths, BODY.reach_lengths
 
 
 class AgentView:

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from .camera import START_HORIZON
-from .catalog import ObjectType
+from ..catalog import ObjectType
 from .geometry import ShapeSpec
 from .rooms import GRID
 

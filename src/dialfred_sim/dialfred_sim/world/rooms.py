@@ -18,11 +18,12 @@ from typing import Optional
 
 import numpy as np
 
-from .catalog import ROOM_TYPES, load_catalog
+from ..protocol import BODY
+from ..catalog import ROOM_TYPES, load_catalog
 from .geometry import Part, ShapeSpec, Surface, fit_spec
 from .shapes import shape_for
 
-GRID = 0.25            # the agent's step, metres
+GRID = BODY.grid_step  # the agent's step, metres
 AGENT_RADIUS = 0.2     # a grid point is free if a disc of this radius touches no furniture
 MIN_NAVIGABLE = 30     # free grid points a layout must offer
 WALL_HEIGHT = 2.6

@@ -14,10 +14,10 @@ import numpy as np
 
 from .bodies import ShapeCache, build_body, set_articulation
 from .camera import FAR, FOV_DEG, NEAR, START_HORIZON, AgentView
-from .catalog import load_catalog
+from ..catalog import load_catalog
 from .culling import CULLING_ENV, Culling
 from .objects import COLD, AgentPose, ObjectState, WorldObject
-from .palette import rgba
+from ..palette import rgba
 from .placement import Placement
 from .rooms import WALL_HEIGHT, RoomLayout
 from .shapes import shape_for
