@@ -130,7 +130,7 @@ UP = 'src/dialfred_bringup/dialfred_bringup'
 # that model hash it.
 MODEL_CODE = {name: model.sources for name, model in PERFORMER_MODELS.items()}
 # The learned questioner as it plays (its network, its inputs, its timing and rewards), and as it is trained.
-QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/model.py', f'{QUES}/data.py', f'{QUES}/rollout.py', f'{QUES}/rl.py')
+QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/shipped.py', f'{QUES}/model.py', f'{QUES}/data.py', f'{QUES}/rollout.py', f'{QUES}/rl.py')
 RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/checkpoint.py', f'{SIM}/episode.py', *QUESTIONER_CODE)
 EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/silent.py', f'{SIM}/episode.py',
              f'{QUES}/baselines.py', f'{QUES}/questioners.py', *QUESTIONER_CODE, f'{SIM}/metrics.py')
