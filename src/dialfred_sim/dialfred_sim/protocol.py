@@ -108,8 +108,6 @@ def every_question(nouns) -> list['Question']:
         [Question(t) for t in QUESTION_TYPES if not names_object(t)]
 
 
-# How a split's tasks are played (dialfred_sim.chained): each from the expert's state at its first action
-# (the paper's protocol, the default), or an episode's tasks in order on the agent's own state.
 @dataclass(frozen=True)
 class Body:
     """The robot's body as every package sees it: AI2-THOR's agent as ALFRED uses it.
@@ -160,7 +158,8 @@ def _reach_lengths(body: Body, width: int, height: int, horizon: float) -> np.nd
 
 BODY = Body()
 
-
+# How a split's tasks are played (dialfred_sim.chained): each from the expert's state at its first action
+# (the paper's protocol, the default), or an episode's tasks in order on the agent's own state.
 PROTOCOLS = ('expert', 'chained')
 DEFAULT_PROTOCOL = 'expert'
 
