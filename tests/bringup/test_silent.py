@@ -13,6 +13,7 @@ import pytest
 from dialfred_bringup import local
 from dialfred_bringup.evaluation import EvalConfig, EvalRun, run_eval
 from dialfred_bringup.silent import SilentEpisodes, replayable, silent_key
+from dialfred_sim.chained import chain_episodes
 from dialfred_sim.episode import EpisodeState
 from dialfred_sim.protocol import Observation
 
@@ -100,3 +101,53 @@ def test_run_eval_records_then_replays_and_counts_them(tmp_path):
     report = run_eval(EvalConfig(**BASE, limit=4, workers=1, questioner='rl-anytime', out=tmp_path / 'rl.jsonl'),
                       progress=False, silent=('replay', folder))
     assert report.replayed == sum(not r.questions for r in report.results) and report.to_json()['this_run']['replayed']
+
+
+def play_chained_in_process(settings: dict, tasks: int, silent=None) -> tuple[list, int]:
+    """The chained protocol's jobs (whole episodes of the first `tasks` tasks) played in this process."""
+    run = EvalRun(EvalConfig(**{**BASE, **settings}, protocol='chained'))
+    local._init_worker(run, silent)
+    episodes = chain_episodes(list(enumerate(run.split_tasks()[:tasks])))
+    out = [pair for episode in episodes for pair in local._play_any(episode)]
+    return [r for r, _ in out], sum(replayed for _, replayed in out)
+
+
+def silent_episodes(results) -> int:
+    asked = {}
+    for r in results:
+        asked[r.episode_id] = asked.get(r.episode_id, False) or bool(r.questions)
+    return sum(not a for a in asked.values())
+
+
+@pytest.mark.parametrize('settings, tasks', [
+    ({'questioner': 'rl-anytime-chained'}, 24),             # 3 episodes, the first of which asks
+    pytest.param({'questioner': 'map-rl-anytime', 'agent': 'map', 'resolution': 128}, 30, marks=pytest.mark.slow)])
+def test_a_replayed_chained_episode_is_the_played_one_task_by_task(tmp_path, settings, tasks):
+    folder = str(tmp_path / 'silent')
+    alone = {k: v for k, v in settings.items() if k != 'questioner'}
+    recorded, _ = play_chained_in_process(alone, tasks, ('record', folder))
+    assert len(list((tmp_path / 'silent').glob('*.npz'))) == len({r.episode_id for r in recorded})
+    played, none = play_chained_in_process(settings, tasks)
+    replayed, n = play_chained_in_process(settings, tasks, ('replay', folder))
+    assert none == 0
+    assert comparable(replayed) == comparable(played)
+    silent = silent_episodes(played)
+    assert 0 < silent < len({r.episode_id for r in played})           # some episodes ask, some do not
+    # every task of an episode without a question replayed, and only those
+    assert n == sum(len([r for r in played if r.episode_id == e]) for e in {r.episode_id for r in played}
+                    if not any(r.questions for r in played if r.episode_id == e))
+
+
+def test_a_chained_episode_is_kept_whole_or_not_at_all(tmp_path):
+    store = SilentEpisodes(tmp_path / 's', {'agent': 'et', 'protocol': 'chained'})
+    quiet = EpisodeState(steps=3, last_action='Stop', end_reason='stop')
+    first, second = observations(3), observations(5)
+    assert store.save_chain('valid_unseen/ep000001', [(first, quiet), (second, dataclasses.replace(quiet, steps=5))])
+    back = store.load_chain('valid_unseen/ep000001', 2)
+    assert [len(seen) for seen, _ in back] == [3, 5] and [s.steps for _, s in back] == [3, 5]
+    assert np.array_equal(back[1][0][4].rgb, second[4].rgb)
+    assert store.load_chain('valid_unseen/ep000001', 3) is None          # another length: played
+    assert store.load('valid_unseen/ep000001') is None
+    asked = dataclasses.replace(quiet, questions=1)
+    assert not store.save_chain('valid_unseen/ep000002', [(first, quiet), (second, asked)])
+    assert store.load_chain('valid_unseen/ep000002', 2) is None

@@ -228,8 +228,6 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
     run = config if isinstance(config, EvalRun) else EvalRun(config)
     if silent is not None and (not run.options.local or silent[0] not in ('record', 'replay')):
         raise ValueError(f"silent episodes are ('record' | 'replay', folder) of a local run, got {silent!r}")
-    if silent is not None and run.options.protocol != 'expert':
-        raise ValueError('silent episodes are of the expert protocol')
     if silent is not None and silent[0] == 'record' and run.asks:
         raise ValueError('silent episodes are recorded by a run without questions')
     with results_lock(run.results_path):

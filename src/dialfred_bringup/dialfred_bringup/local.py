@@ -59,17 +59,37 @@ def _init_worker(run, silent: Optional[tuple[str, str]] = None) -> None:
 
 def _play_any(job) -> list:
     """[(the EpisodeResult, whether it was replayed from the silent episodes)] of a job: (index, task)
-    (`_play_job`), or a chained.ChainedEpisode, whose tasks are played in order in one world."""
-    if not isinstance(job, ChainedEpisode):
-        return [_play_job(job)]
-    run, agent = _W['run'], _W['agent']
+    (`_play_job`), or a chained.ChainedEpisode, whose tasks are played in order in one world (`_play_chained`)."""
+    return _play_chained(job) if isinstance(job, ChainedEpisode) else [_play_job(job)]
+
+
+def _play_chained(job: ChainedEpisode) -> list:
+    """`_play_any` of a chained episode: taken whole from the silent episodes when the questioner would ask
+    nothing in any of its tasks (silent.py), else played, and kept there by a run without questions."""
+    run, agent, silent = _W['run'], _W['agent'], _W['silent']
     tasks = [t for _, t in job.tasks]
-    results, started = [], time.monotonic()
-    for k, (_, task), state in play_chain(run, _W['env'], agent, _W['perturbation'], job, _W['swap']):
+    started = time.monotonic()
+    if silent is not None and silent[0] == 'replay':
+        kept = silent[1].load_chain(job.episode_id, len(tasks)) if replayable(agent) is not None else None
+        if kept is not None and all(
+                silent_throughout(agent, task_view(agent, expert_reference(tasks, k)),
+                                  episode_seed(run.options.seed, index), kept[k][0])
+                for k, (index, _) in enumerate(job.tasks)):
+            share = (time.monotonic() - started) / len(tasks)
+            return [(state_result(run, task, agent, state, share, expert_length=reference_length(tasks, k)), True)
+                    for k, (task, (_, state)) in enumerate(zip(tasks, kept))]
+    seen = SeenBeforeActions() if silent is not None and silent[0] == 'record' else None
+    results, segments = [], []
+    for k, (_, task), state in play_chain(run, _W['env'], agent, _W['perturbation'], job, _W['swap'],
+                                          observers=[seen] if seen else ()):
         now = time.monotonic()
         results.append((state_result(run, task, agent, state, now - started,
                                      expert_length=reference_length(tasks, k)), False))
+        if seen is not None:
+            segments.append((seen.before_actions, state))
         started = now
+    if seen is not None:
+        silent[1].save_chain(job.episode_id, segments)
     return results
 
 

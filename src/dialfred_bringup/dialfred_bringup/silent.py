@@ -18,9 +18,16 @@ The replayed results are the played ones field by field but for the wall time (t
 compares them; `./dialfred reproduce`'s check stage plays the first tasks of every setting through the graph
 again and compares them too).
 
+Under the chained protocol the unit is the chained episode, its tasks played in order in one world: the
+no-question setting keeps every task of an episode in one file (`save_chain`), and another setting takes the
+whole episode from there only if its questioner, reset for each task as the episode loop resets it, asks
+nothing in any of them (a question in one task changes the world every later task starts from). The map
+performer's map, carried from task to task, is a function of the same observations, so it is rebuilt the
+same.
+
 A store holds the episodes of one performer setup; `key` names it (agent, checkpoint, split, seed, camera,
-goal rule) and a store of another key is not read. A missing or unreadable file is no episode: that task
-is played.
+goal rule, protocol) and a store of another key is not read. A missing or unreadable file is no episode:
+that task (or chained episode) is played.
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ from dialfred_questioner.baselines import QuestioningAgent
 from dialfred_sim.episode import EpisodeObserver, EpisodeState
 from dialfred_sim.protocol import GapQuestioner, Observation, PerformerAware
 
-FORMAT = 'dialfred-silent/2'    # 2: the episode's state keeps its actions and question steps (traces)
+FORMAT = 'dialfred-silent/3'    # 2: the episode's state keeps its actions and question steps (traces); 3: segments
 SMALL_FIELDS = ('pose', 'held_object', 'last_action_success', 'last_action_error', 'step_count', 'failed_actions')
 
 
@@ -53,7 +60,7 @@ class SeenBeforeActions(EpisodeObserver):
         self.actions = 0
 
     def on_started(self, state, reply) -> None:
-        self.seen = [reply.observation]
+        self.seen, self.actions = [reply.observation], 0      # each task of a chained episode starts anew
 
     def on_action(self, state, action: str, x: int, y: int) -> None:
         self.actions += 1
@@ -81,12 +88,12 @@ def replayable(agent) -> Optional[object]:
 
 def silent_key(run) -> dict:
     """What fixes an episode without questions besides the task: the performer (its kind and checkpoint),
-    the tasks, the seed, the camera and the goal rule of `run` (an eval_run.EvalRun)."""
+    the tasks, the seed, the camera, the goal rule and the protocol of `run` (an eval_run.EvalRun)."""
     o = run.options
     source = run.tasks_source
     return {'agent': o.agent, 'checkpoint': run.checkpoint_sha256 if o.agent in PERFORMER_MODELS else None,
             'tasks': f'{source.split}-{source.sha256}' if source else o.split, 'seed': o.seed,
-            'resolution': o.resolution, 'goal_rule': o.goal_rule}
+            'resolution': o.resolution, 'goal_rule': o.goal_rule, 'protocol': o.protocol}
 
 
 def silent_throughout(agent: QuestioningAgent, told, seed: int, observations: Sequence[Observation]) -> bool:
@@ -98,46 +105,74 @@ def silent_throughout(agent: QuestioningAgent, told, seed: int, observations: Se
 
 
 class SilentEpisodes:
-    """A folder of no-question episodes of one performer setup (`key`), one file per task."""
+    """A folder of no-question episodes of one performer setup (`key`), one file per task (per chained
+    episode under the chained protocol)."""
 
     def __init__(self, folder: Path, key: dict):
         self.folder, self.key = Path(folder), key
 
-    def _path(self, task_id: str) -> Path:
-        return self.folder / (task_id.replace('/', '__') + '.npz')
+    def _path(self, name: str) -> Path:
+        return self.folder / (name.replace('/', '__') + '.npz')
 
     def save(self, task_id: str, observations: Sequence[Observation], state: EpisodeState) -> bool:
         """Keep one episode (written whole or not at all). False, nothing written, for an episode that
         is not silent or whose observations carry depth or segmentation (not kept here)."""
-        if state.questions or state.dialogue or not observations:
+        return self._write(task_id, [(observations, state)])
+
+    def load(self, task_id: str) -> Optional[tuple[list[Observation], EpisodeState]]:
+        """(the observations before each action, the episode's end state), or None: no file, a damaged one,
+        or one of another key."""
+        kept = self._read(task_id, 1)
+        return kept[0] if kept else None
+
+    def save_chain(self, episode_id: str, tasks: Sequence[tuple[Sequence[Observation], EpisodeState]]) -> bool:
+        """Keep a chained episode, its tasks' (observations before each action, end state) in order; False,
+        nothing written, if any task of it is not `save`'s kind of episode."""
+        return self._write(episode_id, tasks)
+
+    def load_chain(self, episode_id: str, tasks: int) -> Optional[list[tuple[list[Observation], EpisodeState]]]:
+        """`save_chain`'s tasks of an episode of `tasks` tasks, or None (as `load`; a file of another length too)."""
+        return self._read(episode_id, tasks)
+
+    def _write(self, name: str, segments: Sequence[tuple[Sequence[Observation], EpisodeState]]) -> bool:
+        if not segments:
             return False
-        if any(o.depth is not None or o.segmentation is not None for o in observations):
-            return False
+        for observations, state in segments:
+            if state.questions or state.dialogue or not observations:
+                return False
+            if any(o.depth is not None or o.segmentation is not None for o in observations):
+                return False
         meta = {'format': FORMAT, 'key': self.key,
-                'state': {f.name: getattr(state, f.name) for f in dataclasses.fields(state) if f.name != 'dialogue'},
-                'steps': [{k: getattr(o, k) for k in SMALL_FIELDS} for o in observations]}
+                'segments': [{'state': {f.name: getattr(state, f.name) for f in dataclasses.fields(state)
+                                        if f.name != 'dialogue'},
+                              'steps': [{k: getattr(o, k) for k in SMALL_FIELDS} for o in observations]}
+                             for observations, state in segments]}
         buffer = io.BytesIO()
-        np.savez(buffer, rgb=np.stack([o.rgb for o in observations]), meta=np.array(json.dumps(meta)))
+        np.savez(buffer, rgb=np.stack([o.rgb for observations, _ in segments for o in observations]),
+                 meta=np.array(json.dumps(meta)))
         self.folder.mkdir(parents=True, exist_ok=True)
-        path = self._path(task_id)
+        path = self._path(name)
         tmp = path.with_name(f'{path.name}.{os.getpid()}.tmp')
         tmp.write_bytes(buffer.getvalue())
         tmp.replace(path)
         return True
 
-    def load(self, task_id: str) -> Optional[tuple[list[Observation], EpisodeState]]:
-        """(the observations before each action, the episode's end state), or None: no file, a damaged one,
-        or one of another key."""
-        path = self._path(task_id)
+    def _read(self, name: str, segments: int) -> Optional[list[tuple[list[Observation], EpisodeState]]]:
+        path = self._path(name)
         if not path.is_file():
             return None
         try:
             with np.load(path, allow_pickle=False) as data:
                 rgb, meta = data['rgb'], json.loads(str(data['meta']))
-            if meta.get('format') != FORMAT or meta.get('key') != self.key or len(meta['steps']) != len(rgb):
+            parts = meta.get('segments') if meta.get('format') == FORMAT and meta.get('key') == self.key else None
+            if parts is None or len(parts) != segments or sum(len(p['steps']) for p in parts) != len(rgb):
                 return None
-            observations = [Observation(rgb=frame, **{**step, 'pose': tuple(step['pose'])})
-                            for frame, step in zip(rgb, meta['steps'])]
-            return observations, EpisodeState(**meta['state'])
+            kept, start = [], 0
+            for part in parts:
+                frames = rgb[start:start + len(part['steps'])]
+                start += len(part['steps'])
+                kept.append(([Observation(rgb=frame, **{**step, 'pose': tuple(step['pose'])})
+                              for frame, step in zip(frames, part['steps'])], EpisodeState(**part['state'])))
+            return kept
         except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):   # damaged or foreign: play it
             return None

@@ -441,8 +441,14 @@ class Runner:
     def chained(self, resume: bool) -> dict:
         """The settings of plan.CHAINED_KEYS under the chained protocol (DialFRED's challenge test), one item each."""
         p = self.plan
+
+        def silent(s: Setting):
+            # as the eval stage's, a chained episode a unit (dialfred_bringup.silent): the no-question setting of
+            # each performer comes first in CHAINED_KEYS and keeps its episodes
+            return ('replay' if s.questioner else 'record', p.chained_dir / 'silent' / f'{s.split}_{s.performer}') \
+                if p.eval_path == 'local' else None
         return self.evaluations('chained', chained_settings(), p.chained_dir,
-                                lambda s: p.eval_config(s, chained=True), CHAINED_CODE, lambda s: None)
+                                lambda s: p.eval_config(s, chained=True), CHAINED_CODE, silent)
 
     def evaluations(self, stage: str, chosen: list, folder: Path, config_of: Callable, code: tuple,
                     silent_of: Callable) -> dict:
