@@ -20,6 +20,19 @@ import argparse
 import json
 import zlib
 
+import numpy as np
+
+from dialfred_oracle.annotator import answer_content, paraphrase
+from dialfred_oracle.answerers import Asked
+from dialfred_oracle.in_process import answer_now
+from dialfred_oracle.wording import HeldOutWording
+from dialfred_performer.mapper.language import parse_answer
+from dialfred_performer.mapper.words import read_answer
+from dialfred_sim.agents import task_nouns
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.progress import progress_bar
+from dialfred_sim.tasks import load_split
+
 
 def fields(fact) -> dict:
     if fact is None:
@@ -39,18 +52,6 @@ def fields(fact) -> dict:
 
 
 def main() -> None:
-    import numpy as np
-
-    from dialfred_oracle.annotator import answer_content, paraphrase
-    from dialfred_oracle.answerers import Asked
-    from dialfred_oracle.in_process import answer_now
-    from dialfred_oracle.wording import HeldOutWording
-    from dialfred_performer.mapper.language import parse_answer
-    from dialfred_performer.mapper.words import read_answer
-    from dialfred_sim.agents import task_nouns
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.progress import progress_bar
-    from dialfred_sim.tasks import load_split
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
     ap.add_argument('--limit', type=int, default=None)

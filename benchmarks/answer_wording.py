@@ -21,6 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
+from dialfred_bringup.eval_run import EvalRun
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.machine import cpu_model
+from dialfred_sim.metrics import summarize
+from dialfred_sim.tasks.instructions import tokenize
+
 HELD_OUT = 'dialfred_oracle.wording:HeldOutWording'
 
 
@@ -33,15 +39,10 @@ def paired(a: list, b: list, resamples: int = 2000, seed: int = 0) -> list:
 
 
 def words_of(results: list) -> list[list[str]]:
-    from dialfred_sim.tasks.instructions import tokenize
     return [tokenize(qa['answer']) for r in results for qa in r.dialogue if qa.get('valid') and qa.get('answer')]
 
 
 def main() -> None:
-    from dialfred_bringup.eval_run import EvalRun
-    from dialfred_bringup.evaluation import EvalConfig, run_eval
-    from dialfred_bringup.machine import cpu_model
-    from dialfred_sim.metrics import summarize
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
     ap.add_argument('--limit', type=int, default=None, help='the first N tasks (default: every task)')

@@ -31,6 +31,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from dialfred_performer.curves import draw_series
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -86,7 +88,6 @@ def cost_table(best: dict, tasks: int, machines: list[int]) -> list[dict]:
 
 
 def plot(rows: list[dict], table: list[dict], tasks: int, path: Path) -> Path:
-    from dialfred_performer.curves import draw_series
     first = rows[0]
     points = [{'x': r['workers'], 'measured': r['episodes_per_s'],
                'linear': first['episodes_per_s'] * r['workers'] / first['workers']} for r in rows]

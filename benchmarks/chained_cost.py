@@ -17,12 +17,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.machine import cpu_model
+
 PROTOCOLS = ('expert', 'chained')
 
 
 def main() -> None:
-    from dialfred_bringup.evaluation import EvalConfig, run_eval
-    from dialfred_bringup.machine import cpu_model
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
     ap.add_argument('--limit', type=int, default=200)

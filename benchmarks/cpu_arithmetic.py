@@ -44,8 +44,8 @@ BATCH, RESOLUTION = 32, 64
 
 def train(updates: int, net_sizes: dict) -> dict:
     """In this process: train on seeded random tensors, return the weights digest and the times."""
+    # lazy: the parent only spawns the children, each loading torch under its mode's ISA environment
     import torch
-
     from dialfred_performer.perception import Perception, PerceptionNetConfig, perception_loss
     torch.set_num_threads(2)
     if os.environ.get('DIALFRED_PROBE_NO_ONEDNN') == '1':

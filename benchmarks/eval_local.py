@@ -18,14 +18,15 @@ import tempfile
 import time
 from pathlib import Path
 
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.machine import cpu_model
+
 REPO = Path(__file__).resolve().parents[1]
 
 PATHS = {'local': dict(local=True), 'in-process': dict(), 'graph': dict(performer='et')}
 
 
 def main() -> None:
-    from dialfred_bringup.evaluation import EvalConfig, run_eval
-    from dialfred_bringup.machine import cpu_model
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
     ap.add_argument('--limit', type=int, default=200)

@@ -18,6 +18,10 @@ import argparse
 import json
 import time
 
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.metrics import type_order
+from dialfred_sim.tasks import load_split
+
 
 
 def main() -> None:
@@ -26,9 +30,6 @@ def main() -> None:
     parser.add_argument('--limit', type=int, default=None, help='only the first N tasks (default: all)')
     args = parser.parse_args()
 
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.metrics import type_order
-    from dialfred_sim.tasks import load_split
 
     tasks = load_split(args.split)[:args.limit]
     env = DialfredEnv(resolution=tasks[0].resolution)

@@ -27,6 +27,10 @@ import json
 import time
 from collections import Counter
 
+from dialfred_sim.tasks import expert as expert_module
+from dialfred_sim.tasks.split_files import packaged_path
+from dialfred_sim.tasks.splits import generate_split
+
 
 def gap_actions(a, b) -> int:
     """Grid steps, quarter turns and looks between poses (i, j, heading, horizon): a lower bound of the
@@ -43,9 +47,6 @@ def main() -> None:
     if args.episodes is not None and args.episodes < 1:
         parser.error(f'--episodes must be at least 1, got {args.episodes}')
 
-    from dialfred_sim.tasks import expert as expert_module
-    from dialfred_sim.tasks.split_files import packaged_path
-    from dialfred_sim.tasks.splits import generate_split
 
     find_pose = expert_module.Expert.find_pose
     checked = []

@@ -18,15 +18,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from dialfred_oracle.in_process import EnvServer
+from dialfred_performer.mapper.agent import MapAgent
+from dialfred_performer.model import SHIPPED_CHECKPOINT
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.episode import play, run
+from dialfred_sim.tasks.split_files import load_split
+
 
 def main(argv=None) -> int:
-    from dialfred_oracle.in_process import EnvServer
-    from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.episode import play, run
-    from dialfred_sim.tasks.split_files import load_split
-
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument('--checkpoint', type=Path, default=SHIPPED_CHECKPOINT)
     p.add_argument('--split', default='valid_unseen')

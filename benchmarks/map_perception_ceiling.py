@@ -24,6 +24,22 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
+import torch
+from tqdm import tqdm
+
+from dialfred_bringup.evaluation import EvalConfig, EvalRun
+from dialfred_bringup.local import play_episode
+from dialfred_bringup.shards import parse_shard
+from dialfred_performer.mapper.agent import MapAgent
+from dialfred_performer.model import SHIPPED_CHECKPOINT
+from dialfred_questioner.baselines import with_questioner
+from dialfred_questioner.questioners import make_questioner
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.metrics import summarize
+from dialfred_sim.metrics import EpisodeResult, load_results
+from dialfred_sim.processes import worker_pool
+from dialfred_sim.tasks.demonstrations import pixel_classes
+from dialfred_sim.tasks.split_files import load_split
 
 SIGHTS = ('network', 'truth')
 QUESTIONERS = ('none', 'all')
@@ -38,7 +54,6 @@ def truth_sight(agent_cls):
             self.env = env
 
         def sense(self, observation):
-            from dialfred_sim.tasks.demonstrations import pixel_classes
             # The episode's observations carry RGB only (as through the graph): the labels and depth of this
             # same frame are read from the simulator itself.
             _, depth, segmentation = self.env.frames()
@@ -60,13 +75,6 @@ def truth_sight(agent_cls):
 
 
 def _init(checkpoint: str, seed: int, resolution: int) -> None:
-    import torch
-
-    from dialfred_bringup.evaluation import EvalConfig, EvalRun
-    from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_questioner.baselines import with_questioner
-    from dialfred_questioner.questioners import make_questioner
-    from dialfred_sim.env import DialfredEnv
     torch.set_num_threads(1)
     env = DialfredEnv(resolution=resolution)
     _W['env'] = env
@@ -84,7 +92,6 @@ def _init(checkpoint: str, seed: int, resolution: int) -> None:
 
 
 def _job(job):
-    from dialfred_bringup.local import play_episode
     sight, questioner, index, task = job
     config, policy = _W[sight, questioner]
     result = play_episode(config, _W['env'], policy, None, index, task)
@@ -94,7 +101,6 @@ def _job(job):
 
 
 def summarise(rows: list) -> dict:
-    from dialfred_sim.metrics import summarize
     s = summarize(rows)['overall']
     ends = Counter(r.end_reason for r in rows if not r.success)
     return {'n': len(rows), 'SR': round(s['SR'], 2), 'PWSR': round(s['PWSR'], 2), 'NQ': round(s['NQ'], 3),
@@ -103,12 +109,6 @@ def summarise(rows: list) -> dict:
 
 def measure(shard: str, limit: int, workers: int, out: Path, checkpoint: str, seed: int, resolution: int,
             progress: bool) -> dict:
-    from tqdm import tqdm
-
-    from dialfred_bringup.shards import parse_shard
-    from dialfred_sim.metrics import EpisodeResult, load_results
-    from dialfred_sim.processes import worker_pool
-    from dialfred_sim.tasks.split_files import load_split
     k, n = parse_shard(shard)
     tasks = [(i, t) for i, t in enumerate(load_split('valid_unseen')[:limit or None]) if i % n == k]
     out.mkdir(parents=True, exist_ok=True)
@@ -151,7 +151,6 @@ def measure(shard: str, limit: int, workers: int, out: Path, checkpoint: str, se
 
 
 def main() -> None:
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--shard', default='0/1', help='K/N: the valid_unseen tasks whose index is K modulo N')
     ap.add_argument('--limit', type=int, default=0, help='only the first N tasks of the split (0: all)')
@@ -162,7 +161,6 @@ def main() -> None:
     ap.add_argument('--resolution', type=int, default=128, help='camera pixels (the map performer plays at 128)')
     ap.add_argument('--no-progress', action='store_true')
     args = ap.parse_args()
-    from dialfred_bringup.shards import parse_shard
     try:
         parse_shard(args.shard)
     except ValueError as exc:

@@ -26,21 +26,22 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from dialfred_oracle.in_process import EnvServer
+from dialfred_performer.mapper.agent import MapAgent
+from dialfred_performer.model import SHIPPED_CHECKPOINT
+from dialfred_performer.preprocess import frame_tensor
+from dialfred_questioner.baselines import with_questioner
+from dialfred_questioner.questioners import make_questioner
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.episode import play, run
+from dialfred_sim.metrics import load_results
+from dialfred_sim.protocol import episode_seed
+from dialfred_sim.tasks.split_files import load_split
+
 NEAR_M = 1.5
 
 
 def measure(results: Path, checkpoint: Path, questioner: str, limit: int, resolution: int) -> dict:
-    from dialfred_oracle.in_process import EnvServer
-    from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.preprocess import frame_tensor
-    from dialfred_questioner.baselines import with_questioner
-    from dialfred_questioner.questioners import make_questioner
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.episode import play, run
-    from dialfred_sim.metrics import load_results
-    from dialfred_sim.protocol import episode_seed
-    from dialfred_sim.tasks.split_files import load_split
-
     rows = load_results(results)
     if not rows:
         raise SystemExit(f'{results}: no results')
@@ -102,7 +103,6 @@ def measure(results: Path, checkpoint: Path, questioner: str, limit: int, resolu
 
 
 def main() -> None:
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('results', type=Path, help='a results file of the map performer (launch eval --agent map)')
     ap.add_argument('--checkpoint', type=Path, default=Path(SHIPPED_CHECKPOINT))

@@ -34,7 +34,12 @@ import time
 import numpy as np
 
 from dialfred_bringup.graph import Graph, oracle_node, sim_node, use_private_ros_domain
+from dialfred_msgs.msg import Action
+from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset, SimStep
+from dialfred_oracle.answers import direction_bin
+from dialfred_sim.catalog import load_catalog
 from dialfred_sim.palette import COLOUR_NAMES as COLOURS
+from dialfred_sim.tasks import load_split
 
 TYPES = ('location', 'appearance', 'direction')
 BINS = ('in front of you', 'to your front right', 'to your right', 'to your rear right', 'behind you',
@@ -43,7 +48,6 @@ BINS = ('in front of you', 'to your front right', 'to your right', 'to your rear
 
 def expected_direction(agent, end) -> str:
     """The direction answer the geometry calls for (the oracle's rule, recomputed independently)."""
-    from dialfred_oracle.answers import direction_bin
     dx, dy = end[0] - agent[0], end[1] - agent[1]
     if math.hypot(dx, dy) < 0.125:            # the same grid point
         turn = (end[2] - agent[2] + 180) % 360 - 180
@@ -62,14 +66,12 @@ LARGE_M = 1.0
 
 
 def large_types() -> set[str]:
-    from dialfred_sim.catalog import load_catalog
     return {n for n, t in load_catalog().items() if t.dims and max(t.dims[:2]) >= LARGE_M}
 
 
 def pixel_bins(observation, body: int) -> list[str]:
     """The direction bin of every pixel of `body` in `observation`, from its depth (metres along
     the view axis) and the camera's pose: an implementation of its own of the camera model."""
-    from dialfred_oracle.answers import direction_bin
     img = observation.segmentation
     seg = np.frombuffer(bytes(img.data), np.int32).reshape(img.height, img.width)
     depth = np.frombuffer(bytes(observation.depth.data), np.float32).reshape(img.height, img.width)
@@ -93,10 +95,6 @@ def main() -> None:
     ap.add_argument('--seed', type=int, default=0)
     args = ap.parse_args()
     use_private_ros_domain()
-    from dialfred_msgs.msg import Action
-    from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset, SimStep
-    from dialfred_oracle.answers import direction_bin
-    from dialfred_sim.tasks import load_split
     rng = np.random.default_rng(args.seed)
     tasks = load_split('valid_unseen')
     large = large_types()

@@ -19,8 +19,9 @@ import time
 
 import numpy as np
 
-
 from dialfred_bringup.graph import Graph, NodeDied, oracle_node, sim_node, use_private_ros_domain
+from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset
+
 TYPES = ('location', 'appearance', 'direction')
 
 
@@ -63,7 +64,6 @@ def main() -> None:
     ap.add_argument('--task', default='valid_unseen/000003')
     args = ap.parse_args()
     use_private_ros_domain()
-    from dialfred_msgs.srv import GroundTruth, OracleAnswer, SimReset
     rng = np.random.default_rng(args.seed)
     report = {'benchmark': 'oracle_fuzz', 'requests': args.requests, 'seed': args.seed, 'task': args.task}
     oracle = oracle_node()

@@ -30,8 +30,11 @@ import statistics
 import time
 from pathlib import Path
 
-
 from dialfred_bringup.graph import Graph, oracle_node, sim_node, use_private_ros_domain
+from dialfred_msgs.msg import Action
+from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
+from dialfred_sim.tasks import get_task
+
 PATHS = {'fetch_every_question': False, 'cached': True}
 GOAL = {'location_direction_requests_per_s': 1000.0, 'location_direction_p99_ms': 5.0}
 
@@ -100,9 +103,6 @@ def pipelined(graph, cli, requests, in_flight: int) -> tuple[dict, int]:
 
 
 def run_path(cache: bool, args, nouns) -> dict:
-    from dialfred_msgs.msg import Action
-    from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
-
     def question(qtype, noun=''):
         return OracleAnswer.Request(question_type=qtype, object_noun=noun)
     groups = {
@@ -142,7 +142,6 @@ def main() -> None:
     if args.requests < 1 or args.in_flight < 1 or args.after_steps < 0:
         ap.error('--requests and --in-flight must be >= 1, --after-steps >= 0')
     use_private_ros_domain()
-    from dialfred_sim.tasks import get_task
     nouns = list(get_task(args.task).object_nouns)
     report = {'benchmark': 'oracle_latency', 'task': args.task, 'nouns': nouns, 'requests': args.requests,
               'in_flight': args.in_flight, 'after_steps': args.after_steps,

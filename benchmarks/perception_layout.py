@@ -23,6 +23,7 @@ import time
 import numpy as np
 import torch
 
+from dialfred_bringup.reproduce.plan import PERCEPTION
 from dialfred_performer.perception import Perception, PerceptionNetConfig, perception_loss
 from dialfred_sim.tasks.demonstrations import label_classes
 
@@ -93,7 +94,6 @@ def main() -> None:
     if args.skip < 0:
         ap.error('--skip must be 0 or more')
     torch.set_num_threads(args.threads)
-    from dialfred_bringup.reproduce.plan import PERCEPTION
     sizes = dict(resolution=64, classes=len(label_classes()),
                  **{k: PERCEPTION[k] for k in ('c1', 'c2', 'c3', 'decoder')})
     rounds, nets = {layout: [] for layout in LAYOUTS}, {}

@@ -18,13 +18,14 @@ from pathlib import Path
 
 import torch
 
+from dialfred_performer.mapper.agent import MapAgent
+from dialfred_performer.model import SHIPPED_CHECKPOINT
+from dialfred_performer.preprocess import frame_tensor
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.tasks.split_files import load_split
+
 
 def measure(checkpoint: Path, split: str, every: int, resolutions: list[int], min_pixels: int) -> dict:
-    from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.preprocess import frame_tensor
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks.split_files import load_split
-
     agent = MapAgent.from_checkpoint(checkpoint)
     env = DialfredEnv(resolution=128)
     counts = {r: {'pickupable': [0, 0], 'other': [0, 0]} for r in resolutions}
@@ -64,7 +65,6 @@ def measure(checkpoint: Path, split: str, every: int, resolutions: list[int], mi
 
 
 def main(argv=None) -> int:
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument('--checkpoint', type=Path, default=SHIPPED_CHECKPOINT,
                    help='a perception performer checkpoint or a perception.pt (default: the shipped performer)')

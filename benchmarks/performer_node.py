@@ -16,18 +16,22 @@ import time
 from pathlib import Path
 
 import torch
+from rclpy.action import ActionClient
 
 from dialfred_bringup.graph import Graph, NodeProcess, sim_node, use_private_ros_domain
+from dialfred_msgs.action import RunTask
+from dialfred_performer.agent import PerformerAgent
+from dialfred_performer.model import Performer, PerformerConfig, save_checkpoint
+from dialfred_performer.preprocess import Vocabulary
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.protocol import ACTIONS
+from dialfred_sim.tasks import load_split
 
 REPO = Path(__file__).resolve().parents[1]
 TASK = 'valid_unseen/000000'
 
 
 def checkpoint(path: Path) -> Path:
-    from dialfred_performer.model import Performer, PerformerConfig, save_checkpoint
-    from dialfred_performer.preprocess import Vocabulary
-    from dialfred_sim.protocol import ACTIONS
-    from dialfred_sim.tasks import load_split
     vocab = Vocabulary.build([t.instruction for t in load_split('valid_unseen')[:200]])
     torch.manual_seed(0)
     model = Performer(PerformerConfig(), len(vocab))
@@ -38,8 +42,6 @@ def checkpoint(path: Path) -> Path:
 
 
 def in_process(ckpt: Path, steps: int, resolution: int) -> float:
-    from dialfred_performer.agent import PerformerAgent
-    from dialfred_sim.env import DialfredEnv
     env = DialfredEnv(resolution=resolution, max_steps=steps)
     agent = PerformerAgent.from_checkpoint(ckpt)
     obs, _ = env.reset(options={'task_id': TASK})
@@ -56,9 +58,6 @@ def in_process(ckpt: Path, steps: int, resolution: int) -> float:
 
 
 def through_nodes(ckpt: Path, steps: int, resolution: int) -> float:
-    from rclpy.action import ActionClient
-
-    from dialfred_msgs.action import RunTask
     nodes = [sim_node(resolution, '/b', publish_observations=False, max_steps=steps),
              NodeProcess('dialfred_performer', {'checkpoint': str(ckpt)}, namespace='/b')]
     with Graph(nodes) as graph:

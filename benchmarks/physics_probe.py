@@ -23,7 +23,14 @@ import math
 import time
 
 import numpy as np
+from tqdm import tqdm
+
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.tasks import load_split
+from dialfred_sim.world.bodies import articulation_joint
 from dialfred_sim.world.bullet import pybullet as p
+from dialfred_sim.world.open_parts import AGENT_HEIGHT, _convex_hull, _distance_to_polygon
+from dialfred_sim.world.rooms import AGENT_RADIUS, GRID
 
 
 def visual_boxes(client, body: int) -> list[tuple[int, np.ndarray]]:
@@ -53,9 +60,6 @@ def visual_boxes(client, body: int) -> list[tuple[int, np.ndarray]]:
 
 
 def probe_doors(env, task) -> tuple[int, list]:
-    from dialfred_sim.world.bodies import articulation_joint
-    from dialfred_sim.world.open_parts import AGENT_HEIGHT, _convex_hull, _distance_to_polygon
-    from dialfred_sim.world.rooms import AGENT_RADIUS, GRID
     w, points, close = env.world, 0, []
     for obj in list(w.objects.values()):
         joint = articulation_joint(obj.spec)
@@ -115,10 +119,6 @@ def main() -> None:
     parser.add_argument('--tasks', type=int, default=200, help='the first N tasks of the split')
     parser.add_argument('--seed', type=int, default=0, help='seed of the wandering')
     args = parser.parse_args()
-    from tqdm import tqdm
-
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks import load_split
     tasks = load_split(args.split)[:args.tasks]
     env = DialfredEnv(resolution=tasks[0].resolution)
     rng = np.random.default_rng(args.seed)

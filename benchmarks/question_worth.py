@@ -17,11 +17,13 @@ import argparse
 import json
 import sys
 
+from dialfred_sim.metrics import has_goto
+from dialfred_sim.metrics import load_results, type_order
+
 PAPER = {'instruction_only': 18.3, 'all_qas': 32.0, 'nq': 3.24}
 
 
 def family(task_type: str) -> str:
-    from dialfred_sim.metrics import has_goto
     return 'with a go-to' if has_goto(task_type) else 'without a go-to'
 
 
@@ -40,7 +42,6 @@ def main() -> int:
     parser.add_argument('--asked', required=True, help='results of the same agent and tasks with questions')
     args = parser.parse_args()
 
-    from dialfred_sim.metrics import load_results, type_order
     base = {r.task_id: r for r in load_results(args.base)}
     asked = {r.task_id: r for r in load_results(args.asked)}
     common = sorted(set(base) & set(asked))

@@ -17,6 +17,10 @@ import time
 
 import numpy as np
 
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.tasks import load_split
+from dialfred_sim.world import camera
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -27,9 +31,6 @@ def main() -> int:
     ap.add_argument('--no-shift', action='store_true', help='draw from the true eye (the renderer before the shift)')
     args = ap.parse_args()
 
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks import load_split
-    from dialfred_sim.world import camera
     if args.no_shift:
         camera.EYE_SHIFT = 0.0
     env = DialfredEnv(resolution=args.resolution)

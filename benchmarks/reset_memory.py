@@ -19,6 +19,9 @@ import sys
 import time
 from pathlib import Path
 
+import dialfred_sim.env as env_module
+from dialfred_sim.tasks.splits import load_split
+
 
 def rss_mb() -> float:
     for line in Path('/proc/self/status').read_text().splitlines():
@@ -28,8 +31,6 @@ def rss_mb() -> float:
 
 
 def measure(split: str, n: int, recycle: bool) -> dict:
-    import dialfred_sim.env as env_module
-    from dialfred_sim.tasks.splits import load_split
     if not recycle:
         env_module.CLIENT_RECYCLE_BUILDS = 10 ** 9
     task_ids = [t.task_id for t in load_split(split)[:n]]

@@ -30,8 +30,15 @@ import sys
 import time
 from pathlib import Path
 
+import rclpy
+from std_srvs.srv import Trigger
 
 from dialfred_bringup.graph import Graph, NodeProcess, sim_node, use_private_ros_domain
+from dialfred_msgs.msg import Action
+from dialfred_msgs.srv import SimReset, SimStep
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.ros_util import make_executor, spin_forever
+
 PATTERN = ['MoveAhead', 'RotateLeft', 'LookDown', 'MoveAhead', 'RotateRight', 'LookUp', 'RotateRight',
            'MoveAhead', 'RotateLeft', 'RotateLeft', 'Pickup']
 
@@ -49,10 +56,6 @@ def paired_times(resolution: int, steps: int, scene: str, seed: int, full: bool)
     Both simulators start from the same seed and get the same actions, so by determinism they stay
     in identical states; pairing the two timings per step lets machine noise hit both alike.
     """
-    from dialfred_msgs.msg import Action
-    from dialfred_msgs.srv import SimReset, SimStep
-
-    from dialfred_sim.env import DialfredEnv
     env = DialfredEnv(resolution=resolution)
     node = sim_node(resolution)
     ros, local = [], []
@@ -104,11 +107,6 @@ class FloorServer(NodeProcess):
 
 def serve_floor(spec: str) -> None:
     """Serve `floor/step` (std_srvs/Trigger): each call performs the next action of PATTERN."""
-    import rclpy
-    from std_srvs.srv import Trigger
-
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.ros_util import make_executor, spin_forever
     resolution, scene, seed = spec.split(',')
     env = DialfredEnv(resolution=int(resolution))
     env.reset(seed=int(seed), options={'scene': scene})
@@ -135,9 +133,6 @@ def serve_floor(spec: str) -> None:
 
 def floor_times(resolution: int, steps: int, scene: str, seed: int):
     """Like paired_times, against the bare Trigger service: the same steps, an empty reply."""
-    from std_srvs.srv import Trigger
-
-    from dialfred_sim.env import DialfredEnv
     env = DialfredEnv(resolution=resolution)
     env.reset(seed=seed, options={'scene': scene})
     server = FloorServer('dialfred_sim', parameters={'resolution': resolution, 'scene': scene, 'seed': seed})

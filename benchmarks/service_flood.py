@@ -19,8 +19,11 @@ import sys
 import time
 from pathlib import Path
 
+from rclpy.qos import qos_profile_services_default
 
 from dialfred_bringup.graph import Graph, NodeProcess, sim_service, use_private_ros_domain
+from dialfred_msgs.msg import Action
+from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
 
 REPO = Path(__file__).resolve().parents[1]
 class DefaultQosNode(NodeProcess):
@@ -31,7 +34,6 @@ class DefaultQosNode(NodeProcess):
 
 
 def serve_with_default_qos(package: str, ros_args: list[str]) -> None:
-    from rclpy.qos import qos_profile_services_default
     module = __import__(f'{package}.node', fromlist=['main'])
     module.SERVICE_QOS = qos_profile_services_default
     module.main([package, *ros_args])
@@ -55,8 +57,6 @@ def flood(graph: Graph, cli, request, n: int, wait: float) -> dict:
 
 
 def run(qos: str, steps: int, questions: int, wait: float) -> dict:
-    from dialfred_msgs.msg import Action
-    from dialfred_msgs.srv import OracleAnswer, SimReset, SimStep
     ns = f'/flood_{qos}'
     node_class = NodeProcess if qos == 'keep_all' else DefaultQosNode
     nodes = [node_class('dialfred_sim', {'resolution': 64}, namespace=ns),

@@ -19,11 +19,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.machine import cpu_model
+from dialfred_bringup.reproduce.plan import camera
+
 
 def main() -> None:
-    from dialfred_bringup.evaluation import EvalConfig, run_eval
-    from dialfred_bringup.machine import cpu_model
-    from dialfred_bringup.reproduce.plan import camera
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
     ap.add_argument('--limit', type=int, default=300)

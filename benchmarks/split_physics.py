@@ -22,6 +22,11 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from dialfred_sim.env import DialfredEnv
+from dialfred_sim.tasks.expert import replay
+from dialfred_sim.tasks.generator import apply_setup
+from dialfred_sim.tasks.splits import split_path, tasks_from_json
+
 
 
 def reason(error: str) -> str:
@@ -42,10 +47,6 @@ def main() -> None:
     parser.add_argument('--limit', type=int, default=None, help='only the first N episodes')
     args = parser.parse_args()
 
-    from dialfred_sim.env import DialfredEnv
-    from dialfred_sim.tasks.expert import replay
-    from dialfred_sim.tasks.generator import apply_setup
-    from dialfred_sim.tasks.splits import split_path, tasks_from_json
 
     path = Path(args.file) if args.file else split_path(args.split)
     with gzip.open(path, 'rt') as f:

@@ -29,8 +29,8 @@ import tempfile
 import time
 from pathlib import Path
 
-
 from dialfred_bringup.machine import cpu_model
+from dialfred_sim.tasks.demonstrations import default_dir
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = ['--d-model', '32', '--heads', '2', '--layers', '1', '--ff', '64', '--batch-size', '4', '--warmup-updates', '5']
@@ -68,7 +68,6 @@ def compare(reference: list[float], losses: list[float]) -> dict:
 
 
 def main() -> None:
-    from dialfred_sim.tasks.demonstrations import default_dir
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--runs', type=int, default=6)
     ap.add_argument('--updates', type=int, default=60)

@@ -20,6 +20,10 @@ import argparse
 import json
 import time
 
+from dialfred_sim.tasks import load_split
+from dialfred_sim.tasks.split_files import read_tasks_file
+from dialfred_sim.tasks.statistics import world_statistics
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -37,9 +41,6 @@ def main() -> None:
         if value is not None and value < 1:
             parser.error(f'--{name} must be at least 1, got {value}')
 
-    from dialfred_sim.tasks import load_split
-    from dialfred_sim.tasks.split_files import read_tasks_file
-    from dialfred_sim.tasks.statistics import world_statistics
 
     t0 = time.monotonic()
     if args.file is not None:

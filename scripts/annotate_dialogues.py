@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+import jinja2
 import numpy as np
 
 from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annotator_rng: the tests read them here)
@@ -31,7 +32,7 @@ from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annota
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.progress import progress_bar
 from dialfred_sim.protocol import QUESTION_TEMPLATES, QUESTION_TYPES
-from dialfred_sim.tasks import SPLIT_SIZES
+from dialfred_sim.tasks import SPLIT_SIZES, load_split
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / 'docs' / 'dialogue_data.md'
@@ -51,19 +52,18 @@ _SPLIT = ''
 
 def _init_worker(split: str) -> None:
     global _ENV, _SPLIT
-    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.env import DialfredEnv  # lazy: --doc-only writes the doc without the simulator
     _ENV, _SPLIT = DialfredEnv(resolution=ANNOTATION_RESOLUTION), split
 
 
 def _situation_and_snapshot(task):
-    from dialfred_sim.ground_truth import snapshot
+    from dialfred_sim.ground_truth import snapshot  # lazy: as DialfredEnv in _init_worker
     _ENV.reset(options={'task': task})
     snap = snapshot(_ENV)
     return Situation.of(task, snap), snap
 
 
 def _annotate_chunk(bounds: tuple[int, int]) -> list[dict]:
-    from dialfred_sim.tasks import load_split
     tasks = load_split(_SPLIT)[bounds[0]:bounds[1]]
     rows = []
     for task in tasks:
@@ -73,13 +73,11 @@ def _annotate_chunk(bounds: tuple[int, int]) -> list[dict]:
 
 
 def _situation_chunk(bounds: tuple[int, int]) -> list[dict]:
-    from dialfred_sim.tasks import load_split
     return [_situation_and_snapshot(t)[0].to_json() for t in load_split(_SPLIT)[bounds[0]:bounds[1]]]
 
 
 def run_split(split: str, job, workers: int, limit: int = 0) -> list[dict]:
     """`job` over every task of `split` (its first `limit` if > 0) in chunks, in task order, on `workers` processes."""
-    from dialfred_sim.tasks import load_split
     n = len(load_split(split)[:limit or None])
     chunks = [(k, min(k + CHUNK, n)) for k in range(0, n, CHUNK)]
     out = []
@@ -95,8 +93,7 @@ def run_split(split: str, job, workers: int, limit: int = 0) -> list[dict]:
 def probed_rows(split: str, demonstrations: Path, workers: int, limit: int = 0) -> list[dict]:
     """The rows of `split` (its first `limit` tasks if > 0) in task order: those an AnnotatingProbe made
     while `demonstrations` was rendered (`prepare --annotate`), the others annotated here as usual."""
-    from dialfred_performer.data import probed_annotations
-    from dialfred_sim.tasks import load_split
+    from dialfred_performer.data import probed_annotations  # lazy: torch, for --from-demonstrations alone
     tasks = load_split(split)[:limit or None]
     probed = probed_annotations(demonstrations)
     missing = [k for k, t in enumerate(tasks) if t.task_id not in probed]
@@ -123,7 +120,6 @@ def valid_situations(split: str, workers: int) -> list[Situation]:
 
 def available_splits(splits: Sequence[str]) -> tuple[list[str], list[str]]:
     """The splits whose tasks exist here, and the absent ones (with a message on stderr)."""
-    from dialfred_sim.tasks import load_split
     present, absent = [], []
     for split in splits:
         try:
@@ -182,7 +178,6 @@ def doc_text(stats: dict[str, dict], shares: dict[str, dict], absent: Sequence[s
              examples: Sequence[TaskDialogues]) -> str:
     """docs/dialogue_data.md (its first line says that the data is synthetic); the words are
     templates/dialogue_data.md.j2, the model's numbers and the tables come from here."""
-    import jinja2
     m = CHOICE_MODEL
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).resolve().parent / 'templates'),
                              autoescape=False, keep_trailing_newline=True, undefined=jinja2.StrictUndefined)

@@ -21,6 +21,9 @@ from pathlib import Path
 from statistics import mean
 from typing import Callable, Sequence
 
+import jinja2
+from PIL import Image, ImageDraw, ImageFont
+
 from dialfred_sim.tasks import SPLIT_SIZES, TASK_TYPES, Task, load_split
 from dialfred_sim.tasks.instructions import tokenize, vocabulary
 from dialfred_sim.tasks.splits import TEST_SPLIT, TEST_UNSEEN_SCENES, VALID_UNSEEN_SCENES, read_tasks_file
@@ -91,9 +94,9 @@ def navigation_twins(tasks: Sequence[Task], resolution: int = TWIN_RESOLUTION) -
     not_rebuilt (goals whose first state the simulator refuses to rebuild: a split made under older
     rules than the simulator's now; left out of the other counts).
     """
-    from dialfred_sim.env import DialfredEnv
     goals = [(t, c.obj) for t in tasks if t.task_type in ('Move', 'Pick & Move')
              for c in t.goal if c.kind in ('near', 'reachable')]
+    from dialfred_sim.env import DialfredEnv  # lazy: --no-twins --no-image --no-world runs without the simulator
     same_type, twin_types, not_rebuilt = 0, Counter(), 0
     env = DialfredEnv(resolution=resolution)
     try:
@@ -226,7 +229,6 @@ def card_text(stats: dict[str, dict], absent: Sequence[str], examples: Sequence[
               twins: dict[str, dict] | None = None, world: dict | None = None) -> str:
     """docs/dataset.md: what the data is, how it differs from the paper's, its tables and examples (the
     words are templates/dataset.md.j2; the numbers and tables come from here)."""
-    import jinja2
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).resolve().parent / 'templates'),
                              autoescape=False, keep_trailing_newline=True, undefined=jinja2.StrictUndefined)
     context = dict(
@@ -274,7 +276,7 @@ def pick_examples(tasks: Sequence[Task], count: int = 6) -> list[Task]:
 
 def first_frames(tasks: Sequence[Task], resolution: int = EXAMPLE_RESOLUTION) -> list:
     """The agent's RGB frame (HxWx3 uint8) at the start of each task."""
-    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.env import DialfredEnv  # lazy: as in navigation_twins
     env = DialfredEnv(resolution=resolution)
     try:
         return [env.reset(options={'task': t})[0]['rgb'] for t in tasks]
@@ -296,7 +298,6 @@ def _wrap(draw, text: str, font, width: int) -> list[str]:
 
 def example_sheet(tasks: Sequence[Task], frames: Sequence, cols: int = 3, label_lines: int = 4):
     """A PIL image: each frame with its task type (and id) and main instruction written under it."""
-    from PIL import Image, ImageDraw, ImageFont
     font = ImageFont.load_default(size=12)
     bold = ImageFont.load_default(size=13)
     px, pad, line_h = frames[0].shape[1], 6, 15
@@ -355,7 +356,7 @@ def main(argv=None) -> int:
     twins = {} if args.no_twins else {name: navigation_twins(tasks) for name, tasks in found.items()}
     world = None
     if not args.no_world and EXAMPLE_SPLIT in found:
-        from dialfred_sim.tasks.statistics import world_statistics
+        from dialfred_sim.tasks.statistics import world_statistics  # lazy: it builds rooms (--no-world: none)
         world = {'split': EXAMPLE_SPLIT, **world_statistics(found[EXAMPLE_SPLIT])}
     examples = pick_examples(found[EXAMPLE_SPLIT]) if EXAMPLE_SPLIT in found else []
     if examples and not args.no_image:

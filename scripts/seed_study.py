@@ -34,18 +34,21 @@ import sys
 import time
 from pathlib import Path
 
-
-from dialfred_bringup.reproduce import PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS
+from dialfred_bringup.evaluation import EvalConfig, run_eval
+from dialfred_bringup.reproduce import PERTURB_PROBABILITY, RESOLUTION, RL_RUNS, SHIPPED_QUESTIONERS, weights_sha256
+from dialfred_performer.model import SHIPPED_CHECKPOINT
+from dialfred_questioner.finetune import FinetuneConfig, finetune
+from dialfred_sim.metrics import summarize
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
 def log(msg: str) -> None:
     print(f'[seed_study] {msg}', file=sys.stderr, flush=True)
 
 
 def finetune_run(run: str, seed: int, out: Path, workers: int, progress: bool, **overrides) -> Path:
     """The RL setting `run` fine-tuned with `seed` from the shipped pre-trained questioner."""
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
-    from dialfred_questioner.finetune import FinetuneConfig, finetune
     folder = out / f'{run}_s{seed}'
     if (folder / 'final.pt').exists():
         return folder / 'final.pt'
@@ -61,8 +64,6 @@ def finetune_run(run: str, seed: int, out: Path, workers: int, progress: bool, *
 def evaluate(name: str, questioner: str, split: str, seed: int, limit, workers: int, out: Path,
              progress: bool) -> dict:
     """One evaluation (resumable); its overall row."""
-    from dialfred_bringup.evaluation import EvalConfig, run_eval
-    from dialfred_sim.metrics import summarize
     config = EvalConfig(split=split, agent='et', local=True, questioner=questioner, limit=limit,
                         workers=workers, out=out / 'eval' / f'{split}_{name}.jsonl', seed=seed,
                         resolution=RESOLUTION, perturb_probability=PERTURB_PROBABILITY)
@@ -133,8 +134,6 @@ def main(argv=None) -> int:
     if args.random_seeds:
         draws['random_qa'] = {f'eval seed {s}': evaluate(f'random_qa_e{s}', 'random', args.split, s, limit,
                                                          args.workers, out, progress) for s in args.random_seeds}
-    from dialfred_bringup.reproduce import weights_sha256
-    from dialfred_performer.model import SHIPPED_CHECKPOINT
     result = {'split': args.split, 'performer_sha256': weights_sha256(SHIPPED_CHECKPOINT)[:12], 'episodes': next(iter(next(iter(draws.values())).values()))['n'],
               'argv': list(argv if argv is not None else sys.argv[1:]), 'draws': draws,
               'spread': {name: {m: spread([r[m] for r in d.values()]) for m in ('SR', 'NQ')}

@@ -35,8 +35,10 @@ def loaders():
     from dialfred_bringup.compare_runs import compare_weights
     from dialfred_bringup.reproduce.plan import weights_sha256
     from dialfred_performer.agent import PerformerAgent
+    from dialfred_performer.checkpoint_header import read_header
     from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.model import load_checkpoint, read_state
+    from dialfred_performer.model_registry import camera_resolution
     from dialfred_performer.perception import load_perception
     from dialfred_questioner.policy import LearnedQuestioner
 
@@ -50,7 +52,8 @@ def loaders():
             'map performer': MapAgent.from_checkpoint,
             'training state (pretrain/finetune/perception --resume)': read_state, 'perception': load_perception,
             'questioner': LearnedQuestioner.from_checkpoint, 'reproduce weights digest': weights_sha256,
-            'compare_runs --parts weights': compare}
+            'compare_runs --parts weights': compare, 'checkpoint header (no torch)': read_header,
+            'camera of an et checkpoint (EvalConfig)': lambda path: camera_resolution('et', path)}
 
 
 @pytest.mark.parametrize('name', list(loaders()))

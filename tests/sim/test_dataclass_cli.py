@@ -11,7 +11,7 @@ from typing import Optional
 
 import pytest
 
-from dialfred_sim.dataclass_cli import add_fields, arg, from_args, parse, parser_for, to_argv
+from dialfred_sim.dataclass_cli import add_fields, arg, check_bounds, from_args, parse, parser_for, to_argv
 
 
 def parse_pair(text: str) -> tuple:
@@ -170,3 +170,22 @@ def test_a_resume_counts_a_field_its_saved_config_lacks_as_the_default():
     other = FinetuneConfig(init='a.pt', out='o', model='map')
     assert config_changes(saved, other, ()) == {'model': ('et', 'map')}
     assert config_changes({**saved, 'lr': 0.5}, cfg, ('lr',)) == {}
+
+
+def test_check_bounds_names_the_first_field_out_of_its_bounds():
+    @dataclasses.dataclass
+    class Bounded:
+        workers: int = 2
+        seed: int = 0
+        lr: float = 1e-3
+        share: float = 0.5
+
+    check_bounds(Bounded(), at_least_one=('workers',), non_negative=('seed',), positive=('lr',), fractions=('share',))
+    for changed, message in (({'workers': 0}, 'workers must be at least 1, got 0'),
+                             ({'seed': -1}, 'seed must be >= 0, got -1'),
+                             ({'lr': float('nan')}, 'lr must be a positive number, got nan'),
+                             ({'lr': 0.0}, 'lr must be a positive number, got 0.0'),
+                             ({'share': 1.5}, r'share must be in \[0, 1\], got 1.5')):
+        with pytest.raises(ValueError, match=message):
+            check_bounds(Bounded(**changed), at_least_one=('workers',), non_negative=('seed',), positive=('lr',),
+                         fractions=('share',))

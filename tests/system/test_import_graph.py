@@ -3,7 +3,7 @@ level or inside a function, a module that imports it back (directly or through o
 as dialfred_sim.env <-> dialfred_sim.tasks.splits works only in the order its modules happen to be
 imported; each module must import on its own, in a fresh interpreter. Imports sit at module level,
 where a reader sees who depends on whom; one inside a function says why in a comment (a heavy package
-the rest of its module does without, an optional feature).
+the rest of its module does without, an optional feature), in src/ and in scripts/ and benchmarks/ too.
 """
 
 from __future__ import annotations
@@ -127,8 +127,10 @@ def unexplained_inner_imports(path: Path) -> list[str]:
     return sorted(set(found))
 
 
-def test_an_import_inside_a_function_says_why_it_is_there():
-    unexplained = [line for path in source_modules().values() for line in unexplained_inner_imports(path)]
+@pytest.mark.parametrize('where', ['src', 'scripts', 'benchmarks'])
+def test_an_import_inside_a_function_says_why_it_is_there(where):
+    paths = source_modules().values() if where == 'src' else sorted((REPO / where).rglob('*.py'))
+    unexplained = [line for path in paths for line in unexplained_inner_imports(path)]
     assert not unexplained, 'move these to module level, or say why not in a comment:\n' + '\n'.join(unexplained)
 
 

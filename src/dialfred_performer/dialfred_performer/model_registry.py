@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
+from .checkpoint_header import HeaderError, read_header
 from .shipped import SHIPPED_CHECKPOINT
 
 # The map performer's camera: 128 px frames, area-averaged down to its network's input. Over
@@ -83,7 +84,12 @@ def _load_et(path: Path):
 
 def _et_camera(path: Path) -> int:
     """The et performer's training resolution, read from its checkpoint (a frame of another size would be
-    area-averaged, not the rendering it learned from)."""
+    area-averaged, not the rendering it learned from): from the checkpoint's header, without torch
+    (checkpoint_header.py); a file whose header cannot be read so is loaded whole, which says why."""
+    try:
+        return int(read_header(path)['config']['resolution'])
+    except (HeaderError, KeyError, TypeError, ValueError):
+        pass
     from .model import load_checkpoint  # lazy: pybullet, torch, which the rest of this module does without
     return int(load_checkpoint(path)[0].config.resolution)
 

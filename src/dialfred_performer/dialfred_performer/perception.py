@@ -36,7 +36,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
+from dialfred_sim.dataclass_cli import arg, check_bounds, command_line, config_changes, parse
 from dialfred_sim.tasks.demonstrations import DEPTH_STEP, default_dir, label_classes, load_demonstrations
 
 from .data import held_out
@@ -248,13 +248,10 @@ class PerceptionConfig:
     progress: bool = arg(True, 'a progress bar on stderr')
 
     def __post_init__(self):
-        for name in ('frames', 'batch_size', 'val_frames', 'validate_every', 'threads'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'--{name.replace("_", "-")} must be >= 1, got {getattr(self, name)}')
+        check_bounds(self, at_least_one=('frames', 'batch_size', 'val_frames', 'validate_every', 'threads'),
+                     positive=('lr',))
         if not 0 < self.val_fraction < 1:
-            raise ValueError(f'--val-fraction must be in (0, 1), got {self.val_fraction}')
-        if not math.isfinite(self.lr) or self.lr <= 0:
-            raise ValueError(f'--lr must be a positive number, got {self.lr}')
+            raise ValueError(f'val_fraction must be in (0, 1), got {self.val_fraction}')
         if self.precision not in ('fp32', 'bf16', 'auto'):
             raise ValueError(f'--precision takes fp32, bf16 or auto, got {self.precision!r}')
 

@@ -47,7 +47,7 @@ from typing import Optional, Sequence
 import numpy as np
 import torch
 
-from dialfred_sim.dataclass_cli import arg, command_line, config_changes, parse
+from dialfred_sim.dataclass_cli import arg, check_bounds, command_line, config_changes, parse
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.progress import progress_bar
 from dialfred_sim.protocol import ACTIONS
@@ -133,24 +133,14 @@ class TrainConfig:
     progress: bool = arg(True, 'progress bar on stderr')
 
     def __post_init__(self):
-        positive = ('epochs', 'batch_size', 'bucket', 'log_every', 'checkpoint_every')
-        for name in positive:
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
-        at_least_zero = ('max_updates', 'warmup_updates', 'weight_decay', 'grad_clip', 'pointer_weight',
-                         'threads', 'loader_workers', 'stop_after', 'seed', 'block_tasks', 'block_items',
-                         'validate_every')
-        for name in at_least_zero:
-            if getattr(self, name) < 0:
-                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
-        if self.block_bucket < 1:
-            raise ValueError(f'block_bucket must be at least 1, got {self.block_bucket}')
+        check_bounds(self, at_least_one=('epochs', 'batch_size', 'bucket', 'log_every', 'checkpoint_every',
+                                         'block_bucket'),
+                     non_negative=('max_updates', 'warmup_updates', 'weight_decay', 'grad_clip', 'pointer_weight',
+                                   'threads', 'loader_workers', 'stop_after', 'seed', 'block_tasks', 'block_items',
+                                   'validate_every'),
+                     positive=('lr',), fractions=('final_lr_fraction',))
         if self.block_items and not self.block_tasks:
             raise ValueError('--block-items needs --block-tasks (it says how a block shows a task\'s items)')
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise ValueError(f'lr must be a positive number, got {self.lr}')
-        if not 0 <= self.final_lr_fraction <= 1:
-            raise ValueError(f'final_lr_fraction must be in [0, 1], got {self.final_lr_fraction}')
         if not 0 <= self.val_fraction < 1:
             raise ValueError(f'val_fraction must be in [0, 1), got {self.val_fraction}')
         if not (self.device in ('auto', 'cpu', 'cuda') or self.device.startswith('cuda:')):

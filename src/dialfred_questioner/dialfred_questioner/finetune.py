@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import random
 import sys
 import time
@@ -46,7 +45,7 @@ import torch
 from dialfred_oracle.answers import Perturbation
 from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint, read_state
 from dialfred_performer.model_registry import PERFORMER_MODELS, camera_resolution, load_policy
-from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_sim.dataclass_cli import arg, check_bounds, parse
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.chained import chain_episodes
@@ -116,8 +115,6 @@ class FinetuneConfig:
             raise ValueError(f'rewards must be one of {", ".join(REWARDS)}, got {self.rewards!r}')
         if self.perturb_type and self.perturb_type not in QUESTION_TYPES_ASKED:
             raise ValueError(f'perturb_type must be one of {", ".join(QUESTION_TYPES_ASKED)}, got {self.perturb_type!r}')
-        if not 0.0 <= self.perturb_probability <= 1.0:
-            raise ValueError(f'perturb_probability must be in [0, 1], got {self.perturb_probability}')
         if self.baseline not in ('group', 'critic'):
             raise ValueError(f'baseline must be group or critic, got {self.baseline!r}')
         if self.baseline == 'group' and self.samples_per_task < 2:
@@ -125,14 +122,9 @@ class FinetuneConfig:
         if self.samples_per_task < 1 or self.episodes_per_update % self.samples_per_task:
             raise ValueError(f'episodes_per_update ({self.episodes_per_update}) must be a multiple of '
                              f'samples_per_task ({self.samples_per_task})')
-        for name in ('updates', 'episodes_per_update', 'workers', 'max_steps'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
-        for name in ('limit', 'seed', 'entropy', 'value_weight', 'grad_clip', 'resolution'):
-            if getattr(self, name) < 0:
-                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise ValueError(f'lr must be a positive number, got {self.lr}')
+        check_bounds(self, at_least_one=('updates', 'episodes_per_update', 'workers', 'max_steps'),
+                     non_negative=('limit', 'seed', 'entropy', 'value_weight', 'grad_clip', 'resolution'),
+                     positive=('lr',), fractions=('perturb_probability',))
         if not 0.0 < self.gamma <= 1.0:
             raise ValueError(f'gamma must be in (0, 1], got {self.gamma}')
         if self.protocol not in PROTOCOLS:

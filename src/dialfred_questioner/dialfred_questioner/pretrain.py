@@ -32,7 +32,7 @@ import torch
 from dialfred_oracle.annotator import load_dialogues
 from dialfred_performer.data import held_out
 from dialfred_performer.model import SHIPPED_CHECKPOINT, load_checkpoint
-from dialfred_sim.dataclass_cli import arg, parse
+from dialfred_sim.dataclass_cli import arg, check_bounds, parse
 from dialfred_sim.metrics import git_commit
 
 from .checkpoint import resume_training, save
@@ -67,14 +67,8 @@ class PretrainConfig:
     progress: bool = arg(True, 'progress bar on stderr')
 
     def __post_init__(self):
-        for name in ('epochs', 'batch_size'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be at least 1, got {getattr(self, name)}')
-        for name in ('limit', 'threads', 'seed', 'weight_decay', 'grad_clip'):
-            if getattr(self, name) < 0:
-                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise ValueError(f'lr must be a positive number, got {self.lr}')
+        check_bounds(self, at_least_one=('epochs', 'batch_size'),
+                     non_negative=('limit', 'threads', 'seed', 'weight_decay', 'grad_clip'), positive=('lr',))
         if not 0 <= self.val_fraction < 1:
             raise ValueError(f'val_fraction must be in [0, 1), got {self.val_fraction}')
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import difflib
+import math
 import re
 import shlex
 import types
@@ -52,6 +53,26 @@ def arg(default: Any, help: str, *, flag: Optional[str] = None,  # noqa: A002 - 
             'metavar': metavar, 'positional': positional or None}
     return dataclasses.field(default=default, metadata={k: v for k, v in meta.items()
                                                         if v is not None and v is not _UNSET and v != {}}, **kwargs)
+
+
+def check_bounds(config, *, at_least_one: Sequence[str] = (), non_negative: Sequence[str] = (),
+                 positive: Sequence[str] = (), fractions: Sequence[str] = ()) -> None:
+    """The numeric checks a config's `__post_init__` makes, worded alike everywhere: a ValueError naming
+    the first field of `config` that is below 1 (`at_least_one`), below 0 (`non_negative`), not a finite
+    number above 0 (`positive`, learning rates) or outside [0, 1] (`fractions`)."""
+    for name in at_least_one:
+        if getattr(config, name) < 1:
+            raise ValueError(f'{name} must be at least 1, got {getattr(config, name)}')
+    for name in non_negative:
+        if getattr(config, name) < 0:
+            raise ValueError(f'{name} must be >= 0, got {getattr(config, name)}')
+    for name in positive:
+        value = getattr(config, name)
+        if not (value > 0 and math.isfinite(value)):
+            raise ValueError(f'{name} must be a positive number, got {value}')
+    for name in fractions:
+        if not 0.0 <= getattr(config, name) <= 1.0:
+            raise ValueError(f'{name} must be in [0, 1], got {getattr(config, name)}')
 
 
 def _unwrap(tp) -> tuple[Any, bool]:
