@@ -49,17 +49,14 @@ def main() -> None:
         config = model.config
     else:
         model = Performer(config, len(vocab))
-    class EagerPointer(PerformerAgent):
-        lazy_pointer = False
     task = PublicTask('bench/0', 'FloorPlan1', 'bench', instruction, ('apple', 'fridge'))
     report = {'checkpoint': str(checkpoint) if checkpoint.is_file() else None,
               'config': {'resolution': config.resolution, 'd_model': config.d_model, 'layers': config.layers,
                          'visual': config.visual},
               'threads': torch.get_num_threads(), 'repeats': REPEATS}
-    for name, incremental, cls in (('incremental', True, PerformerAgent),
-                                   ('incremental_keys_every_step', True, EagerPointer),
-                                   ('whole_episode', False, PerformerAgent)):
-        agent = cls(model, vocab, incremental)
+    for name, incremental, pointer_mode in (('incremental', True, None), ('incremental_keys_every_step', True, 'keys'),
+                                            ('whole_episode', False, None)):
+        agent = PerformerAgent(model, vocab, incremental, pointer_mode)
         times = {s: [] for s in steps}
         interactions = 0
         rng = np.random.default_rng(0)           # the same frames for every setting

@@ -293,7 +293,7 @@ def play_side_by_side(agent, other, check, at_cut=lambda: None, steps: int = 10,
     for t in range(steps):
         if t == cut_at:
             at_cut()
-            agent._cache = other._cache = None
+            agent.state.cache = other.state.cache = None
         check(t, agent._outputs(obs), other._outputs(obs))
         decision = agent.act(obs)
         assert decision == other.act(obs), t
@@ -318,23 +318,20 @@ def test_the_agent_makes_pointer_keys_only_to_act_and_decides_as_with_them_at_ev
     are then made from their frames)."""
     from dialfred_performer.agent import PerformerAgent
 
-    class Eager(PerformerAgent):
-        lazy_pointer = False
-
     checkpoint, _ = performer
-    lazy, eager = PerformerAgent.from_checkpoint(checkpoint), Eager.from_checkpoint(checkpoint)
-    assert lazy.lazy_pointer and not eager.lazy_pointer
+    lazy, eager = PerformerAgent.from_checkpoint(checkpoint), PerformerAgent.from_checkpoint(checkpoint, pointer_mode='keys')
+    assert lazy.state.pointer_mode == 'lazy' and eager.state.pointer_mode == 'keys'
     unmade = []
 
     def check(t, a, b):
         assert torch.equal(a.action_logits, b.action_logits), t
         if a.pointer_logits is None:
-            assert torch.equal(lazy._pointer(a.h, a.encoded)[1], b.pointer_logits), t
+            assert torch.equal(lazy.model.step_pointer(a)[1], b.pointer_logits), t
         else:
             assert torch.equal(a.pointer_logits, b.pointer_logits), t
-    assert play_side_by_side(lazy, eager, check, lambda: unmade.append(sum(g is None for g in lazy._grids)),
+    assert play_side_by_side(lazy, eager, check, lambda: unmade.append(sum(g is None for g in lazy.state.grids)),
                              keep_going=True) == 10
-    assert unmade[0] >= 1 and all(g is not None for g in lazy._grids[:6])     # made on demand for the fallback
+    assert unmade[0] >= 1 and all(g is not None for g in lazy.state.grids[:6])     # made on demand for the fallback
 
 
 def test_a_performer_trained_through_the_frozen_network_in_bf16_perceives_in_bf16_where_the_cpu_does_it(
@@ -386,19 +383,17 @@ def test_the_reach_agent_scores_pixels_without_keys_and_decides_as_with_them(rea
     decisions, also when the dialogue outgrows the cache (the keys of earlier steps are then made)."""
     from dialfred_performer.agent import PerformerAgent
 
-    class WithKeys(PerformerAgent):
-        keyless_pointer = False
-
     checkpoint, _ = reach_performer
-    keyless, keyed = PerformerAgent.from_checkpoint(checkpoint), WithKeys.from_checkpoint(checkpoint)
-    assert keyless.keyless_pointer and not keyed.keyless_pointer
+    keyless = PerformerAgent.from_checkpoint(checkpoint)
+    keyed = PerformerAgent.from_checkpoint(checkpoint, pointer_mode='keys')
+    assert keyless.state.pointer_mode == 'keyless' and keyed.state.pointer_mode == 'keys'
 
     def check(t, a, b):
         assert torch.allclose(a.action_logits, b.action_logits, atol=1e-5), t
         assert torch.allclose(a.pointer_logits, b.pointer_logits, atol=1e-4), t
 
     def at_cut():
-        assert keyless._grids and all(g is None for g in keyless._grids)
+        assert keyless.state.grids and all(g is None for g in keyless.state.grids)
     assert play_side_by_side(keyless, keyed, check, at_cut, keep_going=True) == 10          # the whole-episode steps were played too
 
 

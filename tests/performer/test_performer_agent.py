@@ -103,7 +103,7 @@ def test_incremental_decisions_equal_reading_the_whole_episode_again():
     app = QA(Question('appearance', 'apple'), True, 'It is red and made of plastic.')
     dirn = QA(Question('direction'), True, 'You should turn around.')
     _play_twins(incremental, full, task, frames, {0: [loc, app], 5: [dirn], 9: [loc]})
-    assert incremental._cache is not None and incremental._cache[0].keys.shape[1] > 3 * 14
+    assert incremental.state.cache is not None and incremental.state.cache[0].keys.shape[1] > 3 * 14
 
 
 def test_when_qas_outgrow_max_tokens_the_agent_falls_back_to_the_whole_episode():
@@ -112,4 +112,11 @@ def test_when_qas_outgrow_max_tokens_the_agent_falls_back_to_the_whole_episode()
     frames = [rng.integers(0, 256, (RES, RES, 3), dtype=np.uint8) for _ in range(8)]
     loc = QA(Question('location', 'apple'), True, 'The apple is to your left in the fridge.')
     _play_twins(incremental, full, task, frames, {0: [loc], 2: [loc], 4: [loc, loc]})
-    assert incremental._cache is None          # the oldest QAs were dropped, positions moved
+    assert incremental.state.cache is None     # the oldest QAs were dropped, positions moved
+
+
+def test_a_pointer_mode_the_model_cannot_play_is_refused():
+    incremental, _, _ = _twin_agents()
+    assert incremental.state.pointer_mode == 'keys'          # a cnn encoder makes every frame's keys
+    with pytest.raises(ValueError, match="pointer mode 'lazy'"):
+        PerformerAgent(incremental.model, incremental.vocab, pointer_mode='lazy')

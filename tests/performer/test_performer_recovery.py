@@ -125,7 +125,7 @@ def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction(folder):
         assert agent.act(Observation(rgb=frame))[0] == first
         seen = Observation(rgb=frame) if success is None else Observation(rgb=frame, last_action_success=success)
         probs = agent.action_probabilities(seen)
-        return list(agent._previous_actions), probs
+        return list(agent.state.previous_actions), probs
 
     failed, p_failed = after('Pickup', False)
     assert failed == [START, failed_id(A['Pickup'], len(ACTIONS))]

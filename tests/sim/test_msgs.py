@@ -160,7 +160,7 @@ def test_questioner_ask_carries_task_frame_dialogue_step_and_gap():
     from dialfred_msgs.srv import QuestionerAsk
     assert QuestionerAsk.Request.get_fields_and_field_types() == {
         'task': 'dialfred_msgs/TaskDescription', 'seed': 'int64', 'step': 'uint32', 'rgb': 'sensor_msgs/Image',
-        'dialogue': 'sequence<dialfred_msgs/QAPair>', 'confusion_gap': 'double'}
+        'dialogue': 'sequence<dialfred_msgs/QAPair>', 'confusion_gap': 'double', 'episode': 'string'}
     assert QuestionerAsk.Request().confusion_gap < 0       # unknown unless the performer sends it
     assert QuestionerAsk.Response.get_fields_and_field_types() == {
         'ok': 'boolean', 'error': 'string', 'ask': 'boolean', 'question_type': 'string', 'object_noun': 'string'}

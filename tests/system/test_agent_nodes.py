@@ -132,6 +132,12 @@ def test_the_questioner_node_asks_like_the_baseline_and_refuses_a_confusion_requ
             dialogue.append(QAPair(question_type=reply.question_type, object_noun=reply.object_noun, valid=True))
         assert asked == [('location', 'apple'), ('appearance', 'apple'), ('location', 'fridge'),
                          ('appearance', 'fridge'), ('direction', '')]          # AllQuestioner's order
+        # An episode named by its player (the performer node sends its goal's id) starts afresh only under a
+        # new name, not when a request of step 0 with an empty dialogue comes (which starts an unnamed one).
+        named = [graph.call(ask_all, QuestionerAsk.Request(task=task, seed=1, step=0, episode=name, confusion_gap=gap))
+                 for name, gap in (('goal-a', -1.0), ('goal-a', 0.5), ('goal-b', -1.0))]
+        assert [(r.ok, r.question_type, r.object_noun) for r in named] == [
+            (True, 'location', 'apple'), (True, 'appearance', 'apple'), (True, 'location', 'apple')]
         confusion = graph.client(QuestionerAsk, '/qc/questioner/ask')
         reply = graph.call(confusion, QuestionerAsk.Request(task=task, seed=1, step=0))
         assert not reply.ok and 'confusion_gap' in reply.error

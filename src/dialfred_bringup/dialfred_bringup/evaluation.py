@@ -234,8 +234,9 @@ def run_eval(config: EvalConfig | EvalRun, progress: bool = True, traces: Option
         return _run_eval(run, progress, traces, silent)
 
 
-def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None) -> EvalReport:
-    t0 = time.monotonic()
+def _jobs(run: EvalRun) -> tuple[list, dict, list]:
+    """(the run's tasks, the results its file holds already {task_id: result}, the jobs left to play: (index
+    in the split, task) pairs, or whole chained.ChainedEpisodes under the chained protocol)."""
     config = run.options
     tasks = run.split_tasks()[:config.limit]
     tasks = [under_rule(t, config.goal_rule) for t in tasks]      # goals and expert lengths as the run judges them
@@ -259,6 +260,13 @@ def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None)
         unit = 'episodes' if config.protocol == 'chained' else 'tasks'
         print(f'resuming: {len(done)} of {len(tasks)} tasks are already in {run.results_path}; '
               f'{len(jobs)} {unit} to play', file=sys.stderr)
+    return tasks, done, jobs
+
+
+def _run_eval(run: EvalRun, progress: bool, traces: Optional[dict], silent=None) -> EvalReport:
+    t0 = time.monotonic()
+    config = run.options
+    tasks, done, jobs = _jobs(run)
     ran, startup_s, restarts, replayed = 0, 0.0, 0, 0
     code = git_commit()
     warn_of_other_code(run.results_path, done.values(), code)

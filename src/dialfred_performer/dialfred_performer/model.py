@@ -5,7 +5,10 @@ from scratch: `PerformerConfig`, `Performer`, its loss, and checkpoints.
 `dialfred_performer.data.collate`); at step t it predicts the expert's action from the instruction,
 the QAs asked at steps <= t, the frames of steps <= t and the actions before t, and, for an
 interaction, the cell of the frame's feature grid that holds the target pixel.
-The agent (`agent.py`) calls the same `encode_frames` and `decode` one step at a time.
+An episode is played one step at a time by `Performer.step(state, inputs)` over a `StepState` (the
+frames' embeddings and keys so far, the actions taken, the decoder's cache), advanced by
+`Performer.advance`: the same `encode_frames` and encoder, incrementally or over the whole episode again;
+an agent (`agent.py`) keeps only that state.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Any, NamedTuple, Optional
 
 import torch
 import torch.nn.functional as F
@@ -27,7 +30,7 @@ from dialfred_sim.protocol import ACTIONS, BODY, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig, native_bf16
-from .preprocess import N_TOKEN_TYPES, Vocabulary
+from .preprocess import N_TOKEN_TYPES, Vocabulary, frame_tensor
 from .shipped import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
@@ -133,6 +136,48 @@ def reach_features(pointer_logits: torch.Tensor, distances: torch.Tensor) -> tor
     return torch.stack([(p * distances).sum(-1) / 2, (p * (distances < REACH_METRES)).sum(-1), best / 2], -1)
 
 
+class StepInputs(NamedTuple):
+    """What one step of an episode reads besides the state (`Performer.step`)."""
+
+    frame: torch.Tensor                      # [1, 3, R, R] (`Performer.frame_input`)
+    frame_size: tuple[int, int]              # the observation frame's (height, width)
+    lang: Any                                # the language read now (preprocess.encode_language, max_tokens)
+    lang_dropped: bool                       # QAs were dropped to fit max_tokens: every position moved
+
+
+class StepOutputs(NamedTuple):
+    """What the model makes of the current step's inputs (`Performer.step`)."""
+
+    action_logits: torch.Tensor              # [13]
+    pointer_logits: Optional[torch.Tensor]   # [C]; None in the lazy mode until an interaction needs them
+    frame_size: tuple[int, int]              # the observation frame's (height, width)
+    embedding: torch.Tensor                  # the frame's embedding
+    grid: Optional[torch.Tensor]             # the frame's pointer keys [1, C, k], or None (lazy, keyless)
+    cache: Optional[Any]                     # the decoder's cache extended by this step, or None
+    n_lang: int                              # language tokens read
+    h: Optional[torch.Tensor]                # the step's decoder output (incremental steps), or None
+    frame: torch.Tensor                      # the frame tensor
+    encoded: Optional[tuple]                 # the perception network's encoder maps (lazy), or None
+    perceived: Optional[Any] = None          # the network's output (keyless), or None
+
+
+@dataclass
+class StepState:
+    """What the performer carries from one step of an episode to the next: all an agent keeps of the model's
+    (`Performer.new_state`, `step`, `advance`). `pointer_mode` says how a step gets the pointer
+    (`Performer.pointer_mode`); `cache` holds the decoder's keys and values of the steps so far, or None once
+    the whole episode is read again at every step."""
+
+    pointer_mode: str
+    previous_actions: list                   # the action token of each step: <start>, then the actions taken
+    cache: Optional[Any] = None
+    lang_cached: int = 0                     # language tokens in the cache
+    step: int = 0
+    embeddings: list = dataclasses.field(default_factory=list)    # [d] per past step
+    grids: list = dataclasses.field(default_factory=list)         # [C, k] per past step (None: not made yet)
+    frames: list = dataclasses.field(default_factory=list)        # [1, 3, R, R] per past step whose keys are not made
+
+
 class Performer(nn.Module):
     def __init__(self, config: PerformerConfig, vocab_size: int):
         super().__init__()
@@ -207,6 +252,111 @@ class Performer(nn.Module):
         lang = self.language(lang_ids[None], lang_types[None])[0, first_new:]
         action = self.actions(torch.tensor([[previous_action]]))[0, 0]
         return self.encoder.step(cache, lang, frame_embedding, action, t)
+
+    # ------------------------------------------------------------------ one step of an episode (the agent's)
+    @property
+    def pointer_mode(self) -> str:
+        """How an agent's step gets the pointer. 'keys': every frame's pointer keys are made. 'lazy' (over a
+        perception network without the reach input, whose action does not depend on them): a frame's keys
+        only when the agent acts on it; the network's decoder and the key layer are about half a step's
+        perception. 'keyless' (with the reach input, where the action reads where the pointer points at
+        every step): the query is folded into the linear key layer and upsampling
+        (PerceivedFrames.pointer_logits, as training does; a sixth less time a step); keys are made only if
+        the whole episode is read again. The three give the same decisions up to rounding (tested)."""
+        if not isinstance(self.visual, PerceivedFrames):
+            return 'keys'
+        return 'keyless' if self.config.reach_input else 'lazy'
+
+    def new_state(self, incremental: bool = True, pointer_mode: Optional[str] = None) -> StepState:
+        """The state before an episode's first step: with `incremental`, steps extend a cache of the decoder's
+        keys and values; without, each reads the whole episode again. `pointer_mode`: the model's own if None."""
+        mode = pointer_mode or self.pointer_mode
+        if mode not in (self.pointer_mode, 'keys'):
+            raise ValueError(f'pointer mode {mode!r}: this model takes {self.pointer_mode!r} or keys')
+        return StepState(mode, [self.actions.start_id], self.encoder.empty_cache() if incremental else None)
+
+    def frame_input(self, rgb) -> torch.Tensor:
+        """An HxWx3 uint8 frame as a step reads it: [1, 3, R, R] at the model's resolution (channels-last over
+        a perception network: oneDNN's faster layout on a CPU, the same numbers up to rounding)."""
+        frame = frame_tensor(rgb, self.config.resolution)[None]
+        return frame.contiguous(memory_format=torch.channels_last) if isinstance(self.visual, PerceivedFrames) else frame
+
+    @torch.inference_mode()
+    def step(self, state: StepState, inputs: StepInputs) -> StepOutputs:
+        """The action and pointer logits of step state.step. Incremental while the state has a cache and the
+        language kept its positions; else the whole episode is read again (`decode`, the training path), the
+        keys of earlier frames made where they were not (`step_grid`). The state is not advanced (`advance`)."""
+        frame, lang = inputs.frame, inputs.lang
+        encoded = perceived = grid = None
+        if state.pointer_mode == 'lazy':
+            emb, encoded = self.visual.embedding_and_encoded(frame)     # keys_of(encoded) if it interacts
+        elif state.pointer_mode == 'keyless':
+            emb, perceived = self.visual.embedding_and_output(frame)
+        else:
+            emb, grid = self.encode_frames(frame)
+        if state.cache is not None and not inputs.lang_dropped:
+            h, cache = self.step_output(state.cache, torch.tensor(lang.ids), torch.tensor(lang.types),
+                                        state.lang_cached, emb[0], state.previous_actions[-1], state.step)
+            if perceived is not None:
+                pointer_logits = self.visual.pointer_logits(perceived, self.pointer_head.query(h)[None])[0] * \
+                    self.pointer_head.scale
+                action_logits = self._actions(h, pointer_logits, self.visual.distances(perceived)[0],
+                                              self.pitch_now(state))
+            elif grid is None:
+                action_logits, pointer_logits = self.action_head(h), None
+            else:
+                action_logits, pointer_logits = self.heads(h, grid[0], self.pitch_now(state))
+            return StepOutputs(action_logits, pointer_logits, inputs.frame_size, emb[0], grid, cache, len(lang), h,
+                               frame, encoded, perceived)
+        ids = torch.tensor([lang.ids], dtype=torch.long)
+        embeddings = torch.stack([*state.embeddings, emb[0]])[None]
+        if perceived is not None:
+            grid = self.visual.grid_of(perceived)
+        elif grid is None:
+            grid = self.visual.keys_of(encoded)
+        grids = torch.stack([*(self.step_grid(state, t) for t in range(state.step)), grid[0]])[None]
+        T = embeddings.shape[1]
+        action_logits, pointer_logits = self.decode(
+            ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
+            embeddings, grids, torch.tensor([state.previous_actions]), torch.ones(1, T, dtype=torch.bool))
+        return StepOutputs(action_logits[0, -1], pointer_logits[0, -1], inputs.frame_size, emb[0], grid, None,
+                           len(lang), None, frame, encoded)
+
+    @staticmethod
+    def pitch_now(state: StepState) -> torch.Tensor:
+        """The camera's pitch at the state's step, dead reckoned from the actions taken (camera_pitches)."""
+        return camera_pitches(torch.tensor(state.previous_actions))[-1]
+
+    def step_grid(self, state: StepState, t: int) -> torch.Tensor:
+        """Step t's pointer keys [C, k], made from its kept frame on first use (the same numbers as at the step)."""
+        if state.grids[t] is None:
+            if state.pointer_mode == 'keyless':
+                state.grids[t] = self.encode_frames(state.frames[t])[1][0]
+            else:
+                state.grids[t] = self.visual.keys_of(self.visual.encode(state.frames[t]))[0]
+        return state.grids[t]
+
+    @torch.inference_mode()
+    def step_pointer(self, outputs: StepOutputs) -> tuple[Optional[torch.Tensor], torch.Tensor]:
+        """(the frame's grid [1, C, k] or None, the pointer logits [C]) of a step: made now from its decoder
+        output and encoder maps if the step left them out (the lazy mode)."""
+        if outputs.pointer_logits is not None:
+            return outputs.grid, outputs.pointer_logits
+        grid = self.visual.keys_of(outputs.encoded)
+        return grid, self.pointer_head(outputs.h, grid[0])
+
+    @staticmethod
+    def advance(state: StepState, outputs: StepOutputs, action: int, grid: Optional[torch.Tensor]) -> None:
+        """Past the step whose `outputs` chose `action` (`grid`: the frame's keys, if made): what later steps
+        read of it is kept in `state` (its frame only while its keys are not made)."""
+        state.embeddings.append(outputs.embedding)
+        state.grids.append(None if grid is None else grid[0])
+        state.frames.append(outputs.frame if grid is None else None)
+        state.previous_actions.append(action)
+        state.cache = outputs.cache          # None after a step that read the whole episode: so do the later ones
+        if outputs.cache is not None:
+            state.lang_cached = outputs.n_lang
+        state.step += 1
 
     def forward(self, batch: dict) -> dict:
         """A padded batch of episodes (keys of `data.collate`) -> {'action_logits' [B, T, 13],

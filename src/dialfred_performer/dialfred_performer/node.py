@@ -303,7 +303,8 @@ class GoalRun(EpisodeObserver):
             else -1.0
         reply = self.node.call(self.node.questioner_cli, QuestionerAsk.Request(
             task=task_description_msg(self.task), seed=int(self.seed), step=self.result.steps, rgb=self.frame_msg,
-            dialogue=[qa_msg(qa) for qa in self.dialogue], confusion_gap=gap), resend=True)
+            dialogue=[qa_msg(qa) for qa in self.dialogue], confusion_gap=gap,
+            episode=bytes(self.goal_handle.goal_id.uuid).hex()), resend=True)
         if not reply.ok:
             raise GoalFailed(f'questioner: {reply.error}')
         return Question(reply.question_type, reply.object_noun) if reply.ask else None

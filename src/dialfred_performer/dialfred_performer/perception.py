@@ -323,17 +323,47 @@ def validate(net: Perception, demo, rows: np.ndarray, cfg: PerceptionConfig) -> 
     return finish_stats(total)
 
 
-def train_perception(cfg: PerceptionConfig) -> dict:
-    from dialfred_sim.progress import progress_bar  # lazy: tqdm, which the rest of this module does without
-    torch.set_num_threads(cfg.threads)
-    demo = load_demonstrations(Path(cfg.demonstrations).expanduser())
+def _frame_rows(cfg: PerceptionConfig, demo) -> tuple[np.ndarray, np.ndarray]:
+    """The training frames and the held-out ones (at most cfg.val_frames, drawn with the seed) of `demo`."""
     if demo.labels is None:
         raise ValueError(f'{cfg.demonstrations} has no labels: build it with prepare-performer --labels')
     train_rows, val_rows = frame_split(demo, cfg.val_fraction)
     if not len(val_rows) or not len(train_rows):
         raise ValueError(f'{cfg.demonstrations}: {len(train_rows)} training and {len(val_rows)} held-out frames at '
                          f'--val-fraction {cfg.val_fraction}: both need some (more tasks, or another --val-fraction)')
-    val_rows = val_rows[np.random.default_rng([cfg.seed, 1]).permutation(len(val_rows))[:cfg.val_frames]]
+    return train_rows, val_rows[np.random.default_rng([cfg.seed, 1]).permutation(len(val_rows))[:cfg.val_frames]]
+
+
+def _resume(cfg: PerceptionConfig, out: Path, net: Perception, optimizer, scheduler) -> tuple[int, float, str]:
+    """(update, best validation loss, arithmetic) to go on from: out/last.pt's, loaded into net, optimizer,
+    scheduler and torch's generator, with --resume and a last.pt of the same config; else a fresh start."""
+    if not (cfg.resume and (out / 'last.pt').exists()):
+        return 0, float('inf'), cfg.arithmetic
+    try:
+        state = torch.load(out / 'last.pt', map_location='cpu', weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - a damaged or crafted file raises many kinds
+        raise ValueError(f'{out / "last.pt"} cannot be resumed from ({type(exc).__name__}: {exc})') from None
+    changes = config_changes(state['train_config'], cfg, ('resume', 'progress', 'threads'))
+    if changes:
+        raise ValueError(f'--resume with another config: {changes}')
+    net.load_state_dict(state['state_dict'])
+    optimizer.load_state_dict(state['optimizer'])
+    scheduler.load_state_dict(state['scheduler'])
+    torch.set_rng_state(state['torch_rng'])
+    # auto precision resolved where the run began, kept
+    return int(state['update']), float(state['best']), state.get('arithmetic', cfg.arithmetic)
+
+
+def train_perception(cfg: PerceptionConfig) -> dict:
+    """Train the perception network (`Perception`) on the labelled frames of cfg.demonstrations: AdamW with
+    a warmed-up cosine, batches drawn by update number (a resumed run draws what the whole one would),
+    mirrored half the time; validated every cfg.validate_every updates into out/metrics.jsonl, the best
+    network by validation loss kept in out/perception.pt, the training state in out/last.pt. Returns the
+    run's summary (the JSON line `main` prints)."""
+    from dialfred_sim.progress import progress_bar  # lazy: tqdm, which the rest of this module does without
+    torch.set_num_threads(cfg.threads)
+    demo = load_demonstrations(Path(cfg.demonstrations).expanduser())
+    train_rows, val_rows = _frame_rows(cfg, demo)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
@@ -344,22 +374,7 @@ def train_perception(cfg: PerceptionConfig) -> dict:
     warmup = min(200, updates // 10 + 1)
     scheduler = torch.optim.lr_scheduler.LambdaLR(
         optimizer, lambda u: min(1.0, (u + 1) / warmup) * 0.5 * (1 + math.cos(math.pi * min(u, updates) / updates)))
-    update, best = 0, float('inf')
-    arithmetic = cfg.arithmetic
-    if cfg.resume and (out / 'last.pt').exists():
-        try:
-            state = torch.load(out / 'last.pt', map_location='cpu', weights_only=True)
-        except Exception as exc:  # noqa: BLE001 - a damaged or crafted file raises many kinds
-            raise ValueError(f'{out / "last.pt"} cannot be resumed from ({type(exc).__name__}: {exc})') from None
-        changes = config_changes(state['train_config'], cfg, ('resume', 'progress', 'threads'))
-        if changes:
-            raise ValueError(f'--resume with another config: {changes}')
-        net.load_state_dict(state['state_dict'])
-        optimizer.load_state_dict(state['optimizer'])
-        scheduler.load_state_dict(state['scheduler'])
-        update, best = int(state['update']), float(state['best'])
-        arithmetic = state.get('arithmetic', arithmetic)      # auto resolved where the run began, kept
-        torch.set_rng_state(state['torch_rng'])
+    update, best, arithmetic = _resume(cfg, out, net, optimizer, scheduler)
     log = open(out / 'metrics.jsonl', 'a')
     total: dict = {}
     t0 = time.monotonic()

@@ -8,8 +8,11 @@ learned questioner's checkpoint: a shipped name such as rl-anytime, or learned:P
 yours (`package.module:ClassName`, with reset(task, seed), ask(observation, step), hear(qa)), made by
 `questioners.make_questioner`; this node only converts messages and keeps one questioner's episode:
 
-- the episode is (task id, seed); a request of another episode, or step 0 with an empty dialogue,
-  starts it afresh (`reset(public task, seed)`), exactly as the in-process `QuestioningAgent` does;
+- the episode is the request's `episode` (the performer node sends its RunTask goal's id, so each goal
+  is one episode and a task played again is a new one); a request of another episode starts it afresh
+  (`reset(public task, seed)`), exactly as the in-process `QuestioningAgent` does. A request without an
+  `episode` (a client of its own) is of the episode (task id, seed), and step 0 with an empty dialogue
+  starts it afresh too;
 - the QAs of the request's dialogue the questioner has not heard yet are handed to `hear` first;
 - the confusion questioner, and a learned one with the confusion timing, decide from the request's
   `confusion_gap` (an error reply when it is < 0); a learned one reads the request's frame (rgb8);
@@ -89,7 +92,7 @@ class QuestionerNode(Node):
         self.name = name
         self.questioner = make_questioner(name)       # ValueError: said in one line by main()
         self.retime(p('timing').value, int(p('gap').value), float(p('epsilon').value))
-        self.episode = None        # (task_id, seed) being played
+        self.episode = None        # the episode being played: the requests' `episode`, or (task_id, seed)
         self.heard = 0             # QAs of the episode's dialogue handed to the questioner
         self.last = None           # (request key, reply fields) of the last request
         self.question_pub = self.create_publisher(QAPair, 'questioner/question', 100)
@@ -139,7 +142,7 @@ class QuestionerNode(Node):
 
     @error_reply()
     def on_ask(self, request: QuestionerAsk.Request, response: QuestionerAsk.Response) -> QuestionerAsk.Response:
-        episode = (request.task.task_id, int(request.seed))
+        episode = request.episode or (request.task.task_id, int(request.seed))
         key = (episode, int(request.step), len(request.dialogue), float(request.confusion_gap))
         if self.last is not None and self.last[0] == key:
             response.ok, response.ask, response.question_type, response.object_noun = self.last[1]
@@ -148,7 +151,7 @@ class QuestionerNode(Node):
         if refusal:
             response.ok, response.error = False, refusal
             return response
-        if episode != self.episode or (request.step == 0 and not request.dialogue):
+        if episode != self.episode or (not request.episode and request.step == 0 and not request.dialogue):
             self.questioner.reset(public_task_from_msg(request.task), int(request.seed))
             self.episode, self.heard = episode, 0
         if len(request.dialogue) < self.heard:

@@ -34,6 +34,30 @@ DEFAULT_RESOLUTION = BODY.resolution   # see docs/figures.md: 4x the frame rate 
 CLIENT_RECYCLE_BUILDS = 200
 
 
+def parse_step_action(action, resolution: int) -> tuple[Action, tuple[int, int]]:
+    """What `DialfredEnv.step` takes, as (the action, its target pixel): an action name, or a dict with an
+    'action' key and, for an interaction, a 'pixel' of two integers inside the resolution x resolution
+    frame ((-1, -1) for any other action). ValueError saying what is wrong otherwise."""
+    pixel: Any = (-1, -1)
+    if isinstance(action, dict):
+        if 'action' not in action:
+            raise ValueError("action dict needs an 'action' key")
+        name, pixel = action['action'], action.get('pixel', (-1, -1))
+    else:
+        name = action
+    act = parse_action(name)
+    if act.is_interaction:
+        # Exactly two integers: a float, a digit string or a bool is a caller's bug, not a pixel.
+        values = list(pixel) if isinstance(pixel, (tuple, list, np.ndarray)) else None
+        if values is None or len(values) != 2 or not all(_is_integer(v) for v in values):
+            raise ValueError(f'{act.name} needs a target pixel (x, y) of two integers, got {pixel!r}')
+        px, py = int(values[0]), int(values[1])
+        if not (0 <= px < resolution and 0 <= py < resolution):
+            raise ValueError(f'pixel ({px}, {py}) is outside the {resolution}x{resolution} frame')
+        return act, (px, py)
+    return act, (-1, -1)
+
+
 class DialfredEnv(gym.Env):
     """A household room, an agent with ALFRED's actions, and ground truth for tasks and the oracle.
 
@@ -127,7 +151,7 @@ class DialfredEnv(gym.Env):
             raise RuntimeError('step() before reset()')
         if self.done:
             raise RuntimeError('the episode is over; call reset()')
-        act, pixel = self._parse(action)
+        act, pixel = parse_step_action(action, self.resolution)
         _, depth, seg = self._frame
         result = execute(self.world, act, pixel, depth, seg)
         self.steps += 1
@@ -300,26 +324,6 @@ class DialfredEnv(gym.Env):
             self.client = None
 
     # ------------------------------------------------------------------ helpers
-
-    def _parse(self, action) -> tuple[Action, tuple[int, int]]:
-        pixel: Any = (-1, -1)
-        if isinstance(action, dict):
-            if 'action' not in action:
-                raise ValueError("action dict needs an 'action' key")
-            name, pixel = action['action'], action.get('pixel', (-1, -1))
-        else:
-            name = action
-        act = parse_action(name)
-        if act.is_interaction:
-            # Exactly two integers: a float, a digit string or a bool is a caller's bug, not a pixel.
-            values = list(pixel) if isinstance(pixel, (tuple, list, np.ndarray)) else None
-            if values is None or len(values) != 2 or not all(_is_integer(v) for v in values):
-                raise ValueError(f'{act.name} needs a target pixel (x, y) of two integers, got {pixel!r}')
-            px, py = int(values[0]), int(values[1])
-            if not (0 <= px < self.resolution and 0 <= py < self.resolution):
-                raise ValueError(f'pixel ({px}, {py}) is outside the {self.resolution}x{self.resolution} frame')
-            return act, (px, py)
-        return act, (-1, -1)
 
     def _observation(self) -> dict[str, np.ndarray]:
         rgb, depth, seg = self._frame

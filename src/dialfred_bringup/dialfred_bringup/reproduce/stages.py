@@ -34,8 +34,7 @@ from ..evaluation import EvalRun, resumable_results
 from ..machine import machine, speed_probe
 from ..paths import REPO
 from .document import (build_report, copy_doc, write_outputs)
-from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, Setting,
-                   chained_settings, settings)
+from .plan import (TRAINING, sha256_of, Plan, RL_RUNS, ReproduceConfig, SHIPPED_RUN, STAGES, chained_settings, settings)
 
 
 # --------------------------------------------------------------------------------------------- stages
@@ -196,6 +195,28 @@ def dialogues_from(folder: Optional[Path]):
             os.environ.pop(DIALOGUE_CACHE_ENV, None)
         else:
             os.environ[DIALOGUE_CACHE_ENV] = old
+
+
+def graph_check(p: Plan, progress: bool, log: Callable[[str], None]) -> dict:
+    """The check stage: the first p.check_tasks tasks of every setting played through the graph (performer,
+    questioner, oracle and simulator nodes), each episode compared with the eval stage's; check/report.json."""
+    p.check_dir.mkdir(parents=True, exist_ok=True)
+    report = {'tasks': p.check_tasks, 'eval_path': p.eval_path, 'settings': {}}
+    for s in p.check_settings():
+        config = p.eval_config(s, check=True)
+        t0 = time.monotonic()
+        run_baseline(config, progress)
+        ids = [t.task_id for t in load_split(s.split)[:config.limit]]
+        graph = resumable_results(EvalRun(config, check=False), ids)
+        tables = resumable_results(EvalRun(p.eval_config(s), check=False), ids)
+        differing = [i for i in ids if i not in tables or not same_episode(graph[i], tables[i])]
+        report['settings'][f'{s.split}/{s.key}'] = {'episodes': len(ids), 'differing': differing,
+                                                    'seconds': round(time.monotonic() - t0, 1)}
+        log(f'check: {s.split} {s.key}: {len(ids) - len(differing)} of {len(ids)} episodes the same '
+             'through the graph')
+    write_text_atomically(p.check_dir / 'report.json', json.dumps(report, indent=1) + '\n')
+    return {'episodes': sum(r['episodes'] for r in report['settings'].values()),
+            'differing': sum(len(r['differing']) for r in report['settings'].values())}
 
 
 class Runner:
@@ -429,29 +450,15 @@ class Runner:
         return {'items': items}
 
     def eval(self, resume: bool) -> dict:
-        p = self.plan
-
-        def silent(s: Setting):
-            # The no-question setting of each performer and split keeps its episodes; the other settings take
-            # an episode from there when their questioner would ask nothing in it (dialfred_bringup.silent).
-            return ('replay' if s.questioner else 'record', p.eval_dir / 'silent' / f'{s.split}_{s.performer}') \
-                if p.eval_path == 'local' else None
-        return self.evaluations('eval', settings(), p.eval_dir, p.eval_config, EVAL_CODE, silent)
+        return self.evaluations('eval', settings(), self.plan.eval_dir, self.plan.eval_config, EVAL_CODE)
 
     def chained(self, resume: bool) -> dict:
         """The settings of plan.CHAINED_KEYS under the chained protocol (DialFRED's challenge test), one item each."""
         p = self.plan
-
-        def silent(s: Setting):
-            # as the eval stage's, a chained episode a unit (dialfred_bringup.silent): the no-question setting of
-            # each performer comes first in CHAINED_KEYS and keeps its episodes
-            return ('replay' if s.questioner else 'record', p.chained_dir / 'silent' / f'{s.split}_{s.performer}') \
-                if p.eval_path == 'local' else None
         return self.evaluations('chained', chained_settings(), p.chained_dir,
-                                lambda s: p.eval_config(s, chained=True), CHAINED_CODE, silent)
+                                lambda s: p.eval_config(s, chained=True), CHAINED_CODE)
 
-    def evaluations(self, stage: str, chosen: list, folder: Path, config_of: Callable, code: tuple,
-                    silent_of: Callable) -> dict:
+    def evaluations(self, stage: str, chosen: list, folder: Path, config_of: Callable, code: tuple) -> dict:
         """The eval or chained stage: each available setting of `chosen` played (`config_of(setting)`) as an item
         of its own, its results in `folder`."""
         p, items = self.plan, {}
@@ -470,7 +477,11 @@ class Runner:
             # the results file and its companions (summary, runs, lock, tasks record, trace): <split>_<key>.*
             outputs = sorted(folder.glob(f'{s.split}_{s.key}.*'))
 
-            silent = silent_of(s)
+            # Played locally, the no-question setting of each performer and split (first in `chosen`) keeps its
+            # episodes in folder/silent/ (a chained episode whole); the other settings take an episode from there
+            # when their questioner would ask nothing in it (dialfred_bringup.silent).
+            silent = (('replay' if s.questioner else 'record', folder / 'silent' / f'{s.split}_{s.performer}')
+                      if p.eval_path == 'local' else None)
 
             def run(resume: bool, config=config, silent=silent) -> dict:
                 run_baseline(config, self.cfg.progress, silent)    # resumes a cut-off results file; its wall time
@@ -481,24 +492,7 @@ class Runner:
 
     def check(self, resume: bool) -> dict:
         """Play the first tasks of every setting through the graph; compare with the eval stage's episodes."""
-        p = self.plan
-        p.check_dir.mkdir(parents=True, exist_ok=True)
-        report = {'tasks': p.check_tasks, 'eval_path': p.eval_path, 'settings': {}}
-        for s in p.check_settings():
-            config = p.eval_config(s, check=True)
-            t0 = time.monotonic()
-            run_baseline(config, self.cfg.progress)
-            ids = [t.task_id for t in load_split(s.split)[:config.limit]]
-            graph = resumable_results(EvalRun(config, check=False), ids)
-            tables = resumable_results(EvalRun(p.eval_config(s), check=False), ids)
-            differing = [i for i in ids if i not in tables or not same_episode(graph[i], tables[i])]
-            report['settings'][f'{s.split}/{s.key}'] = {'episodes': len(ids), 'differing': differing,
-                                                        'seconds': round(time.monotonic() - t0, 1)}
-            self.log(f'check: {s.split} {s.key}: {len(ids) - len(differing)} of {len(ids)} episodes the same '
-                     'through the graph')
-        write_text_atomically(p.check_dir / 'report.json', json.dumps(report, indent=1) + '\n')
-        return {'episodes': sum(r['episodes'] for r in report['settings'].values()),
-                'differing': sum(len(r['differing']) for r in report['settings'].values())}
+        return graph_check(self.plan, self.cfg.progress, self.log)
 
     def doc(self, resume: bool) -> dict:
         report = build_report(self.plan, self.cfg.resamples)

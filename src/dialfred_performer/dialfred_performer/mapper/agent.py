@@ -314,18 +314,6 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
             self._take_in(self._heard.popleft())
         return key
 
-    def _fork(self) -> 'MapAgent':
-        """A copy whose decision changes nothing of this agent's state (the network, the frame's
-        perception and the map's arrays are shared; the map's give-ups are copied)."""
-        twin = copy.copy(self)
-        for name, value in self.__dict__.items():
-            if name not in _SHARED:
-                setattr(twin, name, copy.deepcopy(value))
-        twin.map = copy.copy(self.map)
-        twin.map.excluded = {k: v.copy() for k, v in self.map.excluded.items()}
-        twin.map.blocked, twin.map.visited = set(self.map.blocked), set(self.map.visited)
-        return twin
-
     def _outputs(self) -> tuple:
         action, r, c, point = self._decide()
         return action, r, c, point, self.confidence
@@ -334,7 +322,7 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         """Probabilities over ACTIONS of the next action: the chosen one gets the agent's confidence,
         the rest is spread over the others (the model-confusion questioner's signal)."""
         key = self._observe(observation)
-        twin = self._fork()
+        twin = forked(self)
         outputs = twin._outputs()
         self._pending = (key, self.answers, twin, outputs)
         confidence, action = outputs[4], outputs[0]
@@ -365,3 +353,16 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self.last = (action, step, point)
         self.step += 1
         return action, x, y
+
+
+def forked(agent: MapAgent) -> MapAgent:
+    """A copy of `agent` whose decision changes nothing of the agent's state (the network, the frame's
+    perception and the map's arrays are shared; the map's give-ups are copied)."""
+    twin = copy.copy(agent)
+    for name, value in agent.__dict__.items():
+        if name not in _SHARED:
+            setattr(twin, name, copy.deepcopy(value))
+    twin.map = copy.copy(agent.map)
+    twin.map.excluded = {k: v.copy() for k, v in agent.map.excluded.items()}
+    twin.map.blocked, twin.map.visited = set(agent.map.blocked), set(agent.map.visited)
+    return twin
