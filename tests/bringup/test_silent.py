@@ -120,7 +120,7 @@ def silent_episodes(results) -> int:
 
 
 @pytest.mark.parametrize('settings, tasks', [
-    ({'questioner': 'rl-anytime-chained'}, 24),             # 3 episodes, the first of which asks
+    ({'questioner': 'rl-anytime-chained'}, 17),             # 2 episodes, the first of which asks
     pytest.param({'questioner': 'map-rl-anytime', 'agent': 'map', 'resolution': 128}, 30, marks=pytest.mark.slow)])
 def test_a_replayed_chained_episode_is_the_played_one_task_by_task(tmp_path, settings, tasks):
     folder = str(tmp_path / 'silent')
