@@ -11,7 +11,7 @@ import pytest
 
 from dialfred_sim.metrics import (END_REASONS, EpisodeResult, TruncatedResultsWarning, append_result, end_reason,
                                   failures, format_table, intervals, load_results, results_by_task, summarize)
-from dialfred_sim.tasks.schema import TASK_TYPES
+from dialfred_sim.tasks.types import TASK_TYPES
 
 
 def result(task_id='valid_unseen/000001', task_type='Pick', success=True, met=1, total=1, steps=10, expert=10,

@@ -33,7 +33,7 @@ import numpy as np
 
 from .chained import episode_metrics
 from .protocol import DEFAULT_PROTOCOL, MAX_FAILURES, PROTOCOLS
-from .tasks.schema import TASK_TYPES
+from .tasks.types import task_types
 
 END_REASONS = ('success', 'stop', 'max_steps', 'max_failures', 'error')
 
@@ -182,8 +182,10 @@ def episode_result(task, outcome, dialogue: list, *, agent: str, oracle: str, se
 
 def has_goto(task_type: str) -> bool:
     """Whether a task type's steps include a go-to ('Move & Pick'): its goal then includes standing within 4
-    actions of the expert's end pose (DialFRED's rule)."""
-    return 'Move' in task_type
+    actions of the expert's end pose (DialFRED's rule). A type not registered in this process (a results
+    file of someone's own types) has one when its name says Move."""
+    known = {kind.name: kind for kind in task_types()}
+    return known[task_type].has_goto if task_type in known else 'Move' in task_type
 
 
 def dialogue_entry(question_type: str, object_noun: str, valid: bool, answer: str) -> dict:
@@ -265,8 +267,10 @@ def _row(results: list[EpisodeResult]) -> dict:
 
 
 def type_order(task_type: str) -> tuple:
-    """Sort key: the paper's task order, unknown types after it by name."""
-    return (TASK_TYPES.index(task_type), '') if task_type in TASK_TYPES else (len(TASK_TYPES), task_type)
+    """Sort key: the registry's order (the paper's table, then types registered after it), unknown types
+    after them by name."""
+    names = [kind.name for kind in task_types()]
+    return (names.index(task_type), '') if task_type in names else (len(names), task_type)
 
 
 def summarize(results: Iterable[EpisodeResult]) -> dict:

@@ -155,7 +155,7 @@ CODE = {
 # since it ran says so.
 WORLD_CODE = ('src/dialfred_sim/dialfred_sim/world', 'src/dialfred_sim/dialfred_sim/actions.py',
               'src/dialfred_sim/dialfred_sim/env.py', 'src/dialfred_sim/dialfred_sim/tasks/expert.py',
-              'src/dialfred_sim/dialfred_sim/tasks/goals.py')
+              'src/dialfred_sim/dialfred_sim/tasks/goals.py', 'src/dialfred_sim/dialfred_sim/tasks/types.py')
 
 
 def world_code_hash(raw: bool = False) -> str:

@@ -1,4 +1,4 @@
-"""Goal conditions of the 25 task types and their check against the world (like ALFRED's
+"""Goal conditions of the task types and their check against the world (like ALFRED's
 `goal_conditions_met`): which conditions hold now, success when all do, and the goal-condition
 progress GC counts (`goal_progress`: only the conditions that did not hold at the task's start).
 
@@ -24,6 +24,7 @@ from ..world.camera import reach_lengths
 from ..world.objects import COLD, HOT
 from ..world.scene import World
 from .schema import Condition, Primitive, Task
+from .types import task_type as task_type_named
 
 MIN_REACHABLE_PIXELS = 4     # at 128x128; scaled with the frame area
 NEAR_ACTIONS = 4             # DialFRED: a go-to is done when fewer than min_reach_distance (5) actions remain
@@ -140,15 +141,16 @@ def needs_frame(goal: Sequence[Condition]) -> bool:
 
 def rule_goal(task_type: str, goal: Sequence[Condition], rule: str) -> list[Condition]:
     """The goal of a task of `task_type` under goal rule `rule`, from its goal under DialFRED's
-    (`goal_for`): under 'visible', a Move or Pick & Move task wants its target in view and within
-    reach where DialFRED wants the expert's pose, and the other tasks drop their pose condition."""
+    (`goal_for`): under 'visible', a type that `shows_target` (Move, Pick & Move) wants its target in
+    view and within reach where DialFRED wants the expert's pose, and the other types drop their pose
+    condition."""
     if check_goal_rule(rule) == 'dialfred':
         return list(goal)
     out = []
     for c in goal:
         if c.kind != 'near':
             out.append(c)
-        elif task_type in ('Move', 'Pick & Move'):
+        elif task_type_named(task_type).shows_target:
             out.append(Condition('reachable', c.obj))
     return out
 
@@ -179,7 +181,7 @@ def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, 
     `world_types` maps object ids to type names (receptacles are matched by type, as ALFRED does;
     the object acted on is the very instance, which appearance questions tell apart); `poses` are
     the episode's expert poses (the pose before each action, and at the end)."""
-    conds = _object_goal(task_type, prims, world_types)
+    conds = task_type_named(task_type).goal(prims, world_types)
     gotos = [p for p in prims if p.kind == 'goto']
     if gotos:
         # Neither ALFRED's expert nor ours walks inside an interaction, so the pose where the task's
@@ -187,42 +189,3 @@ def goal_for(task_type: str, prims: Sequence[Primitive], world_types: dict[str, 
         # (Task.expert_end_pose, which the direction answers point to).
         conds.append(Condition('near', gotos[-1].target, pose_arg(poses[prims[-1].end])))
     return conds
-
-
-def _object_goal(task_type: str, prims: Sequence[Primitive], world_types: dict[str, str]) -> list[Condition]:
-    last = prims[-1]
-    main = task_type.split(' & ')[-1] if task_type.startswith('Move & ') else task_type
-    if main in ('Clean', 'Cool', 'Heat'):
-        state = {'Clean': 'clean', 'Cool': 'cold', 'Heat': 'hot'}[main]
-        if main == 'Clean':   # put in basin, faucet on, faucet off, pick up
-            obj, faucet = last.target, prims[-3].target
-            return [Condition('clean', obj), Condition('holding', obj), Condition('off', faucet)]
-        appliance = last.target   # the fridge or microwave, closed last
-        pickup = prims[-2]
-        return [Condition(state, pickup.target), Condition('holding', pickup.target), Condition('closed', appliance)]
-    if main == 'Move':
-        return []
-    if main == 'Pick & Move':
-        return [Condition('holding', prims[0].target)]
-    if main == 'Open':
-        return [Condition('open', last.target)]
-    if main == 'Close':
-        return [Condition('closed', last.target)]
-    if main == 'Pick':
-        return [Condition('holding', last.target)]
-    if main in ('Put', 'Pick & Move & Put'):
-        return [Condition('in', last.target, world_types[last.receptacle])]
-    if main == 'Slice':
-        return [Condition('sliced', last.target)]
-    if main == 'Turn on':
-        return [Condition('on', last.target)]
-    if main == 'Turn off':
-        return [Condition('off', last.target)]
-    if main == 'Open & Pick & Close':
-        return [Condition('holding', prims[1].target), Condition('closed', last.target)]
-    if main == 'Open & Put & Close':
-        put = prims[1]
-        return [Condition('in', put.target, world_types[put.receptacle]), Condition('closed', last.target)]
-    if main == 'Pick & Move & Slice':
-        return [Condition('sliced', last.target), Condition('holding', prims[0].target)]
-    raise ValueError(f'unknown task type {task_type!r}')

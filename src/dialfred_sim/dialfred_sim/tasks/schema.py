@@ -3,7 +3,7 @@
 An `Episode` is one ALFRED-style household job (e.g. heat an apple and put it on the table) played by
 the expert: its room and seed, the set-up that makes the job possible, the expert's low-level actions
 and the primitives (go to, pick up, put, open, ...) they form. A `Task` is a run of consecutive
-primitives of an episode with one of the 25 DialFRED task types; its initial state is the world as the
+primitives of an episode with one of the DialFRED task types (`types`); its initial state is the world as the
 expert left it at the task's first action.
 """
 
@@ -11,14 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Optional
-
-# The 25 DialFRED task types, in the order of the paper's table.
-TASK_TYPES: tuple[str, ...] = (
-    'Clean', 'Close', 'Cool', 'Heat', 'Move', 'Open', 'Pick', 'Put', 'Slice', 'Turn on', 'Turn off',
-    'Move & Clean', 'Move & Close', 'Move & Cool', 'Move & Heat', 'Move & Open', 'Move & Pick',
-    'Move & Put', 'Move & Slice', 'Move & Turn on', 'Open & Pick & Close', 'Open & Put & Close',
-    'Pick & Move', 'Pick & Move & Put', 'Pick & Move & Slice',
-)
 
 PRIMITIVE_KINDS = ('goto', 'pickup', 'put', 'open', 'close', 'toggle_on', 'toggle_off', 'slice')
 
