@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dialfred_performer.data import COMBINATIONS, DemonstrationDataset, collate, held_out
+from dialfred_performer.data import type_combinations, DemonstrationDataset, collate, held_out
 from dialfred_performer.model import load_checkpoint
 from dialfred_performer.nn.heads import cell_centre_pixel
 from dialfred_sim.tasks.demonstrations import default_dir
@@ -28,7 +28,7 @@ from dialfred_sim.tasks.demonstrations import default_dir
 def measure(checkpoint: Path, folder: Path, fraction: float, limit: int, batch: int) -> dict:
     model, vocab, info = load_checkpoint(checkpoint)
     cfg = model.config
-    ds = DemonstrationDataset(folder, vocab, cfg.resolution, cfg.max_tokens, combinations=(COMBINATIONS[-1],),
+    ds = DemonstrationDataset(folder, vocab, cfg.resolution, cfg.max_tokens, combinations=(type_combinations()[-1],),
                               grid_size=cfg.grid_size)
     if ds.demo.labels is None:
         raise SystemExit(f'{folder} has no labels: build it with prepare-performer --labels')

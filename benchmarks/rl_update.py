@@ -17,7 +17,7 @@ import time
 
 import torch
 
-from dialfred_questioner.model import Questioner, QuestionerConfig, TYPE_TOKENS
+from dialfred_questioner.model import Questioner, QuestionerConfig, type_tokens
 from dialfred_questioner.policy import TOKEN_BUDGET, Record, batch_records, score_records
 
 VOCAB, NOUNS, INSTRUCTION, QA_TOKENS = 800, 80, 14, 12
@@ -33,7 +33,7 @@ def records(long_decisions: int, seed: int = 0) -> list[Record]:
             n = INSTRUCTION + QA_TOKENS * d
             ids = tuple(torch.randint(1, VOCAB, (n,), generator=g).tolist())
             types = tuple([0] * INSTRUCTION + [1 + (k // QA_TOKENS) % 3 for k in range(n - INSTRUCTION)])
-            qtype = int(torch.randint(0, len(TYPE_TOKENS), (1,), generator=g))
+            qtype = int(torch.randint(0, len(type_tokens()), (1,), generator=g))
             out.append(Record(ids, types, torch.randn(config.image, generator=g), d, qtype,
                               int(torch.randint(0, NOUNS, (1,), generator=g))))
     return out

@@ -26,12 +26,12 @@ import jinja2
 import numpy as np
 
 from dialfred_oracle.annotator import (  # noqa: F401  (SEED, ANNOTATORS, annotator_rng: the tests read them here)
-    ANNOTATION_RESOLUTION, ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, CATEGORIES, CHOICE_MODEL,
-    LENGTH_MEAN, LENGTH_SHAPE, NECESSARY_P, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics,
+    ANNOTATION_RESOLUTION, ANNOTATION_SEED as SEED, ANNOTATORS, annotate_task, annotator_rng, categories, choice_model,
+    LENGTH_MEAN, LENGTH_SHAPE, necessary_p, Situation, TaskDialogues, annotate, dialogue_path, dialogue_statistics,
     evidence, expected_statistics, fit_choice_model, load_dialogues, write_dialogues)
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.progress import progress_bar
-from dialfred_sim.protocol import QUESTION_TEMPLATES, QUESTION_TYPES
+from dialfred_sim.protocol import question_kinds
 from dialfred_sim.tasks import SPLIT_SIZES, load_split
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -146,7 +146,7 @@ def situation_shares(rows: Sequence[TaskDialogues]) -> dict[str, dict[str, float
     for label, test in groups.items():
         picked = [a for r in rows if test(r.situation) for a in r.annotations]
         out[label] = {'annotations': len(picked),
-                      **{c: round(sum(a.category == c for a in picked) / max(len(picked), 1), 4) for c in CATEGORIES}}
+                      **{c: round(sum(a.category == c for a in picked) / max(len(picked), 1), 4) for c in categories()}}
     return out
 
 
@@ -178,12 +178,12 @@ def doc_text(stats: dict[str, dict], shares: dict[str, dict], absent: Sequence[s
              examples: Sequence[TaskDialogues]) -> str:
     """docs/dialogue_data.md (its first line says that the data is synthetic); the words are
     templates/dialogue_data.md.j2, the model's numbers and the tables come from here."""
-    m = CHOICE_MODEL
+    m = choice_model()
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).resolve().parent / 'templates'),
                              autoescape=False, keep_trailing_newline=True, undefined=jinja2.StrictUndefined)
     names = list(stats)
     stats_rows = [[label] + [value(stats[n]) for n in names] + [paper] for label, value, paper in STAT_ROWS]
-    share_rows = [[label, f"{v['annotations']:,}"] + [f'{v[c]:.2f}' for c in CATEGORIES] for label, v in shares.items()]
+    share_rows = [[label, f"{v['annotations']:,}"] + [f'{v[c]:.2f}' for c in categories()] for label, v in shares.items()]
     example_rows = []
     for r in examples:
         for a in r.annotations:
@@ -193,13 +193,13 @@ def doc_text(stats: dict[str, dict], shares: dict[str, dict], absent: Sequence[s
                                  str(a.annotator_id), asked.replace('|', '/'),
                                  a.oracle_answer.replace('|', '/') if a.question_type else ''])
     return env.get_template('dialogue_data.md.j2').render(
-        seed=SEED, questions=', '.join(f'"{QUESTION_TEMPLATES[t]}"' for t in QUESTION_TYPES),
-        strength=m.strength, bias=', '.join(f'{c} {b:+.3f}' for c, b in zip(CATEGORIES, m.bias)),
+        seed=SEED, questions=', '.join(f'"{q.template}"' for q in question_kinds()),
+        strength=m.strength, bias=', '.join(f'{c} {b:+.3f}' for c, b in zip(categories(), m.bias)),
         length_shape=f'{LENGTH_SHAPE:g}', length_mean=f'{LENGTH_MEAN - 1:g}',
-        necessary='; '.join(f'{t} {lo} / {hi}' for t, (lo, hi) in NECESSARY_P.items()),
+        necessary='; '.join(f'{t} {lo} / {hi}' for t, (lo, hi) in necessary_p().items()),
         absent=', '.join(f'`{s}`' for s in absent),
         stats_table='\n'.join(table(['statistic', *names, 'paper (human)'], stats_rows, 'l' + 'r' * (len(names) + 1))),
-        shares_table='\n'.join(table(['situation', 'annotations', *CATEGORIES], share_rows, 'lr' + 'r' * len(CATEGORIES))),
+        shares_table='\n'.join(table(['situation', 'annotations', *categories()], share_rows, 'lr' + 'r' * len(categories()))),
         examples_split=EXAMPLES_SPLIT,
         examples_table='\n'.join(table(['task', 'instruction', 'annotator', 'question -> free-form answer',
                                         'oracle\'s answer'], example_rows, 'lllll')))
@@ -210,7 +210,7 @@ def pick_examples(rows: Sequence[TaskDialogues], count: int = EXAMPLE_COUNT) -> 
     choice (none included), the rest with two questions; in task order."""
     order = [rows[int(k)] for k in np.random.default_rng(SEED).permutation(len(rows))]
     picked: list[TaskDialogues] = []
-    want = set(CATEGORIES)
+    want = set(categories())
     for first_pass in (True, False):
         for r in order:
             kinds = {a.category for a in r.annotations}
@@ -257,9 +257,9 @@ def main(argv=None) -> int:
         situations = [s for split in ('valid_seen', 'valid_unseen') for s in valid_situations(split, args.workers)]
         model = fit_choice_model(situations)
         shares, kappa = expected_statistics(model, situations)
-        print(json.dumps({'model': repr(model), 'expected_shares': dict(zip(CATEGORIES, shares.round(4).tolist())),
+        print(json.dumps({'model': repr(model), 'expected_shares': dict(zip(categories(), shares.round(4).tolist())),
                           'expected_kappa': round(kappa, 4),
-                          'mean_evidence': dict(zip(CATEGORIES, np.mean([evidence(s) for s in situations], 0)
+                          'mean_evidence': dict(zip(categories(), np.mean([evidence(s) for s in situations], 0)
                                                     .round(4).tolist()))}, indent=1))
         return 0
     timings = {}

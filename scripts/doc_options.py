@@ -39,7 +39,7 @@ def parameter_table(module: str) -> str:
     repo = str(DOCS.parent)
     for p in importlib.import_module(module).PARAMETERS:
         values = (f'{p.span[0]} to {p.span[1]}' if p.span else
-                  ', '.join(f'`{c!r}`' if c == '' else f'`{c}`' for c in p.choices) if p.choices else
+                  ', '.join(f'`{c!r}`' if c == '' else f'`{c}`' for c in p.allowed()) if p.choices else
                   '`true`, `false`' if isinstance(p.default, bool) else 'any')
         default = p.default
         if isinstance(default, str) and default.startswith(repo + '/'):

@@ -24,7 +24,7 @@ import torch
 
 import dialfred_bringup.reproduce as reproduce
 from dialfred_bringup.machine import speed_probe
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import PAPER_QUESTION_TYPES
 
 ROOT = Path(__file__).resolve().parents[2]
 STAGES = reproduce.STAGES
@@ -370,7 +370,7 @@ def test_why_lines_price_a_question_and_read_the_sampled_mixes(tmp_path):
     for name, mixes in (('rl_anytime', [(0.9, 0.1, 0.0)] * 10), ('rl_anytime_withhold_location', [(0.6, 0.3, 0.1)] * 10)):
         (run / 'questioner' / name).mkdir(parents=True)
         (run / 'questioner' / name / 'metrics.jsonl').write_text(''.join(
-            json.dumps({'update': i, 'episodes': 64, 'nq': 1.0, 'mix': dict(zip(QUESTION_TYPES, m))}) + '\n'
+            json.dumps({'update': i, 'episodes': 64, 'nq': 1.0, 'mix': dict(zip(PAPER_QUESTION_TYPES, m))}) + '\n'
             for i, m in enumerate(mixes)))
     plan = reproduce.Plan(reproduce.ReproduceConfig(out=str(run)))
     lines = reproduce.why_lines(plan, rows)

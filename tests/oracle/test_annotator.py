@@ -19,11 +19,12 @@ import numpy as np
 import pytest
 
 from dialfred_oracle.annotator import (
-    CATEGORIES, CHOICE_MODEL, PAPER_HUMAN, QUESTION_TYPES, REAR_BINS, Annotation, ChoiceModel, Situation,
+    PAPER_HUMAN, REAR_BINS, Annotation, ChoiceModel, Situation, categories, choice_model,
     annotate, answer_content, answer_words, dialogue_statistics, dialogue_path, expected_statistics,
     fit_choice_model, fleiss_kappa, load_dialogues)
 from dialfred_oracle.answers import answer
 from dialfred_sim.ground_truth import ObjectFact, Snapshot
+from dialfred_sim.protocol import PAPER_QUESTION_TYPES
 from dialfred_sim.tasks import SPLIT_SIZES, load_split
 from dialfred_sim.tasks.schema import Primitive
 
@@ -78,7 +79,7 @@ def pick_task(target='Apple_0', noun='apple', visible=True, nouns=None, instruct
 
 def forced(question_type: str) -> ChoiceModel:
     """A choice model that always picks `question_type` (or none)."""
-    return ChoiceModel(0.0, tuple(50.0 if c == (question_type or 'none') else -50.0 for c in CATEGORIES))
+    return ChoiceModel(0.0, tuple(50.0 if c == (question_type or 'none') else -50.0 for c in categories()))
 
 
 # ---------------------------------------------------------------------- Fleiss' kappa
@@ -151,7 +152,7 @@ def test_situation_knows_a_target_shut_in_the_fridge_and_what_the_agent_holds():
 
 
 def test_choices_follow_the_situation():
-    p = {c: dict(zip(CATEGORIES, CHOICE_MODEL.probabilities(Situation.of(t, k))))
+    p = {c: dict(zip(categories(), choice_model().probabilities(Situation.of(t, k))))
          for c, (t, k) in {'clear': (pick_task(instruction='Go to the counter, pick up the apple.'),
                                      kitchen(apple_twin=False)),
                            'hidden': (pick_task(visible=False), kitchen(apple_twin=False)),
@@ -235,7 +236,7 @@ def test_annotating_the_same_task_twice_gives_the_same_annotation():
 def test_answer_lengths_are_calibrated_around_the_papers_mean():
     task, snap = pick_task(visible=False), kitchen()
     words = [answer_words(a.answer) for seed in range(400)
-             for a in [annotate(task, snap, np.random.default_rng(seed), 0, model=forced(QUESTION_TYPES[seed % 3]))]]
+             for a in [annotate(task, snap, np.random.default_rng(seed), 0, model=forced(PAPER_QUESTION_TYPES[seed % 3]))]]
     assert abs(np.mean(words) - PAPER_HUMAN['answer_words']) < 1.0
     assert min(words) <= 3 and max(words) >= 10
 
@@ -261,7 +262,7 @@ def test_every_valid_task_has_two_annotations(shipped):
         for r in rows:
             assert [a.annotator_id for a in r.annotations] == [0, 1]
             for a in r.annotations:
-                assert a.question_type in (None, *QUESTION_TYPES)
+                assert a.question_type in (None, *PAPER_QUESTION_TYPES)
                 assert bool(a.question_type) == bool(a.question) == bool(a.answer) == (a.necessary is not None)
 
 
@@ -315,8 +316,8 @@ def test_the_doc_says_synthetic_first_and_states_the_shipped_statistics(shipped_
 
 def test_the_doc_shows_the_fitted_model():
     text = DOC.read_text()
-    assert f'strength = {CHOICE_MODEL.strength}' in text
-    assert all(f'{c} {b:+.3f}' in text for c, b in zip(CATEGORIES, CHOICE_MODEL.bias))
+    assert f'strength = {choice_model().strength}' in text
+    assert all(f'{c} {b:+.3f}' in text for c, b in zip(categories(), choice_model().bias))
 
 
 # ---------------------------------------------------------------------- with the real simulator

@@ -8,10 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dialfred_oracle.answers import (DIRECTION_BINS, MAX_NOUN_CHARS, QUESTION_TYPES, STAY, TURN_AROUND, TURN_LEFT,
+from dialfred_oracle.answers import (DIRECTION_BINS, MAX_NOUN_CHARS, STAY, TURN_AROUND, TURN_LEFT,
                                      TURN_RIGHT, GO_STRAIGHT, Answer, Perturbation, answer, answer_now,
                                      check_answer, direction_bin, question_text, refusal_on_its_face,
                                      situation_key)
+from dialfred_sim.protocol import PAPER_QUESTION_TYPES
 from dialfred_oracle.colours import (SHADE_MAX, SHADE_MIN, _nearest_shaded_colour, colour_name,
                                      pixel_labels)
 from dialfred_sim.ground_truth import (Appearance, ObjectFact, Snapshot, appearance, snapshot,
@@ -360,8 +361,8 @@ def test_perturbation_withholds_one_type_at_the_given_rate_deterministically():
     assert not any(p.withhold(q, key) for q in ('appearance', 'direction', 'bogus') for key in keys[:500])
     rare = Perturbation('app', 0.2, seed=0)
     assert abs(np.mean([rare.withhold('appearance', key) for key in keys]) - 0.2) < 0.015
-    assert not any(Perturbation().withhold(q, key) for q in QUESTION_TYPES for key in keys[:100])
-    assert all(Perturbation('', 1.0).withhold(q, 'k') for q in QUESTION_TYPES)
+    assert not any(Perturbation().withhold(q, key) for q in PAPER_QUESTION_TYPES for key in keys[:100])
+    assert all(Perturbation('', 1.0).withhold(q, 'k') for q in PAPER_QUESTION_TYPES)
     answered = Answer(True, TURN_LEFT, question_type='direction')
     withheld = Perturbation('direction', 1.0).apply(answered, 'k')
     assert withheld.valid and withheld.text == "I don't know." and withheld.reason == ''

@@ -16,9 +16,9 @@ import pytest
 import torch
 
 from dialfred_performer.agent import PerformerAgent
-from dialfred_performer.data import COMBINATIONS, DemonstrationDataset, collate, generate_dialogues, vocabulary_texts
+from dialfred_performer.data import type_combinations, DemonstrationDataset, collate, generate_dialogues, vocabulary_texts
 from dialfred_performer.model import Performer, PerformerConfig
-from dialfred_performer.preprocess import (SPECIAL_TOKENS, TYPE_INSTRUCTION, TYPE_OF_QUESTION, AskedQA, Vocabulary,
+from dialfred_performer.preprocess import (FIXED_TOKENS, TYPE_INSTRUCTION, AskedQA, Vocabulary, type_of_question,
                                            encode_language, frame_tensor, qa_text, qa_tokens, tokenize)
 from dialfred_sim.protocol import QA, Question
 from dialfred_sim.tasks import load_split
@@ -45,7 +45,7 @@ def test_markers_are_single_tokens_never_split():
     assert toks[:2] == ['<q>', '<loc>'] and '<a>' in toks
     ids = vocab.ids(toks)
     for marker in ('<q>', '<loc>', '<a>'):
-        assert ids[toks.index(marker)] == SPECIAL_TOKENS.index(marker) != vocab.index['<unk>']
+        assert ids[toks.index(marker)] == FIXED_TOKENS.index(marker) != vocab.index['<unk>']
     assert tokenize(qa_text(qa)) == toks          # the readable string re-tokenizes to the same tokens
     assert qa_tokens(QA(Question('direction'), False, reason='no task'))[-2:] == ['<a>', '<invalid>']
 
@@ -54,7 +54,7 @@ def test_vocabulary_round_trips_through_json(tmp_path):
     vocab = Vocabulary.build(['Take the key chain.', "You don't need to move."])
     vocab.save(tmp_path / 'vocab.json')
     assert Vocabulary.load(tmp_path / 'vocab.json') == vocab
-    assert vocab.words[:len(SPECIAL_TOKENS)] == SPECIAL_TOKENS and vocab.index['<pad>'] == 0
+    assert vocab.words[:len(FIXED_TOKENS)] == FIXED_TOKENS and vocab.index['<pad>'] == 0
     assert vocab.ids(['zebra']) == [vocab.index['<unk>']]
     with pytest.raises(ValueError):
         Vocabulary(['apple', '<pad>'])
@@ -68,8 +68,8 @@ def test_each_qa_keeps_the_step_it_was_asked_at():
     n_ins = len(tokenize('Open the fridge.'))
     n_loc = len(qa_tokens(dialogue[0].qa))
     assert lang.types[:n_ins] == (TYPE_INSTRUCTION,) * n_ins and lang.steps[:n_ins] == (0,) * n_ins
-    assert set(lang.types[n_ins:n_ins + n_loc]) == {TYPE_OF_QUESTION['location']}
-    assert set(lang.steps[n_ins + n_loc:]) == {5} and set(lang.types[n_ins + n_loc:]) == {TYPE_OF_QUESTION['direction']}
+    assert set(lang.types[n_ins:n_ins + n_loc]) == {type_of_question()['location']}
+    assert set(lang.steps[n_ins + n_loc:]) == {5} and set(lang.types[n_ins + n_loc:]) == {type_of_question()['direction']}
     short = encode_language(vocab, 'Open the fridge.', dialogue, max_tokens=n_ins + len(qa_tokens(dialogue[1].qa)))
     assert short.steps[n_ins:] == (5,) * (len(short) - n_ins)      # the oldest QA is dropped first
 
@@ -80,8 +80,8 @@ def test_oracle_answer_gets_the_same_ids_in_training_and_in_evaluation(demo_dir)
     vocab = Vocabulary.build(vocabulary_texts(demo_dir))
     rows = [json.loads(line) for line in (demo_dir / 'dialogues.jsonl').read_text().splitlines()]
     assert len(rows) == 3 and all(any(q['valid'] for q in r['qas']) for r in rows)
-    everything = COMBINATIONS.index(('location', 'appearance', 'direction'))
-    ds = DemonstrationDataset(demo_dir, vocab, RES, combinations=COMBINATIONS)
+    everything = type_combinations().index(('location', 'appearance', 'direction'))
+    ds = DemonstrationDataset(demo_dir, vocab, RES, combinations=type_combinations())
     task = load_split('valid_unseen')[0].public()
     index = everything          # task 0, all three types
     item, dialogue = ds[index], ds.dialogue(index)
@@ -104,8 +104,8 @@ def test_oracle_answer_gets_the_same_ids_in_training_and_in_evaluation(demo_dir)
 def test_dataset_gives_every_combination_of_question_types(demo_dir):
     vocab = Vocabulary.build(vocabulary_texts(demo_dir))
     ds = DemonstrationDataset(demo_dir, vocab, RES)
-    assert len(COMBINATIONS) == 8 and len(ds) == 3 * 8
-    for c, combo in enumerate(COMBINATIONS):
+    assert len(type_combinations()) == 8 and len(ds) == 3 * 8
+    for c, combo in enumerate(type_combinations()):
         types = {a.qa.question.question_type for a in ds.dialogue(c)}
         assert types == set(combo)
     steps = {a.step for i in range(len(ds)) for a in ds.dialogue(i)}

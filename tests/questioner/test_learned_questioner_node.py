@@ -49,13 +49,13 @@ def questioner_checkpoint(path: Path, timing: dict = TIMING) -> Path:
     pre-training saves one; its 'direction' type token pushed up by DIRECTION_BIAS."""
     from dialfred_performer.model import load_checkpoint
     from dialfred_questioner.data import catalog_nouns
-    from dialfred_questioner.model import TYPE_TOKENS, Questioner, QuestionerConfig
+    from dialfred_questioner.model import Questioner, QuestionerConfig, type_tokens
     from dialfred_questioner.pretrain import PretrainConfig, save
     performer, vocab, info = load_checkpoint(SHIPPED_CHECKPOINT)
     torch.manual_seed(0)
     model = Questioner(QuestionerConfig(), len(vocab), catalog_nouns())
     with torch.no_grad():     # output index 0 is <start>, then the type tokens
-        model.output.bias[1 + TYPE_TOKENS.index('direction')] += DIRECTION_BIAS
+        model.output.bias[1 + type_tokens().index('direction')] += DIRECTION_BIAS
     save(path, model, vocab, performer.visual.state_dict(), dict(info, path=str(SHIPPED_CHECKPOINT)),
          PretrainConfig(), commit='test', timing=timing)
     return path

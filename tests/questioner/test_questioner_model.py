@@ -11,7 +11,7 @@ from __future__ import annotations
 import torch
 
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language
-from dialfred_questioner.model import TYPE_TOKENS, Questioner, QuestionerConfig, needs_object, output_tokens
+from dialfred_questioner.model import Questioner, QuestionerConfig, needs_object, output_tokens, type_tokens
 from dialfred_sim.protocol import QA, Question
 
 torch.set_num_threads(1)
@@ -44,7 +44,7 @@ def test_decisions_are_distributions_and_log_prob_matches_sample():
     ids, types, valid, steps = batch(vocab, [(i, [], 0) for i in INSTRUCTIONS])
     enc = model.encode(ids, types, valid, torch.randn(4, 8), steps)
     type_logp, noun_logp = model.decide(enc)
-    assert type_logp.shape == (4, len(TYPE_TOKENS)) and noun_logp.shape == (4, len(NOUNS))
+    assert type_logp.shape == (4, len(type_tokens())) and noun_logp.shape == (4, len(NOUNS))
     assert torch.allclose(type_logp.exp().sum(-1), torch.ones(4)) and torch.allclose(noun_logp.exp().sum(-1), torch.ones(4))
     g = torch.Generator().manual_seed(0)
     for _ in range(5):
@@ -121,7 +121,7 @@ def test_scoring_records_by_length_chunks_gives_one_padded_batch_s_numbers_in_th
     records = []
     for k in range(9):
         lang = encode_language(vocab, INSTRUCTIONS[k % 4], [qa] * (k % 3 + (6 if k == 4 else 0)))
-        records.append(Record(lang.ids, lang.types, torch.randn(8, generator=g), k, k % len(TYPE_TOKENS), k % 4))
+        records.append(Record(lang.ids, lang.types, torch.randn(8, generator=g), k, k % len(type_tokens()), k % 4))
     b = batch_records(records)
     enc = model.encode(b['lang_ids'], b['lang_types'], b['lang_valid'], b['image'], b['steps'])
     whole = (model.log_prob(enc, b['types'], b['nouns']), model.entropy(enc, b['types']), model.value(enc))

@@ -17,7 +17,7 @@ from dialfred_questioner.shipped import shipped_list
 from dialfred_sim.bag import IMAGE_FORMATS
 from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.env import DEFAULT_RESOLUTION    # camera pixels for every agent but the performer models (their own)
-from dialfred_sim.protocol import DEFAULT_PROTOCOL, MAX_QUESTIONS, PROTOCOLS, QUESTION_TYPES
+from dialfred_sim.protocol import DEFAULT_PROTOCOL, MAX_QUESTIONS, PROTOCOLS, question_types
 from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE, GOAL_RULES
 from dialfred_sim.tasks.split_files import SPLIT_SIZES
 
@@ -81,7 +81,7 @@ class EvalConfig:
         'or package.module:ClassName (reset(task, seed), ask(observation, step), hear(qa))',
         aliases={'none': ''}, metavar='NAME')
     perturb_type: str = arg('', 'the paper\'s ablation: the oracle withholds answers of this type ("I don\'t know.")',
-                            choices=QUESTION_TYPES, aliases={'none': ''})
+                            choices=question_types, aliases={'none': ''})
     perturb_probability: float = arg(0.5, 'how often it withholds them (0.5 in the paper)')
     answers: str = arg('oracle', "who words the answers: oracle (its own templates); swapped (a control: each answer "
                        "replaced by the oracle's answer to the same question in another task of the split, "

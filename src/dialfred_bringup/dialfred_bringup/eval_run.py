@@ -31,7 +31,7 @@ from dialfred_questioner.baselines import with_questioner
 from dialfred_questioner.questioners import make_questioner
 from dialfred_sim.agents import make_agent as make_reference_agent
 from dialfred_sim.bag import IMAGE_FORMATS
-from dialfred_sim.protocol import DEFAULT_PROTOCOL, PROTOCOLS, QUESTION_TYPES, DialogueAgent
+from dialfred_sim.protocol import DEFAULT_PROTOCOL, PROTOCOLS, DialogueAgent, question_types
 from dialfred_sim.tasks.goals import DEFAULT_GOAL_RULE
 from dialfred_sim import tasks as task_sets
 from dialfred_sim.tasks.splits import read_tasks_file
@@ -91,8 +91,8 @@ def check_ranges(o: EvalConfig) -> None:
             load_answerer(o.answers)
         except AnswersError as exc:
             raise ValueError(str(exc)) from None
-    if o.perturb_type and o.perturb_type not in QUESTION_TYPES:
-        raise ValueError(f'--perturb-type must be one of {", ".join(QUESTION_TYPES)}, got {o.perturb_type!r}')
+    if o.perturb_type and o.perturb_type not in question_types():
+        raise ValueError(f'--perturb-type must be one of {", ".join(question_types())}, got {o.perturb_type!r}')
     if o.perturb_type and not 0.0 <= o.perturb_probability <= 1.0:
         raise ValueError(f'--perturb-probability must be in [0, 1], got {o.perturb_probability}')
 

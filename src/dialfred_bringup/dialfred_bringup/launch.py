@@ -45,7 +45,7 @@ from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_sim.bag import EpisodeRecorder
 from dialfred_sim.dataclass_cli import Parser, add_fields, arg, from_args
 from dialfred_sim.env import DEFAULT_RESOLUTION
-from dialfred_sim.protocol import QUESTION_TYPES, Question, image_array, scale_pixel
+from dialfred_sim.protocol import Question, image_array, question_types, scale_pixel
 from dialfred_sim.ros_util import RESEND_AFTER_S
 from dialfred_sim.scripted import ExplorerPolicy
 from dialfred_sim.tasks import load_split
@@ -251,7 +251,7 @@ class DialogueRun:
         # Ask about what the instruction names (the goto landmark comes first in object_nouns).
         named = [n for n in t.object_nouns if n in t.instruction.lower()]
         noun = (named or list(t.object_nouns) or [''])[0]
-        for qtype in QUESTION_TYPES:
+        for qtype in question_types():
             self.ask(qtype, noun, frame, title)
         self.ask('location', 'unicorn', frame, title)          # not in the scene: the oracle says why
         self.ask('colour', noun, frame, title)                 # not a question type

@@ -22,7 +22,6 @@ from __future__ import annotations
 import gzip
 import json
 import os
-import re
 from dataclasses import asdict, dataclass, replace
 from importlib import resources
 from pathlib import Path
@@ -31,17 +30,25 @@ from typing import Callable, Iterable, Optional, Sequence
 import numpy as np
 
 from dialfred_sim.ground_truth import snapshot
-from dialfred_sim.protocol import QUESTION_TYPES, question_text
+from dialfred_sim.protocol import PAPER_QUESTION_TYPES, names_object, question_text
 from dialfred_sim.tasks.instructions import tokenize
 from dialfred_sim.tasks.split_files import SPLIT_CODES
 from dialfred_sim.catalog import object_type
 
-from .answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT, Answer, direction_bin
 from .answers import answer as oracle_answer
+from .questions import DIRECTION_BINS, Answer, AnswerContent, direction_bin, oracle_question, oracle_questions
+from .questions.base import one_of
 
-CATEGORIES = ('none',) + QUESTION_TYPES       # what the two annotators' agreement is measured on
-# The paper's human figures (Table of question types; Sec. "Hybrid data collection").
-PAPER_HUMAN = {'type_shares': {'location': 0.72, 'appearance': 0.22, 'direction': 0.06},
+
+def categories() -> tuple[str, ...]:
+    """What an annotator chooses among, and what two annotators' agreement is measured on: 'none' and
+    each registered question type with rules, in the protocol's order."""
+    return ('none',) + tuple(q.name for q in oracle_questions())
+
+
+# The paper's human figures (Table of question types; Sec. "Hybrid data collection"); the share of each
+# of its types is that type's `human_share` (questions/).
+PAPER_HUMAN = {'type_shares': {t: oracle_question(t).human_share for t in PAPER_QUESTION_TYPES},
                'questions_per_task': 0.66, 'answer_words': 6.73, 'fleiss_kappa': 0.13}
 # "Behind the agent": the oracle's direction bins at the back (rear left, behind, rear right).
 REAR_BINS = tuple(b for b in DIRECTION_BINS if 'rear' in b or 'behind' in b)
@@ -137,43 +144,45 @@ def _openable_closed(fact) -> bool:
 # ---------------------------------------------------------------------- which question (noise model)
 
 def evidence(s: Situation) -> np.ndarray:
-    """How strongly the situation calls for each of CATEGORIES (none, location, appearance, direction)."""
+    """How strongly the situation calls for each of `categories()`: none (a clear instruction, the target
+    in view or in hand), then each type's `OracleQuestion.evidence`."""
     none = float(s.clear) + 0.5 * float(s.target_held)
-    location = float(not s.target_visible) + 0.5 * float(s.target_enclosed) - float(s.target_held)
-    appearance = float(s.main_has_distractor) + 0.5 * float(bool(s.distractor_nouns) and not s.main_has_distractor)
-    direction = 2.0 * float(s.target_behind)     # rare overall, so it must stand out where it fits
-    return np.array([none, location, appearance, direction])
+    return np.array([none, *(q.evidence(s) for q in oracle_questions())])
 
 
 @dataclass(frozen=True)
 class ChoiceModel:
-    """P(choice | situation) = softmax(bias + strength * evidence(situation)) over CATEGORIES.
+    """P(choice | situation) = softmax(bias + strength * evidence(situation)) over `categories()`.
 
     Each annotator draws independently from it, so `strength` sets how much two annotators agree
-    (strength 0: kappa 0) and `bias` sets the shares of question types."""
+    (strength 0: kappa 0) and `bias` sets the shares of question types (one per category, 'none' first)."""
 
     strength: float
-    bias: tuple[float, float, float, float]
+    bias: tuple[float, ...]
 
     def probabilities(self, s: Situation) -> np.ndarray:
         return self.probabilities_from(evidence(s)[None])[0]
 
     def probabilities_from(self, evidences: np.ndarray) -> np.ndarray:
-        """Rows of choice probabilities for rows of evidence (N x 4)."""
+        """Rows of choice probabilities for rows of evidence (N x categories)."""
+        if evidences.shape[1] != len(self.bias):
+            raise ValueError(f'{len(self.bias)} intercepts for {evidences.shape[1]} categories of evidence')
         z = np.asarray(self.bias) + self.strength * evidences
         p = np.exp(z - z.max(axis=1, keepdims=True))
         return p / p.sum(axis=1, keepdims=True)
 
 
-def target_choice_shares(shares: dict = PAPER_HUMAN['type_shares'],
+def target_choice_shares(shares: Optional[dict] = None,
                          questions_per_task: float = PAPER_HUMAN['questions_per_task']) -> np.ndarray:
-    """The shares of CATEGORIES that the paper's humans give: none = 1 - questions per task."""
-    return np.array([1.0 - questions_per_task] + [questions_per_task * shares[t] for t in QUESTION_TYPES])
+    """The shares of `categories()` that the paper's humans give: none = 1 - questions per task; `shares`
+    of the question types (default: each type's `human_share`)."""
+    shares = {q.name: q.human_share for q in oracle_questions()} if shares is None else shares
+    return np.array([1.0 - questions_per_task] + [questions_per_task * shares[t] for t in categories()[1:]])
 
 
 def expected_statistics(model: ChoiceModel, situations: Sequence[Situation]) -> tuple[np.ndarray, float]:
-    """Expected shares of CATEGORIES and expected Fleiss' kappa of two annotators over `situations`
-    (a list of Situations or their N x 4 evidence matrix)."""
+    """Expected shares of `categories()` and expected Fleiss' kappa of two annotators over `situations`
+    (a list of Situations or their N x categories evidence matrix)."""
     e = situations if isinstance(situations, np.ndarray) else np.array([evidence(s) for s in situations])
     q = model.probabilities_from(e)
     shares = q.mean(axis=0)
@@ -209,214 +218,55 @@ def fit_choice_model(situations: Sequence[Situation], kappa: float = PAPER_HUMAN
     return ChoiceModel(round(model.strength, 4), tuple(round(b, 4) for b in model.bias))
 
 
-# Fitted with `scripts/annotate_dialogues.py --fit` on the situations of valid_seen + valid_unseen.
-CHOICE_MODEL = ChoiceModel(strength=1.3209, bias=(0.0, 0.1941, -1.4978, -2.7161))
-
-# P(the annotator says asking was necessary | question type, whether the situation called for it).
-# The paper reports no such figure; these express "necessary when it helped" with some disagreement.
-NECESSARY_P = {'location': (0.35, 0.85), 'appearance': (0.3, 0.8), 'direction': (0.3, 0.8)}
+# Fitted with `scripts/annotate_dialogues.py --fit` on the situations of valid_seen + valid_unseen; the
+# intercepts of the question types are theirs (`OracleQuestion.choice_bias`), 'none' is 0.
+CHOICE_STRENGTH = 1.3209
 
 
-def _called_for(question_type: str, noun: str, s: Situation) -> bool:
-    if question_type == 'location':
-        return noun == s.main_noun and (not s.target_visible or s.target_enclosed)
-    if question_type == 'appearance':
-        return noun in s.distractor_nouns
-    return s.target_behind
+def choice_model() -> ChoiceModel:
+    """The fitted choice model over the registered types (CHOICE_STRENGTH, each type's `choice_bias`)."""
+    return ChoiceModel(CHOICE_STRENGTH, (0.0, *(q.choice_bias for q in oracle_questions())))
 
 
-def _pick_noun(question_type: str, s: Situation, rng: np.random.Generator) -> str:
-    """The noun asked about: mostly the main target; for appearance a noun with a look-alike; rarely
-    what the agent already holds (a person sees it in the agent's hand)."""
-    nouns = [n for n in s.nouns if n not in s.held_nouns or rng.random() < HELD_NOUN_P] or list(s.nouns)
-    if question_type == 'appearance':
-        look_alikes = [n for n in nouns if n in s.distractor_nouns]
-        if look_alikes and rng.random() < 0.8:
-            nouns = look_alikes
-    main = s.main_noun if s.main_noun in nouns else nouns[0]
-    others = [n for n in nouns if n != main]
-    if not others or rng.random() < MAIN_NOUN_P:
-        return main
-    return others[int(rng.integers(len(others)))]
-
-
-MAIN_NOUN_P = 0.7       # ask about the main target rather than another object of the instruction
-HELD_NOUN_P = 0.1       # keep an object the agent holds among the candidates
+def necessary_p() -> dict[str, tuple[float, float]]:
+    """P(the annotator says asking was necessary | question type, whether the situation called for it), by
+    type (`OracleQuestion.necessary_p`). The paper reports no such figure; these express "necessary when it
+    helped" with some disagreement."""
+    return {q.name: q.necessary_p for q in oracle_questions()}
 
 
 # ---------------------------------------------------------------------- free-form answers
 
-@dataclass(frozen=True)
-class AnswerContent:
-    """What the oracle's answer says, as parts to put in other words.
-
-    location: where (direction bin of the object from the agent), preposition and receptacle noun,
-    or held; appearance: colour and material; direction: where (the turn, '' = no need to move)."""
-
-    question_type: str
-    noun: str
-    valid: bool = True
-    where: str = ''
-    preposition: str = ''
-    receptacle: str = ''
-    held: bool = False
-    colour: str = ''
-    material: str = ''
-    oracle_text: str = ''
-
-
-_BINS = '|'.join(re.escape(b) for b in DIRECTION_BINS)
-_LOCATION = re.compile(rf'^The (?P<noun>.+?) is (?P<where>{_BINS})(?: (?P<prep>in|on) the (?P<recep>.+))?\.$')
-_CARRIED = re.compile(r'^The (?P<noun>.+?) is (?P<prep>in|on) the (?P<recep>.+) you are holding\.$')
-_HOLDING = re.compile(r'^You are holding the (?P<noun>.+)\.$')
-_APPEARANCE = re.compile(r'^The (?P<noun>.+?) is (?P<colour>[a-z]+) and made of (?P<material>.+)\.$')
-_MOVES = {GO_STRAIGHT: 'in front of you', TURN_LEFT: 'to your left', TURN_RIGHT: 'to your right',
-          TURN_AROUND: 'behind you', STAY: ''}
-
-
 def answer_content(oracle: Answer, question_type: str, noun: str) -> AnswerContent:
-    """The parts of the oracle's templated answer (dialfred_oracle.answers), to be reworded.
+    """The parts of the oracle's templated answer (its type's `OracleQuestion.parts`), to be reworded.
 
     An answer the templates do not cover keeps its text (`oracle_text`) and is said as it is."""
     base = AnswerContent(question_type, oracle.object_noun or noun, bool(oracle.valid), oracle_text=oracle.text)
-    if not oracle.valid:
+    rules = oracle_question(question_type)
+    if not oracle.valid or rules is None:
         return base
-    text = oracle.text
-    if question_type == 'direction':
-        return replace(base, where=_MOVES[text]) if text in _MOVES else base
-    if question_type == 'appearance':
-        m = _APPEARANCE.match(text)
-        return replace(base, colour=m.group('colour'), material=m.group('material')) if m else base
-    if _HOLDING.match(text):
-        return replace(base, held=True)
-    m = _CARRIED.match(text)
-    if m:
-        return replace(base, preposition=m.group('prep'), receptacle=m.group('recep'), where='held')
-    m = _LOCATION.match(text)
-    if m:
-        return replace(base, where=m.group('where'), preposition=m.group('prep') or '',
-                       receptacle=m.group('recep') or '')
-    return base
+    parts = rules.parts(oracle.text)
+    if parts is None:
+        return base
+    return replace(base, **{k: v for k, v in parts.items() if k != 'noun'})
 
 
 # Answer lengths: a target drawn per answer, 1 + Gamma(shape, mean - 1); the candidate wording closest
 # to it is said. LENGTH_MEAN is tuned so that the realised mean is the paper's 6.73 words.
 LENGTH_MEAN, LENGTH_SHAPE, CANDIDATES = 7.15, 3.0, 12
 HEDGES = ('I think', 'I believe', 'probably', 'maybe', 'it seems', 'I guess')
-COLOUR_WORDS = {'gray': ('gray', 'grey'), 'navy': ('navy', 'navy blue', 'dark blue'),
-                'maroon': ('maroon', 'dark red'), 'tan': ('tan', 'light brown'), 'beige': ('beige', 'cream'),
-                'olive': ('olive', 'olive green'), 'teal': ('teal', 'blue green'), 'khaki': ('khaki',),
-                'silver': ('silver', 'silvery'), 'gold': ('gold', 'golden'), 'pink': ('pink', 'light pink')}
-PREPOSITIONS = {'in': ('in', 'inside'), 'on': ('on', 'on top of')}
-
-
-def _one(rng: np.random.Generator, options: Sequence[str]) -> str:
-    return options[int(rng.integers(len(options)))]
-
-
-def _a(word: str) -> str:
-    return ('an ' if word[:1] in 'aeiou' else 'a ') + word
-
-
-def _where_phrases(where: str) -> tuple[str, ...]:
-    """Ways to say a direction bin ('left', 'behind right', 'front', ...) relative to the listener."""
-    w = where.replace('_', ' ').lower()
-    side = 'left' if 'left' in w else 'right' if 'right' in w else ''
-    back = any(k in w for k in ('behind', 'back', 'around', 'rear'))
-    front = not back and any(k in w for k in ('front', 'ahead', 'forward', 'straight'))
-    if back and side:
-        return (f'behind you on the {side}', f'back and to your {side}', f'behind you to the {side}',
-                f'over your {side} shoulder')
-    if back:
-        return ('behind you', 'at your back', 'right behind you', 'back behind you')
-    if front and side:
-        return (f'ahead on your {side}', f'in front of you to the {side}', f'slightly to your {side}',
-                f'ahead and to the {side}')
-    if front:
-        return ('in front of you', 'straight ahead', 'ahead of you', 'right in front of you')
-    if side:
-        return (f'to your {side}', f'on your {side}', f'on the {side}', f'to the {side}', f'{side} of you')
-    return ('',)
-
-
-def _location_candidate(c: AnswerContent, rng: np.random.Generator) -> str:
-    o, w = c.noun, _one(rng, _where_phrases(c.where))
-    if c.held:
-        return _one(rng, ("you're holding it", 'it is in your hand', 'you already have it',
-                          f'you are already holding the {o}', f'the {o} is in your hand already'))
-    if not c.receptacle:
-        if not w:
-            return _one(rng, ('right here', f"the {o} is right here", "it's close by"))
-        return _one(rng, (w, f"it's {w}", f'the {o} is {w}', f'look {w}', f'you will see the {o} {w}'))
-    p, r = _one(rng, PREPOSITIONS.get(c.preposition, (c.preposition or 'on',))), c.receptacle
-    if c.where == 'held':
-        return _one(rng, (f"{p} the {r} you're holding", f'{p} the {r} in your hand', f"it's {p} the {r} you carry",
-                          f'the {o} is {p} the {r} you are holding'))
-    forms = [f'{p} the {r}', f"it's {p} the {r}", f'it should be {p} the {r}', f'check {p} the {r}',
-             f'the {o} is {p} the {r}', f'you can find it {p} the {r}']
-    if w:
-        forms += [f'{p} the {r} {w}', f'{w}, {p} the {r}', f"it's {w} {p} the {r}", f'the {o} is {w} {p} the {r}',
-                  f'the {o} is {p} the {r} {w}', f'you can find it {p} the {r} {w}', f'look {w}, {p} the {r}',
-                  f'there is {_a(o)} {p} the {r} {w}', f'the {o} is sitting {p} the {r} {w}',
-                  f'go to the {r} {w}, the {o} is {p} it']
-    return _one(rng, forms)
-
-
-def _appearance_candidate(c: AnswerContent, rng: np.random.Generator, distractor: bool) -> str:
-    o, m = c.noun, c.material
-    col = _one(rng, COLOUR_WORDS.get(c.colour, (c.colour,)))
-    made = _one(rng, ('made of', 'made out of'))
-    forms = [col, f"it's {col}", f'the {col} one', f"it's {col} colored", f'it is {_a(col)} {o}']
-    if m:
-        forms += [f'{col} {m}', f'it is {col} and {made} {m}', f'the {o} is {col} and {made} {m}',
-                  f'{_a(col)} {o} {made} {m}', f'look for the {col} {m} one', f"it's the {col} one, {made} {m}",
-                  f'{col}, {made} {m}', f"it's {_a(m)} {o}, {col} in color", f'{col} and {m}']
-    if distractor:
-        forms += [f'the {col} {o}, not the other one', f'the {col} one, there are two of them',
-                  f'pick the {col} {o}']
-    return _one(rng, forms)
-
-
-def _direction_candidate(c: AnswerContent, rng: np.random.Generator) -> str:
-    w = c.where.replace('_', ' ').lower()
-    side = 'left' if 'left' in w else 'right' if 'right' in w else ''
-    if any(k in w for k in ('behind', 'back', 'around')):
-        forms = ['turn around', 'turn back', 'turn all the way around', "it's behind you, turn around",
-                 'you need to turn around', 'turn around and walk forward']
-        if side:
-            forms += [f'turn around to your {side}', f'turn {side} twice']
-    elif side:
-        forms = [f'turn {side}', f'go {side}', f'you should turn {side}', f'turn to your {side}',
-                 f'turn {side} and walk forward', f'turn {side}, then go straight', f'head {side}',
-                 f'make a {side} turn', f'turn {side} and keep walking']
-    elif any(k in w for k in ('front', 'ahead', 'forward', 'straight')):
-        forms = ['go straight', 'walk straight ahead', 'keep going straight', "don't turn, just go forward",
-                 'straight ahead of you', 'no need to turn, walk forward']
-    else:
-        forms = ["you don't need to move", 'stay where you are', 'no need to move', 'you are already there',
-                 "don't move, it's right here", 'just stay here']
-    return _one(rng, forms)
 
 
 def _invalid_candidate(c: AnswerContent, rng: np.random.Generator) -> str:
-    return _one(rng, ("sorry, I don't know", "I couldn't tell", f"I didn't see the {c.noun}",
+    return one_of(rng, ("sorry, I don't know", "I couldn't tell", f"I didn't see the {c.noun}",
                       "I'm not sure", 'no idea, sorry', f"I couldn't find the {c.noun} in the video"))
-
-
-def _covered(c: AnswerContent) -> bool:
-    """Whether the content was parsed into parts that the templates can reword."""
-    if c.question_type == 'location':
-        return c.held or bool(c.where or c.receptacle)
-    if c.question_type == 'appearance':
-        return bool(c.colour)
-    return c.oracle_text in _MOVES
 
 
 def _dress(text: str, rng: np.random.Generator) -> str:
     """Optional hedge, capital letter, end mark: the small variations people type."""
     u = rng.random()
     if u < 0.10:
-        text = f'{_one(rng, HEDGES)} {text}'
+        text = f'{one_of(rng, HEDGES)} {text}'
     elif u < 0.14:
         text = f'{text}, I think'
     text = text[0].upper() + text[1:] if text else text
@@ -427,18 +277,15 @@ def paraphrase(content: AnswerContent, rng: np.random.Generator, distractor: boo
     """A free-form answer saying `content` in other words: CANDIDATES wordings are drawn (template,
     synonyms, hedge) and the one whose length is closest to a drawn target length is returned."""
     target = 1.0 + rng.gamma(LENGTH_SHAPE, (LENGTH_MEAN - 1.0) / LENGTH_SHAPE)
+    rules = oracle_question(content.question_type)
     best, best_gap = '', np.inf
     for _ in range(CANDIDATES):
         if not content.valid:
             text = _invalid_candidate(content, rng)
-        elif not _covered(content):
+        elif rules is None or not rules.covered(content):
             text = content.oracle_text.rstrip('.')
-        elif content.question_type == 'location':
-            text = _location_candidate(content, rng)
-        elif content.question_type == 'appearance':
-            text = _appearance_candidate(content, rng, distractor)
         else:
-            text = _direction_candidate(content, rng)
+            text = rules.candidate(content, rng, distractor)
         text = _dress(text, rng)
         gap = abs(len(tokenize(text)) - target)
         if gap < best_gap:
@@ -479,20 +326,22 @@ def annotate(task, snapshot, rng: np.random.Generator, annotator_id: int, *,
     """Play the annotation protocol on `task` at its start (`snapshot`: the ground truth there).
 
     rng: this annotator's generator (all its randomness comes from it). situation: the precomputed
-    `Situation.of(task, snapshot)`. model: the choice model (CHOICE_MODEL). answer_fn: the oracle,
+    `Situation.of(task, snapshot)`. model: the choice model (`choice_model()`). answer_fn: the oracle,
     `answer(snapshot, question_type, object_noun) -> Answer`. Returns an Annotation: the chosen
     question (or none), its free-form answer and the necessity flag."""
     situation = situation or Situation.of(task, snapshot)
-    p = (model or CHOICE_MODEL).probabilities(situation)
-    category = CATEGORIES[int(rng.choice(len(CATEGORIES), p=p))]
+    p = (model or choice_model()).probabilities(situation)
+    choices = categories()
+    category = choices[int(rng.choice(len(choices), p=p))]
     if category == 'none':
         return Annotation(annotator_id, None)
-    noun = '' if category == 'direction' else _pick_noun(category, situation, rng)
+    rules = oracle_question(category)
+    noun = rules.pick_noun(situation, rng) if names_object(category) else ''
     oracle = answer_fn(snapshot, category, noun)
     content = answer_content(oracle, category, noun)
     text = paraphrase(content, rng, distractor=noun in situation.distractor_nouns)
-    lo, hi = NECESSARY_P[category]
-    necessary = bool(rng.random() < (hi if _called_for(category, noun, situation) else lo))
+    lo, hi = rules.necessary_p
+    necessary = bool(rng.random() < (hi if rules.called_for(noun, situation) else lo))
     return Annotation(annotator_id, category, noun, question_text(category, noun), text,
                       necessary, oracle.text, bool(oracle.valid))
 
@@ -534,13 +383,14 @@ def annotator_rng(task_id: str, annotator_id: int) -> np.random.Generator:
 def annotate_task(env, task) -> TaskDialogues:
     """Both annotators on `task` (a dialfred_sim Task), with `env` (a DialfredEnv) reset to it and
     still at its start. The same row whatever ran before (its randomness comes from the task id);
-    changes nothing in the world (the oracle renders the asked object's look only for an appearance
-    question)."""
+    changes nothing in the world (the oracle renders the asked object's look only for a question of a
+    type that reads looks: appearance)."""
     snap = snapshot(env)
     situation = Situation.of(task, snap)
 
     def oracle(s, question_type: str, noun: str) -> Answer:
-        if question_type == 'appearance' and noun in s.task_objects:
+        rules = oracle_question(question_type)
+        if rules is not None and rules.reads_looks and noun in s.task_objects:
             s = snapshot(env, [s.task_objects[noun]])
         return oracle_answer(s, question_type, noun)
 
@@ -613,20 +463,21 @@ def dialogue_statistics(annotations: Sequence[Sequence[Annotation]]) -> dict:
     Returns a JSON-ready dict: tasks, annotations, questions; questions_per_task (questions per task
     and annotator, the paper's NQ); type_shares (share of questions per type); answer_words (mean
     words per answer, tokens of `tokenize`); answer_vocabulary (distinct answer words);
-    necessary_fraction (of questions); fleiss_kappa over CATEGORIES (needs >= 2 annotators a task)."""
+    necessary_fraction (of questions); fleiss_kappa over `categories()` (needs >= 2 annotators a task)."""
     flat = [a for task in annotations for a in task]
     questions = [a for a in flat if a.question_type is not None]
     if not flat:
         raise ValueError('no annotations')
-    by_type = {t: sum(a.question_type == t for a in questions) for t in QUESTION_TYPES}
-    table = [[sum(a.category == c for a in task) for c in CATEGORIES] for task in annotations]
+    choices = categories()
+    by_type = {t: sum(a.question_type == t for a in questions) for t in choices[1:]}
+    table = [[sum(a.category == c for a in task) for c in choices] for task in annotations]
     kappa = fleiss_kappa(table) if min(len(task) for task in annotations) >= 2 else None
     return {
         'tasks': len(annotations),
         'annotations': len(flat),
         'questions': len(questions),
         'questions_per_task': round(len(questions) / len(flat), 4),
-        'type_shares': {t: round(by_type[t] / max(len(questions), 1), 4) for t in QUESTION_TYPES},
+        'type_shares': {t: round(by_type[t] / max(len(questions), 1), 4) for t in choices[1:]},
         'answer_words': round(float(np.mean([answer_words(a.answer) for a in questions])), 3) if questions else 0.0,
         'answer_vocabulary': len({w for a in questions for w in tokenize(a.answer)}),
         'necessary_fraction': round(sum(bool(a.necessary) for a in questions) / max(len(questions), 1), 4),

@@ -37,7 +37,7 @@ from typing import Optional, Protocol, runtime_checkable
 
 from dialfred_sim.agents import load_class
 from dialfred_sim.metrics import load_results
-from dialfred_sim.protocol import QUESTION_TYPES, names_object
+from dialfred_sim.protocol import names_object, question_types
 
 from .annotator import AnswerContent, answer_content
 from .answers import WITHHELD, Answer, parse_question_type, question_text
@@ -145,7 +145,7 @@ class AnswersFile:
         qtype = parse_question_type(entry['type'])
         if qtype is None:
             raise AnswersError(f'{where}: unknown question type {entry["type"][:32]!r}; expected one of '
-                               f'{", ".join(QUESTION_TYPES)}')
+                               f'{", ".join(question_types())}')
         noun = entry.get('noun', '')
         if names_object(qtype) and not noun.strip():
             raise AnswersError(f'{where}: a {qtype} question names an object ("noun")')

@@ -45,7 +45,7 @@ from rclpy.node import Node
 
 from dialfred_msgs.srv import GroundTruth, OracleAnswer
 from dialfred_sim.ground_truth import Appearance, ObjectFact, Snapshot
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import question_types
 from dialfred_sim.ros_util import MAX_SEED, SERVICE_QOS, Param, declare_parameters, make_executor, run_node
 
 from dialfred_sim.tasks.split_files import load_split, read_tasks_file
@@ -104,7 +104,7 @@ class WorldState:
 # The node's parameters (ros_util.Param): declared with their ranges; docs tables are made from them.
 PARAMETERS = (
     Param('perturb_type', '', "the paper's ablation: withhold answers of this type ('' = none)",
-          choices=('', *QUESTION_TYPES)),
+          choices=lambda: ('', *question_types())),
     Param('perturb_probability', 0.0, '... with this probability (the paper: 0.5)', span=(0.0, 1.0)),
     Param('seed', 0, 'seeds which answers are withheld', span=(0, MAX_SEED)),
     Param('answers', 'oracle', "oracle: its own answers; swapped: a control, each answer replaced by the answer to "

@@ -7,7 +7,7 @@ then the frame after the last action with Stop (only where the expert reached th
 
 The paper's augmentation (DialFRED, "Performer": the performer is pre-trained "with instructions and
 all possible questions, including a combination of question types and answers"): each task appears
-once per combination of question types in `COMBINATIONS` (none; location; appearance; direction; each
+once per combination of question types (`type_combinations()`: none; location; appearance; direction; each
 pair; all three). A combination includes, for each of its types, every QA of that type (about each of
 the instruction's objects) that the oracle gave at one of the steps recorded for the task (0 or a
 mid-episode step), drawn per sample from the dataset's seed.
@@ -41,15 +41,21 @@ from torch.utils.data import Dataset
 from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task
 from dialfred_oracle.answers import answer
 from dialfred_sim.ground_truth import snapshot, task_object_ids
-from dialfred_sim.protocol import ACTIONS, QA, QUESTION_TYPES, every_question
+from dialfred_sim.protocol import ACTIONS, QA, every_question, question_types
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
 
 from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
 from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
 
-COMBINATIONS: tuple[tuple[str, ...], ...] = tuple(
-    c for r in range(len(QUESTION_TYPES) + 1) for c in itertools.combinations(QUESTION_TYPES, r))
+
+
+def type_combinations() -> tuple[tuple[str, ...], ...]:
+    """Every combination of the registered question types, by size: (), ('location',), ..., all of them."""
+    types = question_types()
+    return tuple(c for r in range(len(types) + 1) for c in itertools.combinations(types, r))
+
+
 DIALOGUES_FILE = 'dialogues.jsonl'
 STOP = ACTIONS.index('Stop')
 START = len(ACTIONS)          # the "previous action" of step 0 (ActionEmbedding's <start>)
@@ -89,15 +95,16 @@ def vocabulary_texts(demonstrations_dir: Path) -> list[str]:
 
 
 class DemonstrationDataset(Dataset):
-    """Episodes of a demonstrations folder, each task once per combination of question types (once
-    in all if there is no dialogues.jsonl). An item is a dict of tensors (see `collate`)."""
+    """Episodes of a demonstrations folder, each task once per combination of question types
+    (`combinations`, default `type_combinations()`; once in all if there is no dialogues.jsonl). An item is a dict of tensors (see `collate`)."""
 
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
-                 combinations: Sequence[tuple[str, ...]] = COMBINATIONS, seed: int = 0,
+                 combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
+        combinations = type_combinations() if combinations is None else combinations
         self.combinations = tuple(combinations) if self.dialogues else ((),)
         self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
         self.frame_size = self.demo.meta['resolution']

@@ -30,7 +30,7 @@ from dialfred_sim.protocol import ACTIONS, BODY, MAX_STEPS
 
 from .nn import ActionEmbedding, ActionHead, LanguageEncoder, MultimodalEncoder, PerceivedFrames, PointerHead, VisualEncoder
 from .perception import Perception, PerceptionNetConfig, native_bf16
-from .preprocess import N_TOKEN_TYPES, Vocabulary, frame_tensor
+from .preprocess import Vocabulary, frame_tensor, n_token_types
 from .shipped import SHIPPED_CHECKPOINT  # noqa: F401 - where the modules that load checkpoints find it
 
 CHECKPOINT_FORMAT = 'dialfred-performer/1'
@@ -187,7 +187,7 @@ class Performer(nn.Module):
         self.config = config
         self.vocab_size = vocab_size
         d = config.d_model
-        self.language = LanguageEncoder(vocab_size, d, config.max_tokens, N_TOKEN_TYPES, config.dropout)
+        self.language = LanguageEncoder(vocab_size, d, config.max_tokens, n_token_types(), config.dropout)
         self.visual = build_visual(config)
         if config.visual == 'perception':
             self.pointer_head = PointerHead(d, config.pointer_key, project_keys=False)

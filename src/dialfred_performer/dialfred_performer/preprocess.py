@@ -26,17 +26,36 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from dialfred_sim.protocol import QA, QUESTION_KINDS, QUESTION_TYPES, Question
+from dialfred_sim.protocol import PAPER_QUESTION_KINDS, QA, Question, question_kinds, question_types
 
 PAD, UNK = '<pad>', '<unk>'
 QUESTION_MARK, ANSWER_MARK, INVALID_MARK = '<q>', '<a>', '<invalid>'
-TYPE_MARKS = {q.name: f'<{q.token}>' for q in QUESTION_KINDS}      # '<loc>', '<app>', '<dir>'
-SPECIAL_TOKENS = (PAD, UNK, QUESTION_MARK, ANSWER_MARK, INVALID_MARK, *TYPE_MARKS.values())
+# Every vocabulary starts with these: the marks, and those of the paper's question types ('<loc>', ...).
+FIXED_TOKENS = (PAD, UNK, QUESTION_MARK, ANSWER_MARK, INVALID_MARK, *(f'<{q.token}>' for q in PAPER_QUESTION_KINDS))
 
 # Token types, the language encoder's type embedding: 0 = padding, 1 = instruction, 2.. = a QA's type.
 TYPE_PAD, TYPE_INSTRUCTION = 0, 1
-TYPE_OF_QUESTION = {q: 2 + k for k, q in enumerate(QUESTION_TYPES)}
-N_TOKEN_TYPES = 2 + len(QUESTION_TYPES)
+
+
+def type_marks() -> dict[str, str]:
+    """The mark of each registered question type in the performer's input: '<loc>', '<app>', '<dir>', ..."""
+    return {q.name: f'<{q.token}>' for q in question_kinds()}
+
+
+def special_tokens() -> tuple[str, ...]:
+    """The tokens a vocabulary built now starts with: FIXED_TOKENS, then the marks of types registered after
+    the paper's."""
+    return (*FIXED_TOKENS, *(m for m in type_marks().values() if m not in FIXED_TOKENS))
+
+
+def type_of_question() -> dict[str, int]:
+    """The token type of a QA of each registered question type (2, 3, ...)."""
+    return {q: 2 + k for k, q in enumerate(question_types())}
+
+
+def n_token_types() -> int:
+    """The size of the language encoder's type embedding for the registered question types."""
+    return 2 + len(question_types())
 
 _TOKEN_RE = re.compile(r"<[a-z_]+>|[a-z0-9]+(?:'[a-z]+)?|[^\sa-z0-9]")
 
@@ -55,11 +74,12 @@ class AskedQA:
 
 
 class Vocabulary:
-    """Word <-> id. Ids 0.. are SPECIAL_TOKENS (<pad> = 0, <unk> = 1), then words by frequency."""
+    """Word <-> id. Ids 0.. are FIXED_TOKENS (<pad> = 0, <unk> = 1; `special_tokens()` when built), then
+    words by frequency."""
 
     def __init__(self, words: Sequence[str]):
-        if tuple(words[:len(SPECIAL_TOKENS)]) != SPECIAL_TOKENS:
-            raise ValueError(f'a vocabulary starts with {SPECIAL_TOKENS}, got {tuple(words[:len(SPECIAL_TOKENS)])}')
+        if tuple(words[:len(FIXED_TOKENS)]) != FIXED_TOKENS:
+            raise ValueError(f'a vocabulary starts with {FIXED_TOKENS}, got {tuple(words[:len(FIXED_TOKENS)])}')
         if len(set(words)) != len(words):
             raise ValueError('a vocabulary has no repeated words')
         self.words = tuple(words)
@@ -69,9 +89,10 @@ class Vocabulary:
     def build(cls, texts: Iterable[str], min_count: int = 1) -> 'Vocabulary':
         """A vocabulary of every token of `texts` seen at least `min_count` times (ties by spelling)."""
         counts = Counter(tok for text in texts for tok in tokenize(text))
-        words = sorted((w for w, c in counts.items() if c >= min_count and w not in SPECIAL_TOKENS),
+        special = special_tokens()
+        words = sorted((w for w, c in counts.items() if c >= min_count and w not in special),
                        key=lambda w: (-counts[w], w))
-        return cls([*SPECIAL_TOKENS, *words])
+        return cls([*special, *words])
 
     def __len__(self) -> int:
         return len(self.words)
@@ -101,10 +122,11 @@ class Vocabulary:
 def qa_tokens(qa: QA) -> list[str]:
     """`<q> <type> noun words <a> answer words` (`<a> <invalid>` when the oracle could not answer)."""
     q = qa.question
-    if q.question_type not in TYPE_MARKS:
-        raise ValueError(f'unknown question type {q.question_type!r}; expected one of {QUESTION_TYPES}')
+    marks = type_marks()
+    if q.question_type not in marks:
+        raise ValueError(f'unknown question type {q.question_type!r}; expected one of {question_types()}')
     answer = tokenize(qa.answer) if qa.valid else [INVALID_MARK]
-    return [QUESTION_MARK, TYPE_MARKS[q.question_type], *tokenize(q.object_noun), ANSWER_MARK, *answer]
+    return [QUESTION_MARK, marks[q.question_type], *tokenize(q.object_noun), ANSWER_MARK, *answer]
 
 
 def qa_text(qa: QA) -> str:
@@ -130,12 +152,12 @@ def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[Aske
     `max_tokens`, the instruction is kept and the oldest QAs are dropped first until it fits."""
     ins = tokenize(instruction)
     ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
-    parts = []
+    parts, token_type = [], type_of_question()
     for asked in dialogue:
         if asked.step < 0:
             raise ValueError(f'a QA is asked at a step >= 0, got {asked.step}')
         toks = qa_tokens(asked.qa)
-        parts.append((vocab.ids(toks), [TYPE_OF_QUESTION[asked.qa.question.question_type]] * len(toks),
+        parts.append((vocab.ids(toks), [token_type[asked.qa.question.question_type]] * len(toks),
                       [asked.step] * len(toks)))
     if max_tokens is not None:
         ids, types, steps = ids[:max_tokens], types[:max_tokens], steps[:max_tokens]

@@ -28,21 +28,23 @@ from typing import Any, Optional
 import numpy as np
 
 from dialfred_sim.agents import public_view, task_nouns, task_view
-from dialfred_sim.protocol import (QA, QUESTION_TYPES, Agent, ConfusionSource, Continuing, Decision, Listener, heard_by,
+from dialfred_sim.protocol import (QA, Agent, ConfusionSource, Continuing, Decision, Listener, heard_by,
                                   PerformerAware, Question, Questioner, every_question, is_privileged, names_object,
-                                  top2_gap)
+                                  question_types, top2_gap)
 
 
 def random_question(rng: np.random.Generator, nouns: list[str]) -> Question:
     """A uniform question type; for location and appearance, a uniform noun of `nouns` (only
     direction questions when there is none)."""
-    types = QUESTION_TYPES if nouns else tuple(t for t in QUESTION_TYPES if not names_object(t))
+    types = question_types() if nouns else tuple(t for t in question_types() if not names_object(t))
     qtype = types[int(rng.integers(len(types)))]
     return Question(qtype, nouns[int(rng.integers(len(nouns)))] if names_object(qtype) else '')
 
 
-# What RandomQuestioner draws at the beginning of a task, each with probability 1/4; None = no question.
-RANDOM_QA_CHOICES = (*QUESTION_TYPES, None)
+def random_qa_choices() -> tuple[Optional[str], ...]:
+    """What RandomQuestioner draws at the beginning of a task, each as likely (1/4 with the paper's types);
+    None = no question."""
+    return (*question_types(), None)
 
 
 def questions_of_type(question_type: Optional[str], nouns: list[str]) -> list[Question]:
@@ -84,7 +86,8 @@ class RandomQuestioner(AtTheStart):
     def reset(self, task: Any, seed: int) -> None:
         # A stream apart from the performer's, which is seeded with `seed` itself.
         rng = np.random.default_rng([seed, 1])
-        self.drawn = RANDOM_QA_CHOICES[int(rng.integers(len(RANDOM_QA_CHOICES)))]
+        choices = random_qa_choices()
+        self.drawn = choices[int(rng.integers(len(choices)))]
         self._queue = questions_of_type(self.drawn, task_nouns(task))
 
 

@@ -20,8 +20,9 @@ import torch
 
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
 from dialfred_sim.catalog import load_catalog
+from dialfred_sim.protocol import names_object
 
-from .model import NEEDS_OBJECT, TYPE_TOKENS
+from .model import type_tokens
 
 
 def catalog_nouns() -> tuple[str, ...]:
@@ -34,7 +35,7 @@ class Example:
     task_id: str
     instruction: str
     frame: int                        # index into the demonstrations' frames
-    qtype: int                        # index into TYPE_TOKENS
+    qtype: int                        # index into model.type_tokens()
     noun: int                         # index into the nouns (-1: the type names no object)
     step: int = 0
     dialogue: tuple[AskedQA, ...] = ()
@@ -42,10 +43,10 @@ class Example:
 
 def target(question_type: Optional[str], noun: str, noun_index: dict) -> tuple[int, int]:
     """(type index, noun index) of an annotation; KeyError for a noun outside the catalogue."""
-    qtype = question_type or 'none'
-    if qtype not in TYPE_TOKENS:
+    qtype, tokens = question_type or 'none', type_tokens()
+    if qtype not in tokens:
         raise ValueError(f'unknown question type {question_type!r}')
-    return TYPE_TOKENS.index(qtype), (noun_index[noun] if qtype in NEEDS_OBJECT else -1)
+    return tokens.index(qtype), (noun_index[noun] if names_object(qtype) else -1)
 
 
 def pretraining_examples(rows: Sequence, first_frame: dict, nouns: Sequence[str]) -> tuple[list[Example], int]:

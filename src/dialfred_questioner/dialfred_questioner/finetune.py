@@ -50,7 +50,7 @@ from dialfred_sim.metrics import git_commit
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.chained import chain_episodes
 from dialfred_sim.protocol import MAX_STEPS, PROTOCOLS
-from dialfred_sim.protocol import QUESTION_TYPES as QUESTION_TYPES_ASKED
+from dialfred_sim.protocol import question_types
 from dialfred_sim.tasks import load_split
 
 from .checkpoint import resume_training, save
@@ -113,8 +113,8 @@ class FinetuneConfig:
             raise ValueError(f'model must be one of {", ".join(PERFORMER_MODELS)}, got {self.model!r}')
         if self.rewards not in REWARDS:
             raise ValueError(f'rewards must be one of {", ".join(REWARDS)}, got {self.rewards!r}')
-        if self.perturb_type and self.perturb_type not in QUESTION_TYPES_ASKED:
-            raise ValueError(f'perturb_type must be one of {", ".join(QUESTION_TYPES_ASKED)}, got {self.perturb_type!r}')
+        if self.perturb_type and self.perturb_type not in question_types():
+            raise ValueError(f'perturb_type must be one of {", ".join(question_types())}, got {self.perturb_type!r}')
         if self.baseline not in ('group', 'critic'):
             raise ValueError(f'baseline must be group or critic, got {self.baseline!r}')
         if self.baseline == 'group' and self.samples_per_task < 2:
@@ -298,16 +298,21 @@ def summary(episodes: list[dict]) -> dict:
             'sr': sum(ep['success'] for ep in episodes) / n, 'nq': questions / n,
             'invalid_share': sum(ep['invalid'] for ep in episodes) / max(questions, 1),
             'steps': sum(ep['steps'] for ep in episodes) / n,
-            'mix': {t: asked.count(t) / max(len(asked), 1) for t in QUESTION_TYPES_ASKED}}
+            'mix': {t: asked.count(t) / max(len(asked), 1) for t in question_types()}}
 
 
-RL_PANELS = (
-    ('return per episode', (('return', 'return', (31, 119, 180)),), None),
-    ('SR and NQ', (('sr', 'SR', (44, 160, 44)), ('nq', 'questions / episode', (214, 39, 40))), None),
-    ('question types (share)', (('mix.location', 'location', (31, 119, 180)), ('mix.appearance', 'appearance', (255, 127, 14)),
-                                ('mix.direction', 'direction', (148, 103, 189))), (0.0, 1.0)),
-    ('critic loss', (('critic', 'critic', (127, 127, 127)),), None),
-)
+TYPE_COLOURS = ((31, 119, 180), (255, 127, 14), (148, 103, 189), (140, 86, 75), (227, 119, 194), (188, 189, 34))
+
+
+def rl_panels() -> tuple:
+    """The panels of the fine-tuning curves: one line of the question-type mix per registered type."""
+    mix = tuple((f'mix.{t}', t, TYPE_COLOURS[k % len(TYPE_COLOURS)]) for k, t in enumerate(question_types()))
+    return (
+        ('return per episode', (('return', 'return', (31, 119, 180)),), None),
+        ('SR and NQ', (('sr', 'SR', (44, 160, 44)), ('nq', 'questions / episode', (214, 39, 40))), None),
+        ('question types (share)', mix, (0.0, 1.0)),
+        ('critic loss', (('critic', 'critic', (127, 127, 127)),), None),
+    )
 
 
 def draw_rl_curves(metrics_path: Path, out_path: Path) -> Path:
@@ -315,7 +320,7 @@ def draw_rl_curves(metrics_path: Path, out_path: Path) -> Path:
     # lazy: PIL, which the rest of this module does without
     from dialfred_performer.curves import draw_series, read_metrics
     rows = [{**r, **{f'mix.{k}': v for k, v in r.get('mix', {}).items()}} for r in read_metrics(metrics_path)]
-    return draw_series(rows, RL_PANELS, out_path, x_key='update', x_label='x: actor-critic updates')
+    return draw_series(rows, rl_panels(), out_path, x_key='update', x_label='x: actor-critic updates')
 
 
 def finetune(cfg: FinetuneConfig) -> dict:

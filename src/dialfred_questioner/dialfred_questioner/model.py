@@ -28,13 +28,16 @@ from typing import Optional, Sequence
 import torch
 from torch import nn
 
-from dialfred_performer.preprocess import N_TOKEN_TYPES
-from dialfred_sim.protocol import OBJECT_QUESTION_TYPES, QUESTION_TYPES
+from dialfred_performer.preprocess import n_token_types
+from dialfred_sim.protocol import object_question_types, question_types
 
 NO_QUESTION = 'none'
-TYPE_TOKENS = (NO_QUESTION, *QUESTION_TYPES)       # the type head's outputs
-NEEDS_OBJECT = OBJECT_QUESTION_TYPES
 START = '<start>'
+
+
+def type_tokens() -> tuple[str, ...]:
+    """The type head's outputs for the registered question types: 'none', 'location', 'appearance', ..."""
+    return (NO_QUESTION, *question_types())
 
 
 @dataclass(frozen=True)
@@ -48,13 +51,14 @@ class QuestionerConfig:
     dropout: float = 0.1
 
 
-def output_tokens(nouns: Sequence[str]) -> tuple[str, ...]:
-    """The decoder's vocabulary: <start>, the four type tokens, then the object nouns."""
+def output_tokens(nouns: Sequence[str], types: Optional[Sequence[str]] = None) -> tuple[str, ...]:
+    """The decoder's vocabulary: <start>, the type tokens (`type_tokens()` unless given), then the object nouns."""
     nouns = list(dict.fromkeys(nouns))
-    clash = set(nouns) & {START, *TYPE_TOKENS}
+    types = type_tokens() if types is None else tuple(types)
+    clash = set(nouns) & {START, *types}
     if clash:
         raise ValueError(f'object nouns may not be named like the type tokens: {sorted(clash)}')
-    return (START, *TYPE_TOKENS, *nouns)
+    return (START, *types, *nouns)
 
 
 class Questioner(nn.Module):
@@ -64,12 +68,13 @@ class Questioner(nn.Module):
             raise ValueError(f'hidden must be even (a bidirectional encoder), got {config.hidden}')
         self.config = config
         self.vocab_size = vocab_size
-        self.tokens = output_tokens(nouns)
+        self.type_tokens = type_tokens()      # the question types registered when it is made
+        self.tokens = output_tokens(nouns, self.type_tokens)
         self.token_index = {t: k for k, t in enumerate(self.tokens)}
-        self.n_types = len(TYPE_TOKENS)
+        self.n_types = len(self.type_tokens)
         e, h = config.embedding, config.hidden
         self.word = nn.Embedding(vocab_size, e, padding_idx=0)
-        self.token_type = nn.Embedding(N_TOKEN_TYPES, e)
+        self.token_type = nn.Embedding(n_token_types(), e)
         self.encoder = nn.LSTM(e, h // 2, batch_first=True, bidirectional=True)
         self.step = nn.Embedding(config.max_steps, e)
         self.image = nn.Sequential(nn.Linear(config.image, e), nn.LayerNorm(e))
@@ -111,7 +116,7 @@ class Questioner(nn.Module):
         return self.output(self.dropout(torch.cat([h, attended], -1))), h, c
 
     def decide(self, encoded: dict, first: Optional[torch.Tensor] = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """Log-probabilities of the first token over TYPE_TOKENS [B, 4], and of the object given the
+        """Log-probabilities of the first token over the type tokens [B, types + 1], and of the object given the
         first token [B, n_nouns] (teacher-forced on `first` [B] type indices when given, else on the
         argmax; rows whose first token needs no object are still computed and must be ignored)."""
         B = encoded['h'].shape[0]
@@ -131,11 +136,11 @@ class Questioner(nn.Module):
         return self.tokens[1 + self.n_types:]
 
     def log_prob(self, encoded: dict, types: torch.Tensor, nouns: torch.Tensor) -> torch.Tensor:
-        """log p(question) [B] of type indices [B] (into TYPE_TOKENS) and noun indices [B] (into
+        """log p(question) [B] of type indices [B] (into the type tokens) and noun indices [B] (into
         `nouns`; ignored for none and direction)."""
         type_logp, noun_logp = self.decide(encoded, types)
         lp = type_logp.gather(1, types[:, None]).squeeze(1)
-        needs = needs_object(types)
+        needs = needs_object(types, self.type_tokens)
         return lp + torch.where(needs, noun_logp.gather(1, nouns.clamp(min=0)[:, None]).squeeze(1),
                                 torch.zeros_like(lp))
 
@@ -144,7 +149,7 @@ class Questioner(nn.Module):
         type_logp, noun_logp = self.decide(encoded, types)
         h_type = -(type_logp.exp() * type_logp).sum(-1)
         h_noun = -(noun_logp.exp() * noun_logp).sum(-1)
-        return h_type + torch.where(needs_object(types), h_noun, torch.zeros_like(h_noun))
+        return h_type + torch.where(needs_object(types, self.type_tokens), h_noun, torch.zeros_like(h_noun))
 
     def sample(self, encoded: dict, generator: Optional[torch.Generator] = None,
                greedy: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -158,15 +163,18 @@ class Questioner(nn.Module):
         logits, _, _ = self._decode(encoded, h, c, types + 1)
         noun_logp = torch.log_softmax(logits[:, 1 + self.n_types:], -1)
         nouns = noun_logp.argmax(-1) if greedy else torch.multinomial(noun_logp.exp(), 1, generator=generator)[:, 0]
-        needs = needs_object(types)
+        needs = needs_object(types, self.type_tokens)
         lp = type_logp.gather(1, types[:, None]).squeeze(1) + torch.where(
             needs, noun_logp.gather(1, nouns[:, None]).squeeze(1), torch.zeros(B))
         return types, torch.where(needs, nouns, torch.full_like(nouns, -1)), lp
 
 
-def needs_object(types: torch.Tensor) -> torch.Tensor:
-    """Which type indices (into TYPE_TOKENS) name an object."""
-    return torch.isin(types, torch.tensor([TYPE_TOKENS.index(t) for t in NEEDS_OBJECT], dtype=types.dtype))
+def needs_object(types: torch.Tensor, tokens: Optional[Sequence[str]] = None) -> torch.Tensor:
+    """Which type indices (into `tokens`, a questioner's type tokens; `type_tokens()` unless given) name an
+    object."""
+    tokens = type_tokens() if tokens is None else tuple(tokens)
+    named = object_question_types()
+    return torch.isin(types, torch.tensor([k for k, t in enumerate(tokens) if t in named], dtype=types.dtype))
 
 
 def config_dict(config: QuestionerConfig) -> dict:

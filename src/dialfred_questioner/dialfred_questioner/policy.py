@@ -33,10 +33,10 @@ import torch
 from dialfred_performer.model import PerformerConfig, build_visual, state_digest, visual_state
 from dialfred_performer.nn import VisualEncoder
 from dialfred_performer.preprocess import AskedQA, Vocabulary, encode_language, frame_tensor
-from dialfred_sim.protocol import QA, ConfusionSource, Observation, Question, as_observation, top2_gap
+from dialfred_sim.protocol import QA, ConfusionSource, Observation, Question, as_observation, names_object, top2_gap
 
 from .data import pad_language
-from .model import NEEDS_OBJECT, TYPE_TOKENS, Questioner, QuestionerConfig
+from .model import NO_QUESTION, Questioner, QuestionerConfig
 from .rollout import Timing
 from .shipped import CHECKPOINTS, SHIPPED_LEARNED  # noqa: F401 - the names policy's callers find here
 
@@ -52,7 +52,7 @@ class Record:
     lang_types: tuple[int, ...]
     image: torch.Tensor           # [image] frame embedding (frozen encoder)
     step: int
-    qtype: int                    # index into TYPE_TOKENS
+    qtype: int                    # index into the model's type_tokens
     noun: int                     # index into the nouns, -1 when the type names none
 
 
@@ -219,10 +219,10 @@ class LearnedQuestioner:
         self.model.train(was)
         qtype, noun = int(qtypes[0]), int(nouns[0])
         r = Record(r.lang_ids, r.lang_types, r.image, step, qtype, noun)
-        name = TYPE_TOKENS[qtype]
-        if name == 'none':
+        name = self.model.type_tokens[qtype]
+        if name == NO_QUESTION:
             return None, r
-        return Question(name, self.model.nouns[noun] if name in NEEDS_OBJECT else ''), r
+        return Question(name, self.model.nouns[noun] if names_object(name) else ''), r
 
     # ---- a rollout policy
     def __call__(self, rgb, task, dialogue: Sequence[AskedQA], step: int) -> tuple[Optional[Question], Record]:

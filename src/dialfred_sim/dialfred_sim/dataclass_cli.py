@@ -34,7 +34,7 @@ import shlex
 import types
 import typing
 from pathlib import Path
-from typing import Any, Callable, Iterator, Optional, Sequence, TypeVar
+from typing import Any, Callable, Iterator, Optional, Sequence, TypeVar, Union
 
 C = TypeVar('C')
 SCALARS = (int, float, str, bool, Path)
@@ -43,12 +43,15 @@ _UNSET = object()
 
 
 def arg(default: Any, help: str, *, flag: Optional[str] = None,  # noqa: A002 - argparse's name
-        choices: Optional[Sequence] = None, parse: Optional[Callable[[str], Any]] = None,
+        choices: Optional[Union[Sequence, Callable[[], Sequence]]] = None, parse: Optional[Callable[[str], Any]] = None,
         show: Optional[Callable[[Any], str]] = None, const: Any = _UNSET, aliases: Optional[dict] = None,
         group: Optional[str] = None, metavar: Optional[str] = None, positional: bool = False, **kwargs) -> Any:
     """A config field with its help text and how the command line writes it (see the module);
-    `default=REQUIRED`: the command line must give it."""
-    meta = {'help': help, 'flag': flag, 'choices': tuple(choices) if choices is not None else None,
+    `default=REQUIRED`: the command line must give it. `choices` may be a function giving them when
+    a command line is read (values of a registry that may grow after the config class is made)."""
+    if choices is not None and not callable(choices):
+        choices = tuple(choices)
+    meta = {'help': help, 'flag': flag, 'choices': choices,
             'parse': parse, 'show': show, 'const': const, 'aliases': dict(aliases or {}), 'group': group,
             'metavar': metavar, 'positional': positional or None}
     return dataclasses.field(default=default, metadata={k: v for k, v in meta.items()
@@ -125,9 +128,15 @@ def _shown(f: dataclasses.Field, optional: bool, value) -> str:
     return words[0] if words else f.metadata.get('show', str)(value)
 
 
+def _choices(meta) -> Optional[tuple]:
+    """A field's choices now (None: any value)."""
+    choices = meta.get('choices')
+    return tuple(choices()) if callable(choices) else choices
+
+
 def _converter(f: dataclasses.Field, tp, optional: bool) -> Callable[[str], Any]:
     """text -> the field's value: an alias, else `parse` or the type, then the choices checked."""
-    aliases, choices, parse_text = _aliases(f, optional), f.metadata.get('choices'), f.metadata.get('parse')
+    aliases, choices, parse_text = _aliases(f, optional), _choices(f.metadata), f.metadata.get('parse')
     default = _default(f)
 
     def convert(text: str):
@@ -178,7 +187,7 @@ def add_fields(cls, parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
             continue
         metavar = meta.get('metavar')
         if metavar is None and 'choices' in meta:
-            metavar = '{' + ','.join(map(str, (*_aliases(f, path in optional), *meta['choices']))) + '}'
+            metavar = '{' + ','.join(map(str, (*_aliases(f, path in optional), *_choices(meta)))) + '}'
         item = _item_type(tp)
         kwargs = dict(dest='.'.join(path), type=_converter(f, item or tp, path in optional), help=help_text,
                       metavar=metavar or (item or tp).__name__.upper())
@@ -374,7 +383,7 @@ def markdown_options(cls, extra: Sequence[tuple[str, str, str]] = ()) -> str:
             option, default = f'`{name} {meta.get("metavar") or tp.__name__.upper()}`', '(required)'
         else:
             if 'choices' in meta:
-                value = '{' + ','.join(map(str, (*_aliases(f, path in optional), *meta['choices']))) + '}'
+                value = '{' + ','.join(map(str, (*_aliases(f, path in optional), *_choices(meta)))) + '}'
             else:
                 value = meta.get('metavar') or tp.__name__.upper()
             option = f'`{name} [{value}]`' if 'const' in meta else f'`{name} {value}`'

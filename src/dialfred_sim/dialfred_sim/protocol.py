@@ -4,11 +4,12 @@ Everything two packages must agree on is defined here once, and every package im
 
 - `ACTIONS`: ALFRED's 13 low-level actions (as dialfred_msgs/msg/Action.msg lists them); a decision is
   `(action, x, y)`, the target pixel in the simulator's frame or -1, -1 for actions without one.
-- `QUESTION_KINDS`: the oracle's question types (`QuestionType`: name, wording, whether a question of
-  it names an object, its short token), in the paper's order; everything that lists the types derives
-  from it (`QUESTION_TYPES`, `QUESTION_TEMPLATES`, `OBJECT_QUESTION_TYPES`, the questioner's outputs, the
-  performer's marks, the oracle's aliases). `question_text` fills one in; `register_question_type`
-  adds one (docs/questioner.md, "Adding a question type").
+- `question_kinds()`: the registered question types (`QuestionType`: name, wording, whether a question of
+  it names an object, its short token), the paper's first (`PAPER_QUESTION_TYPES`); everything that lists
+  the types calls it (or `question_types()`, `object_question_types()`) when it needs them: the
+  questioner's outputs, the performer's marks, the oracle's aliases, the annotator's choices.
+  `question_text` fills one in; `register_question_type` adds one (docs/questioner.md, "Adding a
+  question type"). The oracle's rules of each type are in `dialfred_oracle.questions`.
 - `Question` and `QA`: a question for the oracle and what it said.
 - `PROTOCOLS`: how a split's tasks are played: `expert` (each task from the expert's state at its first
   action, the paper's tables) or `chained` (an episode's tasks in order, each from the state the agent's
@@ -64,48 +65,67 @@ class QuestionType:
     token: str
 
 
-# The oracle's question types (dialfred_msgs/srv/OracleAnswer), in the paper's order, with the paper's
-# templates (DialFRED, section III-B); direction questions name no object.
-QUESTION_KINDS: tuple[QuestionType, ...] = (
+# The paper's question types (dialfred_msgs/srv/OracleAnswer), in its order, with its templates
+# (DialFRED, section III-B); direction questions name no object. Its tables have a column for each.
+PAPER_QUESTION_KINDS: tuple[QuestionType, ...] = (
     QuestionType('location', 'Where is the {noun}?', True, 'loc'),
     QuestionType('appearance', 'What does the {noun} look like?', True, 'app'),
     QuestionType('direction', 'Which direction should I turn to?', False, 'dir'))
+PAPER_QUESTION_TYPES: tuple[str, ...] = tuple(q.name for q in PAPER_QUESTION_KINDS)
+
+_KINDS: list[QuestionType] = list(PAPER_QUESTION_KINDS)
 
 
-def _derive() -> None:
-    global QUESTION_TYPES, QUESTION_TEMPLATES, OBJECT_QUESTION_TYPES
-    QUESTION_TYPES = tuple(q.name for q in QUESTION_KINDS)
-    QUESTION_TEMPLATES = {q.name: q.template for q in QUESTION_KINDS}
-    OBJECT_QUESTION_TYPES = tuple(q.name for q in QUESTION_KINDS if q.names_object)
+def question_kinds() -> tuple[QuestionType, ...]:
+    """Every registered question type: the paper's, then the others as registered. Everything that lists
+    the types (the questioner's outputs, the performer's marks, the oracle's aliases, the annotator's
+    choices) calls this when it needs them, so a type registered at any time is seen everywhere after."""
+    return tuple(_KINDS)
 
 
-QUESTION_TYPES: tuple[str, ...] = ()
-QUESTION_TEMPLATES: dict[str, str] = {}
-OBJECT_QUESTION_TYPES: tuple[str, ...] = ()      # the types whose questions name an object
-_derive()
+def question_types() -> tuple[str, ...]:
+    """The names of `question_kinds()`."""
+    return tuple(q.name for q in _KINDS)
+
+
+def object_question_types() -> tuple[str, ...]:
+    """The registered types whose questions name an object."""
+    return tuple(q.name for q in _KINDS if q.names_object)
+
+
+def question_kind(question_type: str) -> QuestionType:
+    """The registered type `question_type` (ValueError naming the registered ones otherwise)."""
+    for q in _KINDS:
+        if q.name == question_type:
+            return q
+    raise ValueError(f'unknown question type {question_type!r}; expected one of {question_types()}')
 
 
 def register_question_type(kind: QuestionType) -> None:
-    """Add a question type after the paper's. The modules that list the types read them when they are
-    imported, so a type is registered before them: in this module's QUESTION_KINDS, or by a module
-    imported first (as tests/questioner/test_question_type_registry.py does). ValueError for a name or
-    token that is taken."""
-    if any(kind.name == q.name or kind.token == q.token for q in QUESTION_KINDS):
+    """Add a question type after the paper's, for every part that lists the types from then on
+    (docs/questioner.md, "Adding a question type"). ValueError for a name or token that is taken."""
+    if any(kind.name == q.name or kind.token == q.token for q in _KINDS):
         raise ValueError(f'a question type named {kind.name!r} or with the token {kind.token!r} exists')
-    globals()['QUESTION_KINDS'] = (*QUESTION_KINDS, kind)
-    _derive()
+    _KINDS.append(kind)
+
+
+def unregister_question_type(question_type: str) -> None:
+    """Remove a type registered after the paper's (ValueError for one of the paper's or an unknown one)."""
+    if question_type in PAPER_QUESTION_TYPES:
+        raise ValueError(f"{question_type!r} is one of the paper's question types and stays registered")
+    _KINDS.remove(question_kind(question_type))
 
 
 def names_object(question_type: str) -> bool:
     """Whether a question of `question_type` names an object (False for a type that is none)."""
-    return question_type in OBJECT_QUESTION_TYPES
+    return question_type in object_question_types()
 
 
 def every_question(nouns) -> list['Question']:
     """The paper's All QAs about a task whose instruction names `nouns`: each object question type of each
     noun in turn (location, appearance), then each type that names no object (direction)."""
-    return [Question(t, n) for n in nouns for t in OBJECT_QUESTION_TYPES] + \
-        [Question(t) for t in QUESTION_TYPES if not names_object(t)]
+    return [Question(t, n) for n in nouns for t in object_question_types()] + \
+        [Question(t) for t in question_types() if not names_object(t)]
 
 
 @dataclass(frozen=True)
@@ -170,9 +190,7 @@ MAX_STEPS, MAX_FAILURES = 1000, 10
 
 def question_text(question_type: str, noun: str = '') -> str:
     """The question as a person asks it ('Where is the apple?'). ValueError for an unknown type."""
-    if question_type not in QUESTION_TEMPLATES:
-        raise ValueError(f'unknown question type {question_type!r}; expected one of {QUESTION_TYPES}')
-    return QUESTION_TEMPLATES[question_type].format(noun=noun)
+    return question_kind(question_type).template.format(noun=noun)
 
 
 @dataclass(frozen=True)
@@ -184,9 +202,9 @@ class Question:
 
     @property
     def text(self) -> str:
-        """The question's wording; a type that is not one of QUESTION_TYPES (which the oracle refuses) is
-        shown as it was asked, 'type: noun'."""
-        if self.question_type in QUESTION_TEMPLATES:
+        """The question's wording; a type that is not registered (which the oracle refuses) is shown as it
+        was asked, 'type: noun'."""
+        if self.question_type in question_types():
             return question_text(self.question_type, self.object_noun)
         return f'{self.question_type}: {self.object_noun}'.rstrip(': ')
 

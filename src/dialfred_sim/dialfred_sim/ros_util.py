@@ -8,7 +8,7 @@ import os
 import sys
 import traceback
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, Callable, Optional, Union
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
@@ -144,14 +144,19 @@ MAX_SEED = 2 ** 31 - 1
 @dataclass(frozen=True)
 class Param:
     """A node parameter: its default, what it means, the values it takes (an inclusive `span` for a
-    number, `choices` for a string) and whether it may change while the node runs."""
+    number, `choices` for a string: a tuple, or a function giving it when asked, for values read from a
+    registry) and whether it may change while the node runs."""
 
     name: str
     default: Any
     description: str
     span: Optional[tuple] = None
-    choices: Optional[tuple] = None
+    choices: Optional[Union[tuple, Callable[[], tuple]]] = None
     dynamic: bool = False
+
+    def allowed(self) -> Optional[tuple]:
+        """The values a string parameter takes now (None: any)."""
+        return self.choices() if callable(self.choices) else self.choices
 
     def problem(self, value) -> Optional[str]:
         """Why `value` is not acceptable, or None."""
@@ -163,8 +168,9 @@ class Param:
             return f'{self.name} must be a finite number, got {value}'
         if self.span is not None and not self.span[0] <= value <= self.span[1]:
             return f'{self.name} must be in [{self.span[0]}, {self.span[1]}], got {value}'
-        if self.choices is not None and value not in self.choices:
-            return f'{self.name} must be one of {", ".join(repr(c) for c in self.choices)}, got {value!r}'
+        allowed = self.allowed()
+        if allowed is not None and value not in allowed:
+            return f'{self.name} must be one of {", ".join(repr(c) for c in allowed)}, got {value!r}'
         return None
 
     def descriptor(self):

@@ -12,7 +12,7 @@ import numpy as np
 
 from dialfred_questioner.rl import Rewards
 from dialfred_sim.metrics import has_goto, intervals, summarize, type_order
-from dialfred_sim.protocol import QUESTION_TYPES, question_text
+from dialfred_sim.protocol import PAPER_QUESTION_TYPES, question_text
 from dialfred_sim.tasks import load_split
 
 from ..evaluation import EvalRun, resumable_results
@@ -39,11 +39,11 @@ def setting_row(plan: Plan, s: Setting, resamples: int, chained: bool = False) -
         return {'n': 0}
     overall = summarize(results)['overall']
     ci = intervals(results, resamples=resamples, seed=config.seed)
-    counts = {t: sum(r.question_types.get(t, 0) for r in results) for t in QUESTION_TYPES}
+    counts = {t: sum(r.question_types.get(t, 0) for r in results) for t in PAPER_QUESTION_TYPES}
     recorded = sum(len(r.dialogue) for r in results)
     total = sum(r.questions for r in results)
-    shares = ({t: counts[t] / recorded for t in QUESTION_TYPES} if recorded else
-              ({t: 0.0 for t in QUESTION_TYPES} if total == 0 else None))
+    shares = ({t: counts[t] / recorded for t in PAPER_QUESTION_TYPES} if recorded else
+              ({t: 0.0 for t in PAPER_QUESTION_TYPES} if total == 0 else None))
     asked = [[(qa['type'], qa['noun']) for qa in r.dialogue] for r in results]
     repeats = sum(len(a) - len(set(a)) for a in asked)
     returns = {name: sum(rewards.of_episode(r.success, r.steps, r.questions, r.invalid_questions) for r in results)
@@ -196,8 +196,8 @@ def what_holds(rows: dict) -> list[str]:
                          f'{p["random_qa"]["SR"][split]}): {verdict(rl["SR"] > rnd["SR"])}.')
     drops = {}
     for kind, base in (('rl_anytime', 'rl_anytime'), ('random_qa', 'random_qa')):
-        if have(base, *(f'{kind}_withhold_{t}' for t in QUESTION_TYPES)):
-            drops[kind] = {t: u(base)['SR'] - u(f'{kind}_withhold_{t}')['SR'] for t in QUESTION_TYPES}
+        if have(base, *(f'{kind}_withhold_{t}' for t in PAPER_QUESTION_TYPES)):
+            drops[kind] = {t: u(base)['SR'] - u(f'{kind}_withhold_{t}')['SR'] for t in PAPER_QUESTION_TYPES}
     for kind, name in (('rl_anytime', 'RL anytime'), ('random_qa', 'Random')):
         if kind in drops:
             d = drops[kind]
@@ -207,14 +207,14 @@ def what_holds(rows: dict) -> list[str]:
                          f'{"1.4 vs 1.2 and 0.6" if kind == "rl_anytime" else "2.4 vs 2.3 and 2.2"}): {verdict(ok)}.')
     base = u('rl_anytime')
     if base.get('n') and base['shares'] is not None:
-        for t in QUESTION_TYPES:
+        for t in PAPER_QUESTION_TYPES:
             w = u(f'rl_anytime_withhold_{t}')
             if w.get('n') and w['shares'] is not None:
                 ok = w['shares'][t] < base['shares'][t]
-                paper = PAPER_T3[f'rl_anytime_withhold_{t}'][4][QUESTION_TYPES.index(t)]
+                paper = PAPER_T3[f'rl_anytime_withhold_{t}'][4][PAPER_QUESTION_TYPES.index(t)]
                 lines.append(f'RL trained with {t} answers withheld asks fewer {t} questions (share {w["shares"][t]:.2f} '
                              f'vs {base["shares"][t]:.2f} unperturbed; paper {paper:.2f} vs '
-                             f'{PAPER_T3["rl_anytime"][4][QUESTION_TYPES.index(t)]:.2f}): {verdict(ok)}.')
+                             f'{PAPER_T3["rl_anytime"][4][PAPER_QUESTION_TYPES.index(t)]:.2f}): {verdict(ok)}.')
     if 'rl_anytime' in drops and 'random_qa' in drops:
         rl = sum(drops['rl_anytime'].values()) / 3
         rnd = sum(drops['random_qa'].values()) / 3
@@ -258,7 +258,7 @@ def worth_rows(rows: dict) -> list[list[str]]:
         for goto in (True, False):
             cells.append(fmt(_worth(base, [r for r in asked if has_goto(r.task_type) == goto])))
         drawn = rows[('valid_unseen', random_key)].get('results', [])
-        for t in QUESTION_TYPES:
+        for t in PAPER_QUESTION_TYPES:
             cells.append(fmt(_worth(base, [r for r in drawn if r.task_id in base and r.dialogue
                                            and all(qa['type'] == t for qa in r.dialogue)])))
         sw = rows[('valid_unseen', swapped_key)]
@@ -305,7 +305,7 @@ def sampled_mix(run_dir: Path, last: int = 8) -> Optional[dict]:
     weights = [r.get('nq', 0.0) * r.get('episodes', 0) for r in records]
     if not records or not sum(weights):
         return None
-    return {t: sum(w * r['mix'].get(t, 0.0) for w, r in zip(weights, records)) / sum(weights) for t in QUESTION_TYPES}
+    return {t: sum(w * r['mix'].get(t, 0.0) for w, r in zip(weights, records)) / sum(weights) for t in PAPER_QUESTION_TYPES}
 
 
 def why_lines(plan: Plan, rows: dict) -> list[str]:
@@ -338,21 +338,21 @@ def why_lines(plan: Plan, rows: dict) -> list[str]:
                              'few questions, and its SR stays near those few questions\' SR rather than All QAs\'.'
                              if worth < price else '. Here answers are worth their price, so RL has reason to ask.'))
     mixes = {}
-    for key in ('rl_anytime', *(f'rl_anytime_withhold_{t}' for t in QUESTION_TYPES)):
+    for key in ('rl_anytime', *(f'rl_anytime_withhold_{t}' for t in PAPER_QUESTION_TYPES)):
         if not plan.cfg.shipped:
             mix = sampled_mix(plan.run / 'questioner' / key)
             if mix is not None:
                 mixes[key] = mix
     greedy = row('valid_unseen', 'rl_anytime').get('shares')
     if greedy:
-        fmt = lambda m: ' / '.join(f'{m[t]:.2f}' for t in QUESTION_TYPES)
+        fmt = lambda m: ' / '.join(f'{m[t]:.2f}' for t in PAPER_QUESTION_TYPES)
         text = (f'Question mix: the evaluation plays each questioner greedily, asking the type its policy ranks first; '
                 f'RL anytime\'s greedy shares on valid_unseen are {fmt(greedy)} (location / appearance / direction)')
         if 'rl_anytime' in mixes:
             text += f', while sampling in training (its last 8 updates) it asked {fmt(mixes["rl_anytime"])}'
             moved = [f'{t} withheld: {fmt(mixes[f"rl_anytime_withhold_{t}"])} (its {t} share '
                      f'{mixes[f"rl_anytime_withhold_{t}"][t] - mixes["rl_anytime"][t]:+.2f})'
-                     for t in QUESTION_TYPES if f'rl_anytime_withhold_{t}' in mixes]
+                     for t in PAPER_QUESTION_TYPES if f'rl_anytime_withhold_{t}' in mixes]
             if moved:
                 text += '; sampled mixes of the runs trained with one type withheld: ' + '; '.join(moved)
         else:
@@ -492,7 +492,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     table2 = [[p['number'], p['name'], split, _n(r), _v(r, 'SR'), p['SR'][split], _v(r, 'PWSR'), p['PWSR'][split],
                _v(r, 'NQ'), p['NQ']]
               for key, p in PAPER_T2.items() for split in SPLITS for r in [rows[(split, key)]]]
-    table3 = [[name, _n(r), _v(r, 'SR'), sr, _v(r, 'PWSR'), pwsr, _v(r, 'NQ'), nq, *(_share(r, t) for t in QUESTION_TYPES),
+    table3 = [[name, _n(r), _v(r, 'SR'), sr, _v(r, 'PWSR'), pwsr, _v(r, 'NQ'), nq, *(_share(r, t) for t in PAPER_QUESTION_TYPES),
                ' / '.join(f'{v:.2f}' for v in shares)]
               for key, (name, sr, pwsr, nq, shares) in PAPER_T3.items() for r in [rows[('valid_unseen', key)]]]
     table4 = [[name, _n(r), _v(r, 'SR'), sr, _v(r, 'PWSR'), pwsr, _v(r, 'NQ'), nq]
@@ -501,7 +501,7 @@ def render(plan: Plan, report: dict, plot_name: str) -> str:
     for key, name in EXTRA.items():
         r = rows[('valid_unseen', key)]
         extra.append(f'| {name} | {_n(r)} | {_v(r, "SR")} | {_v(r, "PWSR")} | {_v(r, "NQ")} | {r["repeats"]:.3f} | '
-                     + ' | '.join(_share(r, t) for t in QUESTION_TYPES) + ' |' if r.get('n')
+                     + ' | '.join(_share(r, t) for t in PAPER_QUESTION_TYPES) + ' |' if r.get('n')
                      else f'| {name} | 0 | no results | | | |  | | |')
     map_rows = []
     for key, (name, et_key, *_) in MAP_ROWS.items():

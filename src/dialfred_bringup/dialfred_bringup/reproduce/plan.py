@@ -14,7 +14,7 @@ from dialfred_performer.model_registry import performer_model
 from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_questioner.frames import default_path
 from dialfred_sim.dataclass_cli import arg
-from dialfred_sim.protocol import QUESTION_TYPES
+from dialfred_sim.protocol import PAPER_QUESTION_TYPES
 from dialfred_sim.tasks.demonstrations import default_dir
 
 from ..baseline_runs import BASELINES as TABLE2_BASELINES  # the one place of Table II's rows 1-4
@@ -58,7 +58,7 @@ RL_RUNS = {
     'rl_anytime_1': dict(timing='anytime', gap=1, rewards='fixed_1'),
     'rl_anytime_10': dict(timing='anytime', gap=10),
     'rl_mc': dict(timing='confusion'),
-    **{f'rl_anytime_withhold_{t}': dict(timing='anytime', gap=5, perturb_type=t) for t in QUESTION_TYPES},
+    **{f'rl_anytime_withhold_{t}': dict(timing='anytime', gap=5, perturb_type=t) for t in PAPER_QUESTION_TYPES},
     # Beyond the paper: RL anytime reading the instruction only, as the original questioner did (ablation).
     'rl_anytime_no_dialogue': dict(timing='anytime', gap=5, dialogue=False),
     # Beyond the paper: RL anytime fine-tuned against the map-and-plan performer (over the same perception).
@@ -143,7 +143,7 @@ def settings() -> list[Setting]:
             out.append(Setting(key, split, b.questioner))
         out += [Setting('rl_begin', split, 'rl:rl_begin'), Setting('rl_anytime', split, 'rl:rl_anytime'),
                 Setting('pretrained', split, 'rl:pretrained')]
-    for t in QUESTION_TYPES:
+    for t in PAPER_QUESTION_TYPES:
         out.append(Setting(f'rl_anytime_withhold_{t}', 'valid_unseen', f'rl:rl_anytime_withhold_{t}', t))
         out.append(Setting(f'random_qa_withhold_{t}', 'valid_unseen', 'random', t))
     for run in ('rl_anytime_1', 'rl_anytime_10', 'rl_mc', 'rl_anytime_no_dialogue'):

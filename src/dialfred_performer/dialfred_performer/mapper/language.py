@@ -26,7 +26,7 @@ import re
 from dataclasses import dataclass
 from typing import Optional
 
-from dialfred_oracle.answers import DIRECTION_BINS, GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT
+from dialfred_oracle.questions import DIRECTION_BINS, oracle_question
 from dialfred_oracle.nouns import meanings
 from dialfred_sim.tasks.instructions import SYNONYMS
 from dialfred_sim.catalog import load_catalog
@@ -201,13 +201,8 @@ def parse_instruction(sentence: str) -> Reading:
 
 # ---------------------------------------------------------------------- answers
 
-_BIN_RE = '|'.join(re.escape(b) for b in DIRECTION_BINS)
-_LOCATION = re.compile(rf'^the (?P<noun>.+?) is (?P<bin>{_BIN_RE})(?: (?P<prep>in|on) the (?P<recep>.+))?\.$')
-_HOLDING = re.compile(r'^you are holding the (?P<noun>.+)\.$')
-_CARRIED = re.compile(r'^the (?P<noun>.+?) is (?:in|on) the (?P<recep>.+) you are holding\.$')
-_APPEARANCE = re.compile(r'^the (?P<noun>.+?) is (?P<colour>[a-z]+) and made of (?P<material>.+)\.$')
-_TURNS = {TURN_LEFT.lower(): 90, TURN_RIGHT.lower(): -90, TURN_AROUND.lower(): 180, GO_STRAIGHT.lower(): 0,
-          STAY.lower(): 0}
+# A direction answer's way to go (questions.direction.MOVES) as a turn, counter-clockwise; '' is staying.
+_TURNS = {'to your left': 90, 'to your right': -90, 'behind you': 180, 'in front of you': 0, '': 0}
 
 
 @dataclass(frozen=True)
@@ -227,29 +222,27 @@ class Fact:
 
 
 def parse_answer(question_type: str, answer: str) -> Optional[Fact]:
-    """The fact in an oracle answer, or None for an answer it cannot read ("I don't know.")."""
-    text = answer.strip().lower()
+    """The fact in an oracle answer, or None for an answer it cannot read ("I don't know."). The words
+    are read by the question type's own reader (`OracleQuestion.parts`, where they are written); a type
+    the map performer has no use for gives None."""
+    rules = oracle_question(question_type)
+    parts = rules.parts(answer) if rules is not None else None
+    if parts is None:
+        return None
     try:
         if question_type == 'direction':
-            if text not in _TURNS:
-                return None
-            return Fact('direction', turn_deg=_TURNS[text], stay=text == STAY.lower())
+            return Fact('direction', turn_deg=_TURNS[parts['where']], stay=parts['where'] == '')
         if question_type == 'location':
-            m = _HOLDING.match(text)
-            if m:
-                return Fact('held', object_type(m.group('noun')))
-            m = _CARRIED.match(text)
-            if m:
-                return Fact('held', object_type(m.group('noun')), receptacle=object_type(m.group('recep')))
-            m = _LOCATION.match(text)
-            if m:
-                recep = object_type(m.group('recep')) if m.group('recep') else ''
-                return Fact('location', object_type(m.group('noun')), DIRECTION_BINS.index(m.group('bin')) * 45.0,
-                            recep, inside=m.group('prep') == 'in')
-            return None
+            noun = object_type(parts['noun'].lower())
+            if parts.get('held'):
+                return Fact('held', noun)
+            if parts['where'] == 'held':
+                return Fact('held', noun, receptacle=object_type(parts['receptacle'].lower()))
+            recep = object_type(parts['receptacle'].lower()) if parts['receptacle'] else ''
+            return Fact('location', noun, DIRECTION_BINS.index(parts['where'].lower()) * 45.0, recep,
+                        inside=parts['preposition'].lower() == 'in')
         if question_type == 'appearance':
-            m = _APPEARANCE.match(text)
-            return Fact('appearance', object_type(m.group('noun')), colour=m.group('colour')) if m else None
+            return Fact('appearance', object_type(parts['noun'].lower()), colour=parts['colour'].lower())
     except InstructionError:
         return None
     return None
