@@ -133,14 +133,17 @@ QUESTIONER_CODE = (f'{QUES}/policy.py', f'{QUES}/shipped.py', f'{QUES}/model.py'
 RL_CODE = (f'{QUES}/finetune.py', f'{QUES}/checkpoint.py', f'{SIM}/episode.py', *QUESTIONER_CODE)
 EVAL_CODE = (f'{UP}/evaluation.py', f'{UP}/workers.py', f'{UP}/local.py', f'{UP}/silent.py', f'{SIM}/episode.py',
              f'{QUES}/baselines.py', f'{QUES}/questioners.py', *QUESTIONER_CODE, f'{SIM}/metrics.py')
+# The question types' modules: the annotator's rules of each type are there.
+ANNOTATOR_RULES = tuple(f'src/dialfred_oracle/dialfred_oracle/questions/{name}.py'
+                        for name in ('base', 'location', 'appearance', 'direction'))
 CHAINED_CODE = (*EVAL_CODE, f'{SIM}/chained.py', f'{SIM}/traces.py')
 CODE = {
     'demos': (f'{PERF}/prepare.py', f'{PERF}/data.py', f'{SIM}/tasks/demonstrations.py',
-              'src/dialfred_oracle/dialfred_oracle/annotator.py'),
+              'src/dialfred_oracle/dialfred_oracle/annotator.py', *ANNOTATOR_RULES),
     'perception': (f'{PERF}/perception.py', f'{SIM}/tasks/demonstrations.py'),
     'performer': (f'{PERF}/train.py', f'{PERF}/model.py', f'{PERF}/data.py', f'{PERF}/preprocess.py',
                   f'{PERF}/nn/enc_perceived.py'),
-    'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py'),
+    'dialogues': ('scripts/annotate_dialogues.py', 'src/dialfred_oracle/dialfred_oracle/annotator.py', *ANNOTATOR_RULES),
     'frames': (f'{QUES}/frames.py',),
     'pretrain': (f'{QUES}/pretrain.py', f'{QUES}/checkpoint.py', f'{QUES}/model.py', f'{QUES}/data.py'),
     'rl': (*RL_CODE, *MODEL_CODE['map']),
