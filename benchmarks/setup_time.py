@@ -10,6 +10,7 @@ machine has; the JSON says whether one existed) and colcon-builds src/. Prints J
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -26,7 +27,9 @@ def timed(cmd, cwd) -> float:
     return time.monotonic() - t0
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    argparse.ArgumentParser(prog='python3 benchmarks/setup_time.py', description=__doc__.split('\n\n')[0],
+                            epilog='It takes no arguments; it prints JSON.').parse_args(argv)
     cache = Path.home() / '.cache' / 'pip'
     with tempfile.TemporaryDirectory() as tmp:
         clone = Path(tmp) / 'dialfred'
