@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Optional
 
 from dialfred_oracle import answers
+from dialfred_oracle.questions import oracle_questions
 from dialfred_sim.dataclass_cli import arg, parse
 from dialfred_sim.processes import worker_pool
 from dialfred_sim.tasks.demonstrations import build_demonstrations, default_dir, load_demonstrations, probe_values
@@ -78,11 +79,10 @@ class PrepareConfig:
 
 
 def oracle_texts() -> list[str]:
-    """Every word the oracle's answers can contain: its fixed sentences and templates, and every
-    object noun, colour and material of the catalogue."""
-    texts = [*answers.DIRECTION_BINS, answers.GO_STRAIGHT, answers.TURN_LEFT, answers.TURN_RIGHT,
-             answers.TURN_AROUND, answers.STAY, answers.WITHHELD,
-             'The is in on the you are holding. You are holding the. The is and made of.', *COLOUR_NAMES]
+    """Every word the oracle's answers can contain: each question type's fixed words
+    (`OracleQuestion.vocabulary`), the withheld answer, and every object noun, colour and material of
+    the catalogue."""
+    texts = [*(text for q in oracle_questions() for text in q.vocabulary()), answers.WITHHELD, *COLOUR_NAMES]
     for t in load_catalog().values():
         texts += [t.noun, *t.nouns, *t.materials]
     return texts

@@ -52,6 +52,9 @@ class Appearance(OracleQuestion):
         m = LOOKS.match(text.strip())
         return {'noun': m.group('noun'), 'colour': m.group('colour'), 'material': m.group('material')} if m else None
 
+    def vocabulary(self) -> list[str]:
+        return ['The is and made of.']
+
     def check(self, snapshot: Snapshot, ans: Answer, fact: Optional[ObjectFact]) -> dict[str, Optional[bool]]:
         """colour_ok: the answer names the object's colour variant."""
         parts = self.parts(ans.text)

@@ -127,6 +127,11 @@ class OracleQuestion:
         words the templates do not cover ("I don't know."). Case and surrounding spaces do not matter."""
         return None
 
+    def vocabulary(self) -> list[str]:
+        """The fixed words of its answers (the templates without what fills them in), for a performer's
+        vocabulary; the nouns, colours and materials of the catalogue come from the catalogue."""
+        return []
+
     def check(self, snapshot: Snapshot, ans: Answer, fact: Optional[ObjectFact]) -> dict[str, Optional[bool]]:
         """Which of the checks ('receptacle_ok', 'direction_ok', 'colour_ok') the valid answer `ans` passes
         against the ground truth (`fact`: the object it is about); only those that apply to the type."""

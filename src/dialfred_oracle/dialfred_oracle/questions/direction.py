@@ -61,6 +61,9 @@ class Direction(OracleQuestion):
         where = _MOVES_READ.get(text.strip().lower())
         return None if where is None else {'where': where}
 
+    def vocabulary(self) -> list[str]:
+        return list(MOVES)
+
     def check(self, snapshot: Snapshot, ans: Answer, fact: Optional[ObjectFact]) -> dict[str, Optional[bool]]:
         """direction_ok: the advice recomputed from the geometry."""
         return {'direction_ok': snapshot.expert_end is not None

@@ -89,6 +89,9 @@ class Location(OracleQuestion):
                     'receptacle': m.group('recep') or ''}
         return None
 
+    def vocabulary(self) -> list[str]:
+        return [*DIRECTION_BINS, 'The is in on the you are holding. You are holding the.']
+
     def check(self, snapshot: Snapshot, ans: Answer, fact: Optional[ObjectFact]) -> dict[str, Optional[bool]]:
         """receptacle_ok: the object's parent receptacle with the right preposition (or none for an object
         without one, or held when it is); direction_ok: the direction bin recomputed from the geometry."""
