@@ -26,7 +26,9 @@ from dialfred_oracle.in_process import EnvServer
 from dialfred_oracle.questions import Answer, OracleQuestion, oracle_question, oracle_questions, register, unregister
 from dialfred_oracle.questions.base import one_of
 from dialfred_performer.agent import PerformerAgent
-from dialfred_performer.model import Performer, PerformerConfig
+from dialfred_performer.model import CheckpointError, Performer, PerformerConfig
+from dialfred_performer.model_registry import load_policy
+from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_performer.preprocess import Vocabulary, n_token_types, qa_tokens, type_marks, type_of_question
 from dialfred_questioner.baselines import AllQuestioner, random_qa_choices, with_questioner
 from dialfred_questioner.data import catalog_nouns, pretraining_examples
@@ -155,3 +157,8 @@ def test_an_unregistered_type_is_refused_again(count_type):
     assert not refused.valid and 'no rule' in refused.reason
     register(count_type)             # the fixture removes it again, protocol entry and all
     assert oracle_question('count') is count_type
+
+
+def test_a_checkpoint_trained_before_a_type_was_added_says_so(count_type):
+    with pytest.raises(CheckpointError, match='trained for 3 question types and 4 are registered'):
+        load_policy('et', SHIPPED_CHECKPOINT)

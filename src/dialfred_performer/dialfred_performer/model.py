@@ -505,6 +505,10 @@ def load_checkpoint(path: Path, state: Optional[dict] = None) -> tuple[Performer
               if k in found and tuple(found[k].shape) != tuple(v.shape)]
     if shapes:
         problems.append(f'shape mismatch (checkpoint != config) {shapes[:8]}')
+    types = found.get('language.token_type.weight')
+    if types is not None and types.shape[0] != n_token_types():
+        problems.append(f'it was trained for {types.shape[0] - 2} question types and {n_token_types() - 2} are '
+                        'registered now (protocol.question_types()): retrain it for a type added since')
     if problems:
         raise CheckpointError(f'{path}: weights do not fit config {config} with {len(vocab)} words: '
                               + '; '.join(problems))
