@@ -23,7 +23,7 @@ OUT = Path(__file__).resolve().parents[1] / 'docs' / 'cli'
 COLUMNS = '100'
 # file name -> (module run as `python -m`, its arguments before --help)
 COMMANDS = {
-    'demo': ('dialfred_bringup.launch', ['demo']),
+    'demo': ('dialfred_bringup.launch', ['demo']),     # with DIALFRED_LAUNCH_PROG, as ./dialfred runs it (PROGS)
     'launch': ('dialfred_bringup.launch', []),
     'launch-demo': ('dialfred_bringup.launch', ['demo']),
     'launch-eval': ('dialfred_bringup.launch', ['eval']),
@@ -42,17 +42,24 @@ COMMANDS = {
 }
 
 
-def help_text(module: str, args: list) -> str:
-    """What `python -m module ARGS --help` prints, at COLUMNS columns."""
+# The launcher's name as ./dialfred gives it for a command (the wrapper's DIALFRED_LAUNCH_PROG).
+PROGS = {'demo': './dialfred'}
+
+
+def help_text(module: str, args: list, prog: str = '') -> str:
+    """What `python -m module ARGS --help` prints, at COLUMNS columns (`prog`: DIALFRED_LAUNCH_PROG)."""
     out = io.StringIO()
     saved = sys.argv, os.environ.get('COLUMNS')
     os.environ['COLUMNS'] = COLUMNS
+    if prog:
+        os.environ['DIALFRED_LAUNCH_PROG'] = prog
     sys.argv = [module, *args, '--help']
     try:
         with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit), warnings.catch_warnings():
             warnings.simplefilter('ignore', RuntimeWarning)     # runpy: the module was imported by its package
             runpy.run_module(module, run_name='__main__', alter_sys=True)
     finally:
+        os.environ.pop('DIALFRED_LAUNCH_PROG', None)
         sys.argv = saved[0]
         if saved[1] is None:
             os.environ.pop('COLUMNS', None)
@@ -67,7 +74,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     stale = []
     for name, (module, words) in COMMANDS.items():
-        text, path = help_text(module, words), OUT / f'{name}.txt'
+        text, path = help_text(module, words, PROGS.get(name, '')), OUT / f'{name}.txt'
         if not text.strip():
             raise SystemExit(f'{module} {" ".join(words)} --help printed nothing')
         if path.exists() and path.read_text() == text:

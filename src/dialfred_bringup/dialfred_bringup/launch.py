@@ -33,6 +33,7 @@ runs in the caller's domain so that other terminals can reach it.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import time
@@ -302,7 +303,8 @@ JOBS = {'demo': (DemoConfig, run_demo), 'explore': (ExploreConfig, run_explore),
 
 def make_parser() -> argparse.ArgumentParser:
     """The launcher's command line: a subcommand per job, its options the fields of the job's config."""
-    parser = Parser(prog='./dialfred launch', description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    # `./dialfred demo` is `./dialfred launch demo`: the wrapper names itself, so the usage says what was typed.
+    parser = Parser(prog=os.environ.get('DIALFRED_LAUNCH_PROG', './dialfred launch'), description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
     for name, (config_class, _) in JOBS.items():
         summary = config_class.__doc__.split('\n\n')[0]
