@@ -64,13 +64,13 @@ def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():
         assert set(report[path]['ms_per_step_median']) == {'step_1', 'step_20', 'step_60'}
 
 
-def _twin_agents(max_tokens: int = 256):
+def _twin_agents(max_tokens: int = 256, stream: bool = False):
     from types import SimpleNamespace as NS
     vocab = Vocabulary.build(['put the red apple in the fridge', 'the apple is to your left in the fridge .',
                               'you should turn around', 'it is red and made of plastic'])
     torch.manual_seed(3)
-    model = Performer(PerformerConfig(resolution=RES, d_model=32, heads=2, layers=2, ff=64, max_tokens=max_tokens),
-                      len(vocab))
+    model = Performer(PerformerConfig(resolution=RES, d_model=32, heads=2, layers=2, ff=64, max_tokens=max_tokens,
+                                      stream_answers=stream), len(vocab))
     task = NS(instruction='put the red apple in the fridge', object_nouns=['apple', 'fridge'])
     return PerformerAgent(model, vocab, incremental=True), PerformerAgent(model, vocab, incremental=False), task
 
@@ -120,3 +120,57 @@ def test_a_pointer_mode_the_model_cannot_play_is_refused():
     assert incremental.state.pointer_mode == 'keys'          # a cnn encoder makes every frame's keys
     with pytest.raises(ValueError, match="pointer mode 'lazy'"):
         PerformerAgent(incremental.model, incremental.vocab, pointer_mode='lazy')
+
+
+def _stream_qas():
+    loc = QA(Question('location', 'apple'), True, 'The apple is to your left in the fridge.')
+    ahead = QA(Question('location', 'apple'), True, 'The apple is in front of you in the fridge.')
+    dirn = QA(Question('direction'), True, 'You should turn around.')
+    left = QA(Question('direction'), True, 'You should turn left.')
+    # repeats (step 3, 7), a newer answer superseding an older one (4, 6, 9), two answers at one step (9)
+    return {0: [loc, dirn], 3: [dirn], 4: [left], 6: [ahead, dirn], 7: [dirn], 9: [loc, left, dirn]}
+
+
+def test_an_answer_stream_decides_the_same_incrementally_and_over_the_whole_episode():
+    """With the stream encoding (repeats add nothing, a newer answer hides the older one of its (type,
+    noun), positions restart), the incremental step equals reading the whole episode again, and the
+    cache is kept however long the stream grows (its positions never outgrow the table)."""
+    incremental, full, task = _twin_agents(max_tokens=40, stream=True)
+    rng = np.random.default_rng(2)
+    frames = [rng.integers(0, 256, (RES, RES, 3), dtype=np.uint8) for _ in range(12)]
+    _play_twins(incremental, full, task, frames, _stream_qas())
+    lang = incremental.language_input()
+    assert len(lang) > 40 and incremental.state.cache is not None
+    assert max(lang.positions) < 40
+    from dialfred_performer.preprocess import NEVER
+    superseded = {(s, u) for s, u in zip(lang.steps, lang.until) if u != NEVER}
+    assert superseded == {(0, 4), (0, 6), (4, 6), (6, 9), (9, 9)}    # (asked at, superseded at); repeats left out
+
+
+def test_an_answer_stream_is_read_at_each_step_as_training_reads_the_episode():
+    """The agent's step over an answer stream gives the logits of training's forward over the same episode
+    (the batch path: data.collate's positions and until)."""
+    from dialfred_performer.data import START, collate
+    incremental, _, task = _twin_agents(stream=True)
+    rng = np.random.default_rng(4)
+    frames = [rng.integers(0, 256, (RES, RES, 3), dtype=np.uint8) for _ in range(11)]
+    incremental.reset(task, 0)
+    qas_at, logits, actions = _stream_qas(), [], []
+    for t, frame in enumerate(frames):
+        for qa in qas_at.get(t, []):
+            incremental.hear(qa)
+        logits.append(incremental._outputs(frame).action_logits)
+        action, _, _ = incremental.act(frame)
+        actions.append(ACTIONS.index(action))
+    lang = incremental.language_input()
+    model = incremental.model
+    item = {'task_id': 't', 'actions': torch.tensor(actions), 'frame_ids': torch.arange(len(frames)),
+            'previous_actions': torch.tensor([START, *actions[:-1]]), 'target_cells': torch.full((len(frames),), -1),
+            'target_masks': torch.zeros(0, model.config.grid_size ** 2, dtype=torch.bool),
+            'lang_ids': torch.tensor(lang.ids), 'lang_types': torch.tensor(lang.types),
+            'lang_steps': torch.tensor(lang.steps), 'lang_positions': torch.tensor(lang.positions),
+            'lang_until': torch.tensor(lang.until), 'action_valid': torch.ones(len(frames), dtype=torch.bool),
+            'frames': torch.stack([model.frame_input(f)[0] for f in frames])}
+    with torch.no_grad():
+        out = model(collate([item]))['action_logits'][0]
+    assert torch.allclose(out, torch.stack(logits), atol=1e-4)

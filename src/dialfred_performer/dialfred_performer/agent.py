@@ -85,7 +85,10 @@ class PerformerAgent:
         self.dialogue.append(AskedQA(qa, self.step))
 
     def language_input(self):
-        """The language the model reads now (preprocess.encode_language over the dialogue so far)."""
+        """The language the model reads now (preprocess.encode_language over the dialogue so far; an answer
+        stream for a model trained on answers at any step, kept whole: its positions never outgrow the table)."""
+        if self.config.stream_answers:
+            return encode_language(self.vocab, self.instruction, self.dialogue, stream=True)
         return encode_language(self.vocab, self.instruction, self.dialogue, self.config.max_tokens)
 
     def _outputs(self, observation: Observation) -> StepOutputs:
@@ -100,7 +103,8 @@ class PerformerAgent:
         if self.config.failure_input:
             self._note_failure(obs)
         lang = self.language_input()
-        dropped = len(lang) < len(encode_language(self.vocab, self.instruction, self.dialogue))
+        dropped = not self.config.stream_answers and \
+            len(lang) < len(encode_language(self.vocab, self.instruction, self.dialogue))
         result = self.model.step(self.state, StepInputs(self.model.frame_input(obs.rgb), obs.rgb.shape[:2], lang,
                                                         dropped))
         self._pending = (observation, key, result)

@@ -32,7 +32,7 @@ import hashlib
 import itertools
 import json
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Callable, NamedTuple, Optional, Sequence
 
 import numpy as np
 import torch
@@ -40,13 +40,14 @@ from torch.utils.data import Dataset
 
 from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task
 from dialfred_oracle.answers import answer
+from dialfred_oracle.questions import oracle_question
 from dialfred_sim.ground_truth import snapshot, task_object_ids
 from dialfred_sim.protocol import ACTIONS, QA, every_question, question_types
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
 
 from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
-from .preprocess import AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
+from .preprocess import NEVER, AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
 
 
 
@@ -72,15 +73,23 @@ def held_out(task_id: str, fraction: float) -> bool:
     return int(hashlib.sha256(task_id.encode()).hexdigest()[:12], 16) / 16 ** 12 < fraction
 
 
-def load_dialogues(path: Path) -> dict[str, list[AskedQA]]:
-    """{task_id: [AskedQA]} from a dialogues.jsonl; {} if the file does not exist."""
+class TaskDialogue(NamedTuple):
+    """A task's line of dialogues.jsonl: its QAs, and whether they are a log of the answers at every step
+    (`AnswerLog`; else QAs at step 0 and the middle only, as folders made before logged them)."""
+
+    qas: list[AskedQA]
+    every_step: bool
+
+
+def load_dialogues(path: Path) -> dict[str, TaskDialogue]:
+    """{task_id: TaskDialogue} from a dialogues.jsonl; {} if the file does not exist."""
     path = Path(path)
     if not path.exists():
         return {}
     out = {}
     for line in path.read_text().splitlines():
         row = json.loads(line)
-        out[row['task_id']] = [qa_from_dict(d) for d in row['qas']]
+        out[row['task_id']] = TaskDialogue([qa_from_dict(d) for d in row['qas']], bool(row.get('every_step')))
     return out
 
 
@@ -89,8 +98,12 @@ def vocabulary_texts(demonstrations_dir: Path) -> list[str]:
     dialogues.jsonl as the model reads it (so the marker tokens are counted once as themselves)."""
     demo = load_demonstrations(demonstrations_dir)
     texts = [t['instruction'] for t in demo.tasks] + [n for t in demo.tasks for n in t['object_nouns']]
-    for qas in load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE).values():
-        texts += [' '.join(qa_tokens(a.qa)) for a in qas]
+    by_id = {t['task_id']: t for t in demo.tasks}
+    for tid, dialogue in load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE).items():
+        # the QAs of the paper's items (steps 0 and the middle): a log's other steps add no word the
+        # oracle's templates lack (prepare.oracle_texts), only counts
+        steps = paper_steps(by_id[tid]) if tid in by_id else sorted({a.step for a in dialogue.qas})
+        texts += [' '.join(qa_tokens(a.qa)) for s in steps for a in answers_at(dialogue.qas, s)]
     return texts
 
 
@@ -100,12 +113,22 @@ class DemonstrationDataset(Dataset):
 
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
-                 only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0):
+                 only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
+                 streams: int = 0, stream: bool = False):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
         combinations = type_combinations() if combinations is None else combinations
         self.combinations = tuple(combinations) if self.dialogues else ((),)
+        if streams < 0:
+            raise ValueError(f'streams is a number of items per task, got {streams}')
+        if streams and not stream:
+            raise ValueError('stream items need the stream encoding (stream=True: PerformerConfig.stream_answers)')
+        if streams and self.dialogues and not all(d.every_step for d in self.dialogues.values()):
+            raise ValueError(f'{demonstrations_dir}: its {DIALOGUES_FILE} has answers at step 0 and the middle only; '
+                             'stream items need the answers of every step (make it again with prepare-performer)')
+        self.streams = streams if self.dialogues else 0
+        self.stream = stream                  # every item's language is encoded as an answer stream
         self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
         self.frame_size = self.demo.meta['resolution']
         if not 0 <= recovery <= 1:
@@ -122,23 +145,32 @@ class DemonstrationDataset(Dataset):
             raise ValueError(f'a pixel pointer at {resolution} px needs demonstrations at {resolution} px, '
                              f'not {self.frame_size}')
 
+    @property
+    def per_task(self) -> int:
+        """Items per task: one per combination, then the stream items."""
+        return len(self.combinations) + self.streams
+
     def __len__(self) -> int:
-        return len(self.task_indices) * len(self.combinations)
+        return len(self.task_indices) * self.per_task
 
     def dialogue(self, index: int) -> list[AskedQA]:
-        """The QAs of item `index`: for each type of its combination, the QAs of that type at one of
-        the steps the task has them for (drawn from the seed and the index), in step order."""
-        k, c = divmod(index, len(self.combinations))
+        """The QAs of item `index`. A paper item (the first len(combinations) of a task's): for each type
+        of its combination, the oracle's answers of that type at step 0 or at the middle step (drawn from
+        the seed and the index), in step order. A stream item (the task's other `streams`): see
+        `stream_dialogue`."""
+        k, c = divmod(index, self.per_task)
         task = self.demo.tasks[self.task_indices[k]]
-        qas = self.dialogues.get(task['task_id'], [])
+        dialogue = self.dialogues.get(task['task_id'])
+        qas = dialogue.qas if dialogue is not None else []
         rng = np.random.default_rng([self.seed, index])
+        if c >= len(self.combinations):
+            return stream_dialogue(qas, self.steps_of(self.task_indices[k]), rng)
         chosen = []
         for qtype in self.combinations[c]:
             of_type = [a for a in qas if a.qa.question.question_type == qtype]
-            steps = sorted({a.step for a in of_type})
-            if steps:
-                step = steps[int(rng.integers(len(steps)))]
-                chosen += [a for a in of_type if a.step == step]
+            if of_type:
+                steps = paper_steps(task) if dialogue.every_step else sorted({a.step for a in of_type})
+                chosen += answers_at(of_type, steps[int(rng.integers(len(steps)))])
         return sorted(chosen, key=lambda a: a.step)
 
     def steps_of(self, k: int) -> int:
@@ -147,7 +179,7 @@ class DemonstrationDataset(Dataset):
         return len(task['actions']) + bool(task['success'])
 
     def __getitem__(self, index: int) -> dict:
-        k = self.task_indices[index // len(self.combinations)]
+        k = self.task_indices[index // self.per_task]
         task = self.demo.tasks[k]
         n = len(task['actions'])
         names = [a[0] for a in task['actions']] + (['Stop'] if task['success'] else [])
@@ -161,7 +193,7 @@ class DemonstrationDataset(Dataset):
                 masks[row] = torch.from_numpy(np.unpackbits(packed)[:grid * grid].astype(bool))
             if not masks[row].any():              # no labels, or the target is not in view: the expert's cell
                 masks[row, cells[step]] = True
-        lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens)
+        lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens, self.stream)
         item = {'task_id': task['task_id'], 'actions': actions,
                 'frame_ids': torch.arange(task['first_frame'], task['first_frame'] + len(names)),
                 'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),
@@ -169,6 +201,10 @@ class DemonstrationDataset(Dataset):
                 'lang_ids': torch.tensor(lang.ids, dtype=torch.long),
                 'lang_types': torch.tensor(lang.types, dtype=torch.long),
                 'lang_steps': torch.tensor(lang.steps, dtype=torch.long),
+                'lang_positions': torch.tensor(lang.positions if lang.positions is not None else range(len(lang)),
+                                               dtype=torch.long),
+                'lang_until': torch.tensor(lang.until if lang.until is not None else (NEVER,) * len(lang),
+                                           dtype=torch.long),
                 'action_valid': torch.ones(len(names), dtype=torch.bool)}
         if self.with_frames:
             item['frames'] = frame_tensor(np.asarray(self.demo.frames_of(k)[:len(names)]), self.resolution)
@@ -177,7 +213,7 @@ class DemonstrationDataset(Dataset):
     def _recovery(self, index: int, item: dict) -> dict:
         """`item` with a failed interaction inserted (`insert_failed_interaction`), for a `recovery` share
         of the items (drawn from the seed and the index), where the expert approached an interaction."""
-        if index // len(self.combinations) in self.no_recovery:
+        if index // self.per_task in self.no_recovery:
             return item
         rng = np.random.default_rng([self.seed, index, 7])
         if rng.random() >= self.recovery:
@@ -222,13 +258,17 @@ def insert_failed_interaction(item: dict, at: int, interaction: int) -> dict:
     out['action_valid'] = torch.cat([item['action_valid'][:at], torch.tensor([False]), item['action_valid'][at:]])
     steps = item['lang_steps']
     out['lang_steps'] = torch.where(steps > at, steps + 1, steps)
+    if 'lang_until' in item:
+        until = item['lang_until']
+        out['lang_until'] = torch.where((until > at) & (until < NEVER), until + 1, until)
     return out
 
 
 def collate(items: Sequence[dict]) -> dict:
     """Pad items to a batch: frames [B, T, 3, R, R] (if the items have them), frame_ids / actions /
     previous_actions / target_cells [B, T] (padding: -1 / Stop / <start> / -1), step_valid [B, T], action_valid [B, T] (the valid steps whose action is
-    a target: not an inserted failed click); lang_ids / types / steps [B, L] (padding 0),
+    a target: not an inserted failed click); lang_ids / types / steps / positions [B, L] (padding 0), lang_until
+    [B, L] (padding NEVER),
     lang_valid [B, L]; target_masks [K, C], the target's cells at each of the K steps with a target
     (row-major over [B, T], as `tensor[target_cells >= 0]` orders them)."""
     B = len(items)
@@ -241,6 +281,7 @@ def collate(items: Sequence[dict]) -> dict:
            'step_valid': torch.zeros(B, T, dtype=torch.bool), 'action_valid': torch.zeros(B, T, dtype=torch.bool),
            'lang_ids': torch.zeros(B, L, dtype=torch.long), 'lang_types': torch.zeros(B, L, dtype=torch.long),
            'lang_steps': torch.zeros(B, L, dtype=torch.long), 'lang_valid': torch.zeros(B, L, dtype=torch.bool),
+           'lang_positions': torch.zeros(B, L, dtype=torch.long), 'lang_until': torch.full((B, L), NEVER, dtype=torch.long),
            'target_masks': torch.cat([it['target_masks'] for it in items])}
     with_frames = 'frames' in items[0]
     if with_frames:
@@ -252,17 +293,20 @@ def collate(items: Sequence[dict]) -> dict:
         for key in ('frame_ids', 'actions', 'previous_actions', 'target_cells', 'action_valid'):
             out[key][b, :t] = it[key]
         out['step_valid'][b, :t] = True
-        for key in ('lang_ids', 'lang_types', 'lang_steps'):
-            out[key][b, :n] = it[key]
+        for key in ('lang_ids', 'lang_types', 'lang_steps', 'lang_positions', 'lang_until'):
+            if key in it:
+                out[key][b, :n] = it[key]
         out['lang_valid'][b, :n] = True
     return out
 
 
-def oracle_qas(env, nouns: Sequence[str], step: int) -> list[AskedQA]:
+def oracle_qas(env, nouns: Sequence[str], step: int, looks: bool = True) -> list[AskedQA]:
     """The real oracle's answers now (env at some step of a task): location and appearance of each
-    noun, and direction, each marked as asked at `step`."""
-    snap = snapshot(env, task_object_ids(env))
-    questions = every_question(nouns)
+    noun, and direction, each marked as asked at `step`. With `looks` False the types whose rule reads
+    the rendered looks of the object (`OracleQuestion.reads_looks`: appearance) are left out, and
+    nothing is rendered for them (most of a step's cost)."""
+    questions = [q for q in every_question(nouns) if looks or not oracle_question(q.question_type).reads_looks]
+    snap = snapshot(env, task_object_ids(env) if looks else ())
     out = []
     for q in questions:
         a = answer(snap, q.question_type, q.object_noun)
@@ -270,9 +314,80 @@ def oracle_qas(env, nouns: Sequence[str], step: int) -> list[AskedQA]:
     return out
 
 
+class AnswerLog:
+    """A task's answers at every step as a log of changes: every QA at step 0, then a QA at a later
+    step only where its answer (valid, words, reason) differs from the last one logged for its
+    (type, noun). `at(step)` reads back what the oracle said at any step."""
+
+    def __init__(self):
+        self.entries: list[AskedQA] = []
+        self._last: dict[tuple[str, str], tuple] = {}
+
+    def add(self, qas: Sequence[AskedQA]) -> None:
+        for a in qas:
+            key, value = qa_key(a), (a.qa.valid, a.qa.answer, a.qa.reason)
+            if self._last.get(key) != value:
+                self._last[key] = value
+                self.entries.append(a)
+
+
+def qa_key(asked: AskedQA) -> tuple[str, str]:
+    """(question type, object noun): what a later answer of a log supersedes."""
+    return asked.qa.question.question_type, asked.qa.question.object_noun
+
+
+def answers_at(entries: Sequence[AskedQA], step: int, types: Optional[Sequence[str]] = None) -> list[AskedQA]:
+    """What the oracle said at `step` (of `types`, default all), read from a task's log of changes
+    (`AnswerLog`; also from a dialogue of QAs at step 0 and the middle, at one of those steps): for each
+    (type, noun), its last entry at or before `step`, re-marked as asked at `step`; in the order the
+    keys first appear (the oracle's order of asking)."""
+    now: dict[tuple[str, str], AskedQA] = {}
+    for a in entries:
+        if a.step <= step and (types is None or a.qa.question.question_type in types):
+            now[qa_key(a)] = a
+    return [AskedQA(a.qa, step) for a in now.values()]
+
+
+def paper_steps(task: dict) -> tuple[int, ...]:
+    """The steps a task's paper items draw their QAs from: 0 and the middle of its recorded actions."""
+    return tuple(sorted({0, len(task['actions']) // 2}))
+
+
+# How a stream item asks (`stream_dialogue`).
+STREAM_EVERY_STEP = 0.4      # the share of stream items that ask at every step from their first
+STREAM_P = (0.1, 0.6)        # the others ask at each step with a probability drawn from this range
+STREAM_LATE_START = 0.5      # the share whose first question comes at a step of the task's first half (else step 0)
+STREAM_NOUN_P = 0.7          # at a step that asks, an object type asks about each noun with this probability
+
+
+def stream_dialogue(entries: Sequence[AskedQA], steps: int, rng: np.random.Generator) -> list[AskedQA]:
+    """The QAs of a stream item: a questioner that asks at any step of the task's `steps`, heard from the
+    task's log of answers (`AnswerLog`). Its types: each type the log has, with probability 1/2 (at
+    least one). From its first step on (0, or a step of the task's first half for STREAM_LATE_START of
+    the items) it asks at every step (STREAM_EVERY_STEP of the items) or at each step with a probability
+    drawn from STREAM_P; a step that asks asks each of its types (an object type about each noun with
+    STREAM_NOUN_P, at least one), and hears what the oracle said at that step (`answers_at`)."""
+    kinds = [t for t in question_types() if any(a.qa.question.question_type == t for a in entries)]
+    if not kinds:
+        return []
+    chosen = [t for t in kinds if rng.random() < 0.5] or [kinds[int(rng.integers(len(kinds)))]]
+    p = 1.0 if rng.random() < STREAM_EVERY_STEP else float(rng.uniform(*STREAM_P))
+    first = int(rng.integers(steps // 2 + 1)) if rng.random() < STREAM_LATE_START else 0
+    out = []
+    for step in range(first, steps):
+        if rng.random() >= p:
+            continue
+        for kind in chosen:
+            now = answers_at(entries, step, (kind,))
+            if len(now) > 1:
+                now = [a for a in now if rng.random() < STREAM_NOUN_P] or [now[int(rng.integers(len(now)))]]
+            out += now
+    return out
+
+
 def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, out: Optional[Path] = None) -> Path:
     """Write dialogues.jsonl for (the first `limit` tasks of) a demonstrations folder: the oracle's
-    answers at step 0 and at the middle of each expert episode, replaying the recorded actions in
+    answers at every step of each expert episode (`task_dialogue`), replaying the recorded actions in
     DialfredEnv at the demonstrations' resolution. Returns the file's path."""
     from dialfred_sim.env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     demonstrations_dir = Path(demonstrations_dir)
@@ -286,51 +401,49 @@ def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, ou
 
 
 def task_dialogue(env, task: dict, at_start: Optional[Callable] = None) -> list[AskedQA]:
-    """The oracle's QAs for one task record of tasks.jsonl: `env` (a DialfredEnv at the
-    demonstrations' resolution) replays the recorded actions, asked at step 0 and step n // 2.
+    """The oracle's answers at every step of one task record of tasks.jsonl, as a log of changes
+    (`AnswerLog`): `env` (a DialfredEnv at the demonstrations' resolution) replays the recorded actions;
+    the looks (appearance) are asked at step 0 and at the middle step n // 2 only.
     `at_start(env)`, if given, is called right after the reset (e.g. to annotate the task there)."""
     env.reset(options={'task_id': task['task_id']})
     if at_start is not None:
         at_start(env)
     n = len(task['actions'])
-    ask_at = sorted({0, n // 2})
-    qas = []
-    for step in range(ask_at[-1] + 1):       # nothing is asked after the middle: no need to play it
-        if step in ask_at:
-            qas += oracle_qas(env, task['object_nouns'], step)
-        if step < ask_at[-1]:
+    log = AnswerLog()
+    for step in range(n + 1):
+        log.add(oracle_qas(env, task['object_nouns'], step, looks=step in (0, n // 2)))
+        if step < n:
             name, x, y, _ = task['actions'][step]
             env.step({'action': name, 'pixel': (x, y)})
-    return qas
+    return log.entries
 
 
 def dialogue_line(task: dict, qas: Sequence[AskedQA]) -> str:
-    """One line of dialogues.jsonl (with its newline)."""
-    return json.dumps({'task_id': task['task_id'], 'qas': [qa_to_dict(a) for a in qas]}) + '\n'
+    """One line of dialogues.jsonl (with its newline): the task's log of changes (`AnswerLog`)."""
+    return json.dumps({'task_id': task['task_id'], 'every_step': True, 'qas': [qa_to_dict(a) for a in qas]}) + '\n'
 
 
 class OracleProbe:
-    """`task_dialogue`'s QAs asked while the demonstrations are rendered (a probe of
-    `build_demonstrations`), which saves replaying every task a second time: the oracle at step 0 and
-    at the middle step n // 2 of the expert's n recorded actions. The middle is known only when the
-    episode ends; it is taken to be len(expert actions) // 2, and a task that stopped early with
-    another middle gets no QAs (prepare replays it with `task_dialogue`). `end` returns
+    """`task_dialogue`'s log asked while the demonstrations are rendered (a probe of
+    `build_demonstrations`), which saves replaying every task a second time: the oracle at every step
+    of the expert's recorded actions, the looks at step 0 and the middle n // 2. The middle is known
+    only when the episode ends; it is taken to be len(expert actions) // 2, and a task that stopped
+    early with another middle gets no QAs (prepare replays it with `task_dialogue`). `end` returns
     {'qas': the line's qas (qa_to_dict's form) or None}."""
 
     def begin(self, task) -> None:
         self.task = task
         self.nouns = list(task.object_nouns)
         self.middle = len(task.expert_actions) // 2
-        self.qas: list[AskedQA] = []
+        self.log = AnswerLog()
 
     def __call__(self, env, step: int) -> None:
-        if step in (0, self.middle):
-            self.qas += oracle_qas(env, self.nouns, step)
+        self.log.add(oracle_qas(env, self.nouns, step, looks=step in (0, self.middle)))
 
     def end(self, record: dict) -> dict:
         if len(record['actions']) // 2 != self.middle:
             return {'qas': None}
-        return {'qas': [qa_to_dict(a) for a in self.qas]}
+        return {'qas': [qa_to_dict(a) for a in self.log.entries]}
 
 
 class AnnotatingProbe(OracleProbe):

@@ -56,7 +56,7 @@ def evaluate(model, ds, items: Sequence[int], lengths: Sequence[int], batch_size
     model.eval()
     total = dict.fromkeys(STAT_KEYS, 0)
     length_of = dict(zip(items, lengths))
-    combos = len(ds.combinations)
+    combos = ds.per_task
     tasks = sorted({i // combos for i in items}) if features is not None else [None]
     step = block_tasks if features is not None else 1
     for start in range(0, len(tasks), step):

@@ -63,6 +63,10 @@ class PerformerConfig:
                                    # trained ('fp32' or 'bf16', from the training's --perception-precision); the
                                    # agent and the questioner's copy run it so where the CPU does bfloat16
                                    # natively, else in fp32 (`build_visual`)
+    stream_answers: bool = False   # the language is an answer stream (preprocess.encode_language(stream=True)):
+                                   # repeats add nothing, a newer answer of a (type, noun) supersedes the older
+                                   # from its step on, each QA's positions restart after the instruction; trained
+                                   # on answers at any step (data.DemonstrationDataset's streams)
 
     def __post_init__(self):
         if self.visual not in ('cnn', 'perception'):
@@ -222,16 +226,19 @@ class Performer(nn.Module):
         return self.visual(frames)
 
     def hidden(self, lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions,
-               step_valid) -> torch.Tensor:
+               step_valid, lang_positions=None, lang_until=None) -> torch.Tensor:
         """The multimodal encoder's output [B, T, d] (see decode)."""
-        lang = self.language(lang_ids, lang_types)
-        return self.encoder(lang, lang_steps, lang_valid, frame_embedding, self.actions(previous_actions), step_valid)
+        lang = self.language(lang_ids, lang_types, lang_positions)
+        return self.encoder(lang, lang_steps, lang_valid, frame_embedding, self.actions(previous_actions), step_valid,
+                            lang_until)
 
     def decode(self, lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, grid, previous_actions,
-               step_valid) -> tuple[torch.Tensor, torch.Tensor]:
+               step_valid, lang_positions=None, lang_until=None) -> tuple[torch.Tensor, torch.Tensor]:
         """Language [B, L], frame embeddings [B, T, d] with grids [B, T, C, k], previous actions
-        [B, T] and valid steps [B, T] -> (action logits [B, T, 13], pointer logits [B, T, C])."""
-        h = self.hidden(lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions, step_valid)
+        [B, T] and valid steps [B, T] -> (action logits [B, T, 13], pointer logits [B, T, C]). An answer
+        stream's language also has positions and `until` [B, L] (preprocess.LanguageInput)."""
+        h = self.hidden(lang_ids, lang_types, lang_steps, lang_valid, frame_embedding, previous_actions, step_valid,
+                        lang_positions, lang_until)
         return self.heads(h, grid, camera_pitches(previous_actions))
 
     @torch.no_grad()
@@ -247,11 +254,14 @@ class Performer(nn.Module):
 
     @torch.no_grad()
     def step_output(self, cache, lang_ids: torch.Tensor, lang_types: torch.Tensor, first_new: int,
-                    frame_embedding: torch.Tensor, previous_action: int, t: int) -> tuple[torch.Tensor, object]:
-        """decode_step before the heads: (the step's output h [d], the extended cache)."""
-        lang = self.language(lang_ids[None], lang_types[None])[0, first_new:]
+                    frame_embedding: torch.Tensor, previous_action: int, t: int, lang_positions=None,
+                    lang_until=None) -> tuple[torch.Tensor, object]:
+        """decode_step before the heads: (the step's output h [d], the extended cache). An answer stream's
+        language also has positions and `until` [L]."""
+        positions = None if lang_positions is None else lang_positions[None]
+        lang = self.language(lang_ids[None], lang_types[None], positions)[0, first_new:]
         action = self.actions(torch.tensor([[previous_action]]))[0, 0]
-        return self.encoder.step(cache, lang, frame_embedding, action, t)
+        return self.encoder.step(cache, lang, frame_embedding, action, t, first_new, lang_until)
 
     # ------------------------------------------------------------------ one step of an episode (the agent's)
     @property
@@ -294,9 +304,12 @@ class Performer(nn.Module):
             emb, perceived = self.visual.embedding_and_output(frame)
         else:
             emb, grid = self.encode_frames(frame)
+        positions = None if lang.positions is None else torch.tensor(lang.positions)
+        until = None if lang.until is None else torch.tensor(lang.until)
         if state.cache is not None and not inputs.lang_dropped:
             h, cache = self.step_output(state.cache, torch.tensor(lang.ids), torch.tensor(lang.types),
-                                        state.lang_cached, emb[0], state.previous_actions[-1], state.step)
+                                        state.lang_cached, emb[0], state.previous_actions[-1], state.step,
+                                        positions, until)
             if perceived is not None:
                 pointer_logits = self.visual.pointer_logits(perceived, self.pointer_head.query(h)[None])[0] * \
                     self.pointer_head.scale
@@ -318,7 +331,8 @@ class Performer(nn.Module):
         T = embeddings.shape[1]
         action_logits, pointer_logits = self.decode(
             ids, torch.tensor([lang.types]), torch.tensor([lang.steps]), torch.ones_like(ids, dtype=torch.bool),
-            embeddings, grids, torch.tensor([state.previous_actions]), torch.ones(1, T, dtype=torch.bool))
+            embeddings, grids, torch.tensor([state.previous_actions]), torch.ones(1, T, dtype=torch.bool),
+            None if positions is None else positions[None], None if until is None else until[None])
         return StepOutputs(action_logits[0, -1], pointer_logits[0, -1], inputs.frame_size, emb[0], grid, None,
                            len(lang), None, frame, encoded)
 
@@ -374,8 +388,10 @@ class Performer(nn.Module):
             flat = batch['frames'].flatten(0, 1)
             emb, grid = self.visual(flat)
             keys = grid.view(B, T, grid.shape[1], -1)[has_target]
+        stream = self.config.stream_answers
         h = self.hidden(batch['lang_ids'], batch['lang_types'], batch['lang_steps'], batch['lang_valid'],
-                        emb.view(B, T, -1), batch['previous_actions'], batch['step_valid'])
+                        emb.view(B, T, -1), batch['previous_actions'], batch['step_valid'],
+                        batch['lang_positions'] if stream else None, batch['lang_until'] if stream else None)
         if not self.config.reach_input:
             return {'action_logits': self.action_head(h), 'pointer_logits': self.pointer_head(h[has_target], keys)}
         with torch.no_grad():                              # where the pointer would point at every step

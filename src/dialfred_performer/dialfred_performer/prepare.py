@@ -145,7 +145,8 @@ def write_dialogues(folder: Path, workers: int = 1, progress: bool = True) -> Pa
     probed = {tid: v['qas'] for tid, v in probe_values(folder).items() if isinstance(v, dict) and v.get('qas') is not None}
     if probed:
         done = _finished_lines(folder)
-        lines = [json.dumps({'task_id': t['task_id'], 'qas': probed[t['task_id']]}) + '\n' for t in demo.tasks
+        lines = [json.dumps({'task_id': t['task_id'], 'every_step': True, 'qas': probed[t['task_id']]}) + '\n'
+                 for t in demo.tasks
                  if t['task_id'] in probed and t['task_id'] not in done]
         with open(_part_path(folder, 'probe'), 'a') as part:
             part.writelines(lines)

@@ -22,7 +22,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -134,22 +134,40 @@ def qa_text(qa: QA) -> str:
     return ' '.join(qa_tokens(qa))
 
 
+# A language token's `until` when no later answer supersedes it: it stays known to the episode's end.
+NEVER = 1 << 20
+
+
 @dataclass(frozen=True)
 class LanguageInput:
-    """Token ids with, per token, its type (TYPE_*) and the step from which it is known."""
+    """Token ids with, per token, its type (TYPE_*) and the step from which it is known. An answer
+    stream (`encode_language(stream=True)`) also gives each token its position in the language encoder
+    and the step from which a newer answer supersedes it (`NEVER`: none does); else both are None
+    (positions are the tokens' indices; no token is superseded)."""
 
     ids: tuple[int, ...]
     types: tuple[int, ...]
     steps: tuple[int, ...]
+    positions: Optional[tuple[int, ...]] = None
+    until: Optional[tuple[int, ...]] = None
 
     def __len__(self) -> int:
         return len(self.ids)
 
 
 def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA] = (),
-                    max_tokens: int | None = None) -> LanguageInput:
+                    max_tokens: int | None = None, stream: bool = False) -> LanguageInput:
     """The instruction, then every QA of `dialogue` in order, as ids, types and steps. With
-    `max_tokens`, the instruction is kept and the oldest QAs are dropped first until it fits."""
+    `max_tokens`, the instruction is kept and the oldest QAs are dropped first until it fits.
+
+    With `stream` (a performer trained on answers at any step, `PerformerConfig.stream_answers`): a
+    QA that repeats the answer its (type, noun) last got adds nothing; a newer answer of a (type,
+    noun) supersedes the older one from its step on (the older tokens' `until`); each QA's tokens are
+    placed right after the instruction (positions restart), so that the stream may grow without
+    outgrowing the position table; and over `max_tokens` the oldest superseded QAs give way first,
+    then the oldest QAs."""
+    if stream:
+        return _encode_stream(vocab, instruction, dialogue, max_tokens)
     ins = tokenize(instruction)
     ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
     parts, token_type = [], type_of_question()
@@ -166,6 +184,54 @@ def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[Aske
     for p_ids, p_types, p_steps in parts:
         ids, types, steps = ids + p_ids, types + p_types, steps + p_steps
     return LanguageInput(tuple(ids), tuple(types), tuple(steps))
+
+
+def stream_qas(dialogue: Sequence[AskedQA]) -> list[tuple[AskedQA, int]]:
+    """(QA, the step a newer answer of its (type, noun) supersedes it, or NEVER) for each QA of `dialogue`
+    that says something new: a QA repeating the answer its (type, noun) last got is left out."""
+    kept: list[list] = []
+    current: dict[tuple[str, str], int] = {}
+    for asked in dialogue:
+        if asked.step < 0:
+            raise ValueError(f'a QA is asked at a step >= 0, got {asked.step}')
+        q = asked.qa
+        key = (q.question.question_type, q.question.object_noun)
+        last = current.get(key)
+        if last is not None:
+            old = kept[last][0].qa
+            if (old.valid, old.answer) == (q.valid, q.answer):
+                continue
+            kept[last][1] = asked.step
+        current[key] = len(kept)
+        kept.append([asked, NEVER])
+    return [(a, until) for a, until in kept]
+
+
+def _encode_stream(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA],
+                   max_tokens: Optional[int]) -> LanguageInput:
+    ins = tokenize(instruction)[:max_tokens]
+    token_type = type_of_question()
+    parts = [(qa_tokens(a.qa), a, until) for a, until in stream_qas(dialogue)]
+    if max_tokens is not None:
+        room = max_tokens - len(ins)
+        order = [k for k, p in enumerate(parts) if p[2] != NEVER] + [k for k, p in enumerate(parts) if p[2] == NEVER]
+        size, dropped = sum(len(p[0]) for p in parts), set()
+        for k in order:
+            if size <= room:
+                break
+            dropped.add(k)
+            size -= len(parts[k][0])
+        parts = [p for k, p in enumerate(parts) if k not in dropped]
+    ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
+    positions, until = list(range(len(ins))), [NEVER] * len(ins)
+    for toks, asked, end in parts:
+        n = len(toks)
+        ids += vocab.ids(toks)
+        types += [token_type[asked.qa.question.question_type]] * n
+        steps += [asked.step] * n
+        positions += range(len(ins), len(ins) + n)
+        until += [end] * n
+    return LanguageInput(tuple(ids), tuple(types), tuple(steps), tuple(positions), tuple(until))
 
 
 def qa_to_dict(asked: AskedQA) -> dict:

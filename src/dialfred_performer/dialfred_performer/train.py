@@ -83,6 +83,9 @@ class TrainConfig:
     dialogues: bool = arg(True, "train with the folder's dialogues.jsonl (--no-dialogues: instructions only)")
     every_combination: bool = arg(True, 'an epoch shows each task once per question-type combination (8x); '
                                         '--no-every-combination: once, with a combination drawn per epoch')
+    streams: int = arg(0, 'answer-stream items per task beside the combinations\' (data.stream_dialogue: answers of '
+                          'some types at some or every step; needs --stream-answers and a folder whose dialogues '
+                          'log every step)')
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
     out: str = arg('out/performer', 'folder for checkpoints, metrics.jsonl and curves.png')
     model: PerformerConfig = field(default_factory=PerformerConfig)
@@ -166,6 +169,9 @@ class TrainConfig:
         if self.block_tasks and not self.perception:
             raise ValueError('--block-tasks keeps the frozen perception network\'s output per block: it needs '
                              '--perception PATH')
+        if self.streams and not m.stream_answers:
+            raise ValueError('--streams trains on answers at any step: it needs --stream-answers (the model reads its '
+                             'language as an answer stream)')
         if self.recovery > 0 and not m.failure_input:
             raise ValueError('--recovery teaches what to do after a failed click: it needs --failure-input')
 
@@ -209,7 +215,7 @@ class Data:
 
     @staticmethod
     def item_lengths(ds: DemonstrationDataset, items: Sequence[int]) -> list[int]:
-        combos = len(ds.combinations)
+        combos = ds.per_task
         tasks = ds.demo.tasks
         return [len(tasks[ds.task_indices[i // combos]]['actions']) + 1 for i in items]
 
@@ -238,16 +244,17 @@ def model_config(cfg: TrainConfig) -> tuple[PerformerConfig, Optional[dict]]:
 def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
     m, _ = model_config(cfg)
     train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
-                                 grid_size=m.grid_size, recovery=cfg.recovery)
+                                 grid_size=m.grid_size, recovery=cfg.recovery, streams=cfg.streams,
+                                 stream=m.stream_answers)
     if not cfg.dialogues:
-        train.combinations = ((),)
-    combos = len(train.combinations)
+        train.combinations, train.streams = ((),), 0
+    combos = train.per_task
     every = list(range(len(train)))
     if cfg.validation:
         val = DemonstrationDataset(Path(cfg.validation), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
-                                   grid_size=m.grid_size)
+                                   grid_size=m.grid_size, streams=cfg.streams, stream=m.stream_answers)
         if not cfg.dialogues:
-            val.combinations = ((),)
+            val.combinations, val.streams = ((),), 0
         return Data(train, every, val, list(range(len(val))))
     ids = [train.demo.tasks[k]['task_id'] for k in train.task_indices]
     out = {i for i, t in enumerate(ids) if held_out(t, cfg.val_fraction)}
@@ -274,7 +281,7 @@ def epoch_items(data: Data, cfg: TrainConfig, epoch: int) -> list[int]:
     question-type combination drawn from (seed, epoch, task)."""
     if cfg.every_combination:
         return data.train_items
-    combos = len(data.train.combinations)
+    combos = data.train.per_task
     tasks = sorted({i // combos for i in data.train_items})
     draws = np.random.default_rng([cfg.seed, epoch, 1]).integers(combos, size=len(tasks))
     return [k * combos + int(c) for k, c in zip(tasks, draws)]
@@ -511,7 +518,7 @@ class Training:
         lengths = Data.item_lengths(data.train, items)
         if not cfg.block_tasks:
             return items, epoch_batches(lengths, cfg.batch_size, cfg.seed, epoch, cfg.bucket), None
-        batches, blocks = block_batches(items, lengths, len(data.train.combinations), cfg.batch_size, cfg.seed, epoch,
+        batches, blocks = block_batches(items, lengths, data.train.per_task, cfg.batch_size, cfg.seed, epoch,
                                         cfg.bucket, cfg.block_tasks, cfg.block_items, cfg.block_bucket)
         return items, batches, blocks
 

@@ -5,6 +5,7 @@ multimodal encoder, under its step mask, so there is no separate language transf
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import torch
 from torch import nn
@@ -20,10 +21,17 @@ class LanguageEncoder(nn.Module):
         self.norm = nn.LayerNorm(d_model)
         self.dropout = nn.Dropout(dropout)
 
-    def forward(self, ids: torch.Tensor, types: torch.Tensor) -> torch.Tensor:
-        """ids, types: [B, L] long -> [B, L, d_model]."""
-        if ids.shape[1] > self.position.num_embeddings:
-            raise ValueError(f'{ids.shape[1]} language tokens; this model takes at most {self.position.num_embeddings}')
-        pos = torch.arange(ids.shape[1], device=ids.device)
-        x = self.word(ids) * math.sqrt(self.d_model) + self.position(pos)[None] + self.token_type(types)
+    def forward(self, ids: torch.Tensor, types: torch.Tensor, positions: Optional[torch.Tensor] = None) -> torch.Tensor:
+        """ids, types: [B, L] long -> [B, L, d_model]. `positions` [B, L]: each token's position (an answer
+        stream's restart after the instruction: preprocess.encode_language); None: its index."""
+        if positions is None:
+            if ids.shape[1] > self.position.num_embeddings:
+                raise ValueError(f'{ids.shape[1]} language tokens; this model takes at most {self.position.num_embeddings}')
+            pos = self.position(torch.arange(ids.shape[1], device=ids.device))[None]
+        else:
+            if positions.numel() and int(positions.max()) >= self.position.num_embeddings:
+                raise ValueError(f'a language token at position {int(positions.max())}; this model takes at most '
+                                 f'{self.position.num_embeddings}')
+            pos = self.position(positions)
+        x = self.word(ids) * math.sqrt(self.d_model) + pos + self.token_type(types)
         return self.dropout(self.norm(x))
