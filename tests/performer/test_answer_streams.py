@@ -1,0 +1,149 @@
+"""Answers at every step of a demonstration, and the items that teach the performer to act on them
+(dialfred_performer.data: AnswerLog, answers_at, stream_dialogue; preprocess.encode_language(stream=True)).
+
+Claims: the log of changes reads back, at every step of real valid_unseen demonstrations, exactly what
+the oracle says there (the looks at step 0 and the middle); the paper's items of a logged folder are
+those of a folder made the old way (QAs at step 0 and the middle only); a stream item asks only at or
+after its first step, only types the log has, and hears the oracle of its step; the stream encoding
+drops repeats, marks superseded answers and restarts positions, and its budget lets superseded answers
+give way first; a tiny training run with stream items writes a model that reads streams; stream items
+are refused without the stream encoding or on a folder logged the old way.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dialfred_performer.data import (DIALOGUES_FILE, DemonstrationDataset, answers_at, load_dialogues, oracle_qas,
+                                     paper_steps, qa_key, stream_dialogue)
+from dialfred_performer.model import PerformerConfig, load_checkpoint
+from dialfred_performer.prepare import VOCABULARY_FILE, PrepareConfig, prepare
+from dialfred_performer.preprocess import NEVER, AskedQA, Vocabulary, encode_language, qa_to_dict
+from dialfred_performer.train import TrainConfig, train
+from dialfred_sim.protocol import QA, Question
+
+pytestmark = pytest.mark.usefixtures('restore_torch_globals')
+
+
+@pytest.fixture(scope='module')
+def folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp('streams') / 'valid_unseen_64'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=5, out=str(out), progress=False))
+    return out
+
+
+def _as_text(qas):
+    return [(a.step, *qa_key(a), a.qa.valid, a.qa.answer, a.qa.reason) for a in qas]
+
+
+def test_the_log_reads_back_what_the_oracle_says_at_every_step(folder):
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks.demonstrations import load_demonstrations
+    demo = load_demonstrations(folder)
+    dialogues = load_dialogues(folder / DIALOGUES_FILE)
+    env = DialfredEnv(resolution=64)
+    changes = 0
+    for task in demo.tasks:
+        log = dialogues[task['task_id']]
+        assert log.every_step
+        env.reset(options={'task_id': task['task_id']})
+        n = len(task['actions'])
+        for step in range(n + 1):
+            looks = step in paper_steps(task)
+            said = oracle_qas(env, task['object_nouns'], step, looks=looks)
+            types = None if looks else ('location', 'direction')
+            assert _as_text(answers_at(log.qas, step, types)) == _as_text(said), (task['task_id'], step)
+            if step < n:
+                name, x, y, _ = task['actions'][step]
+                env.step({'action': name, 'pixel': (x, y)})
+        changes += sum(a.step > 0 for a in log.qas)
+    env.close()
+    assert changes > 0                    # answers do change along the way, and only changes are stored
+
+
+def test_paper_items_of_a_logged_folder_are_those_of_one_made_the_old_way(folder, tmp_path):
+    """QAs at step 0 and the middle only (the format before the log): the same paper items."""
+    for name in ('meta.json', 'tasks.jsonl', 'frames.npy', VOCABULARY_FILE):
+        (tmp_path / name).write_bytes((folder / name).read_bytes())
+    logged = load_dialogues(folder / DIALOGUES_FILE)
+    tasks = [json.loads(line) for line in (folder / 'tasks.jsonl').read_text().splitlines()]
+    lines = []
+    for t in tasks:
+        qas = [a for s in paper_steps(t) for a in answers_at(logged[t['task_id']].qas, s)]
+        lines.append(json.dumps({'task_id': t['task_id'], 'qas': [qa_to_dict(a) for a in qas]}) + '\n')
+    (tmp_path / DIALOGUES_FILE).write_text(''.join(lines))
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    new, old = (DemonstrationDataset(f, vocab, 64, seed=3) for f in (folder, tmp_path))
+    assert not any(d.every_step for d in load_dialogues(tmp_path / DIALOGUES_FILE).values())
+    assert len(new) == len(old) == 5 * 8
+    for i in range(len(new)):
+        assert _as_text(new.dialogue(i)) == _as_text(old.dialogue(i)), i
+    with pytest.raises(ValueError, match='answers of every step'):
+        DemonstrationDataset(tmp_path, vocab, 64, streams=2, stream=True)
+    with pytest.raises(ValueError, match='stream encoding'):
+        DemonstrationDataset(folder, vocab, 64, streams=2)
+
+
+def test_a_stream_item_hears_the_oracle_of_each_step_it_asks_at(folder):
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    ds = DemonstrationDataset(folder, vocab, 64, seed=1, streams=6, stream=True)
+    assert ds.per_task == 8 + 6 and len(ds) == 5 * 14
+    logs = load_dialogues(folder / DIALOGUES_FILE)
+    asked_steps, every_step_items = set(), 0
+    for index in range(len(ds)):
+        k, c = divmod(index, ds.per_task)
+        if c < 8:
+            continue
+        task = ds.demo.tasks[ds.task_indices[k]]
+        log = logs[task['task_id']].qas
+        qas = ds.dialogue(index)
+        assert qas == ds.dialogue(index)                 # drawn from (seed, index): the same every time
+        steps = sorted({a.step for a in qas})
+        assert all(0 <= s < ds.steps_of(ds.task_indices[k]) for s in steps)
+        for a in qas:
+            assert a in answers_at(log, a.step, (a.qa.question.question_type,))
+        asked_steps |= set(steps)
+        every_step_items += bool(steps) and steps == list(range(steps[0], ds.steps_of(ds.task_indices[k])))
+        item = ds[index]
+        assert item['lang_positions'].max() < 256 and (item['lang_until'] <= NEVER).all()
+    assert every_step_items >= 3 and len(asked_steps) > 5
+
+
+def test_the_stream_encoding_drops_repeats_and_lets_superseded_answers_give_way_first():
+    vocab = Vocabulary.build(['pick up the apple', 'the apple is to your left in the fridge .',
+                              'the apple is in front of you on the table .', 'you should turn left .'])
+    left = QA(Question('location', 'apple'), True, 'The apple is to your left in the fridge.')
+    ahead = QA(Question('location', 'apple'), True, 'The apple is in front of you on the table.')
+    turn = QA(Question('direction'), True, 'You should turn left.')
+    dialogue = [AskedQA(left, 0), AskedQA(turn, 0), AskedQA(left, 2), AskedQA(ahead, 3), AskedQA(turn, 5)]
+    lang = encode_language(vocab, 'Pick up the apple.', dialogue, stream=True)
+    ins = len(encode_language(vocab, 'Pick up the apple.'))
+    spans = sorted({(s, u) for s, u in zip(lang.steps[ins:], lang.until[ins:])})
+    assert spans == [(0, 3), (0, NEVER), (3, NEVER)]          # the repeats at 2 and 5 add nothing
+    assert lang.positions[:ins] == tuple(range(ins)) and min(lang.positions[ins:]) == ins
+    plain = encode_language(vocab, 'Pick up the apple.', dialogue)
+    assert len(plain) > len(lang) and plain.positions is None and plain.until is None
+    # over the budget: the superseded answer (step 0, until 3) goes first, the current ones stay
+    size = len(lang) - (lang.until.count(3))
+    cut = encode_language(vocab, 'Pick up the apple.', dialogue, max_tokens=size, stream=True)
+    assert len(cut) == size and 3 not in cut.until and sorted(set(cut.steps[ins:])) == [0, 3]
+
+
+def test_stream_dialogue_asks_nothing_of_an_empty_log():
+    assert stream_dialogue([], 10, np.random.default_rng(0)) == []
+
+
+def test_a_tiny_run_with_stream_items_trains_a_model_that_reads_streams(folder, tmp_path):
+    model = PerformerConfig(resolution=64, d_model=32, heads=2, layers=1, ff=64, max_steps=64, stream_answers=True)
+    cfg = TrainConfig(demonstrations=str(folder), out=str(tmp_path / 'run'), model=model, epochs=1, batch_size=4,
+                      bucket=2, warmup_updates=1, log_every=2, checkpoint_every=3, val_fraction=0.3, threads=1,
+                      device='cpu', progress=False, streams=2)
+    summary = train(cfg)
+    assert summary['finished'] and summary['train_episodes'] + summary['val_episodes'] == 5 * 10
+    net, _, info = load_checkpoint(tmp_path / 'run' / 'last.pt')
+    assert info['config'].stream_answers
+    with pytest.raises(ValueError, match='--stream-answers'):
+        TrainConfig(demonstrations=str(folder), streams=2)
