@@ -171,3 +171,36 @@ def test_the_confusion_questioner_needs_a_performer_that_shows_its_probabilities
     from dialfred_sim.agents import RandomAgent
     uniform = RandomAgent().action_probabilities(None)
     assert uniform.shape == (13,) and np.isclose(uniform.sum(), 1.0)   # the random agent is always unsure
+
+
+def _asked_at(questioner, task, steps):
+    questioner.reset(task, 0)
+    out = []
+    for step in range(steps):
+        now = []
+        while (q := questioner.ask(None, step)) is not None:
+            now.append(q)
+            assert len(now) < 20
+        out.append(now)
+    return out
+
+
+def test_a_schedule_asks_its_types_before_every_nth_action_and_nothing_between():
+    task = SimpleNamespace(instruction='Put the apple in the fridge.', object_nouns=('apple', 'fridge'))
+    every = _asked_at(make_questioner('every:direction'), task, 4)
+    assert every == [[Question('direction')]] * 4
+    second = _asked_at(make_questioner('every-2:direction+location'), task, 5)
+    assert second[1] == second[3] == []
+    assert second[0] == second[2] == second[4] == [Question('location', 'apple'), Question('location', 'fridge'),
+                                                   Question('direction')]
+    everything = make_questioner('every-3:all')
+    assert everything.name == 'every-3:location+appearance+direction'
+    assert len(_asked_at(everything, task, 1)[0]) == 5
+
+
+@pytest.mark.parametrize('name, said', [('every:colour', 'some of the question types'),
+                                        ('every-x:direction', 'whole number'), ('every-0:direction', 'N >= 1'),
+                                        ('every:', 'some of the question types')])
+def test_a_malformed_schedule_is_refused_with_what_it_should_be(name, said):
+    with pytest.raises(ValueError, match=said):
+        make_questioner(name)

@@ -74,6 +74,8 @@ class EvalConfig:
         '(one per instruction object, or one direction question); '
         'all = location + appearance of every instruction object, then direction; '
         'confusion = a random question whenever the agent is unsure (needs action_probabilities); '
+        'every:TYPES or every-N:TYPES = every question of those types (joined by +, or all) before every '
+        '(N-th) action, e.g. every:direction; '
         'a learned questioner (greedy, asking at the chances of the timing it was trained with): '
         f'{shipped_list()} (the checkpoints shipped in '
         'dialfred_questioner/checkpoints), or learned:PATH (any '

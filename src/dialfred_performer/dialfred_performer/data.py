@@ -9,8 +9,16 @@ The paper's augmentation (DialFRED, "Performer": the performer is pre-trained "w
 all possible questions, including a combination of question types and answers"): each task appears
 once per combination of question types (`type_combinations()`: none; location; appearance; direction; each
 pair; all three). A combination includes, for each of its types, every QA of that type (about each of
-the instruction's objects) that the oracle gave at one of the steps recorded for the task (0 or a
-mid-episode step), drawn per sample from the dataset's seed.
+the instruction's objects) that the oracle gave at step 0 or at the middle step, drawn per sample from
+the dataset's seed.
+
+Stream items (`streams` per task, beside the paper's): a questioner that asks at any step
+(`stream_dialogue`): some types, at every step or at some steps, from step 0 or from later on, each
+answer the oracle's at its step, read from the task's log of answers (`AnswerLog`). A model trained on
+them reads its language as an answer stream (`preprocess.encode_language(stream=True)`,
+`PerformerConfig.stream_answers`): a repeated answer adds nothing, and a newer answer of a (type, noun)
+supersedes the older one from its step on, so a long task's answers cost tokens only where they
+change, and over `max_tokens` the superseded answers give way first.
 
 Recovery examples (`recovery` > 0; the performer's `failure_input`): the expert never fails, so its
 demonstrations never show what to do after a click that did nothing, and a performer that clicked a
@@ -20,10 +28,11 @@ where the expert was still approaching (that step's action is not a target), and
 follows (nothing moved) with the failed action as the previous one and the expert's approach as the
 target. The frames are the demonstration's own: no render.
 
-`dialogues.jsonl`, one line per task: {"task_id": ..., "qas": [{"question_type", "object_noun",
-"valid", "answer", "reason", "step"}, ...]} (`preprocess.qa_to_dict`). `generate_dialogues` makes it
-by replaying the expert's recorded actions in `DialfredEnv` and asking the real oracle core
-(`dialfred_oracle.answers.answer` over `dialfred_sim.ground_truth.snapshot`) at each chosen step.
+`dialogues.jsonl`, one line per task: {"task_id": ..., "every_step": true, "qas": [{"question_type",
+"object_noun", "valid", "answer", "reason", "step"}, ...]} (`preprocess.qa_to_dict`): the log of changes
+(a line without "every_step", as folders made before the log, holds the QAs of step 0 and the middle).
+`generate_dialogues` makes it by replaying the expert's recorded actions in `DialfredEnv` and asking the
+real oracle core (`dialfred_oracle.answers.answer` over `dialfred_sim.ground_truth.snapshot`) at each step.
 """
 
 from __future__ import annotations

@@ -3,14 +3,16 @@
     ./dialfred prepare-performer --split train --resolution 64 --workers 2
 
 1. the expert demonstrations (`dialfred_sim.tasks.demonstrations`: frames.npy, tasks.jsonl, meta.json);
-2. `dialogues.jsonl`: the real oracle's answers at step 0 and at the middle of each expert episode.
-   They are asked while stage 1 plays each task (`data.OracleProbe`, a probe of the build), which
-   saves a second reset and replay of every task. The few tasks it cannot answer (the goal held
-   early, so the middle step moved; about 0.3% of train), or all tasks of a build made without the
-   probe, are replayed (`data.task_dialogue` in DialfredEnv): workers each take every n-th task and
-   append a line per task to `dialogues-<worker>.part` as it is produced, so an interrupted run
-   resumes where it stopped; the parts are merged in task order at the end (same bytes with any
-   number of workers, and with or without the probe: tests/performer/test_performer_train.py);
+2. `dialogues.jsonl`: the real oracle's answers at every step of each expert episode, as a log of
+   changes (`data.AnswerLog`: every QA at step 0, then a QA only where its answer changed; the looks,
+   appearance, asked at step 0 and the middle step only: along a path they differ in 1 of 122 nouns
+   of valid_unseen's first 80 tasks). They are asked while stage 1 plays each task (`data.OracleProbe`,
+   a probe of the build), which saves a second reset and replay of every task. The few tasks it cannot
+   answer (the goal held early, so the middle step moved; about 0.3% of train), or all tasks of a build
+   made without the probe, are replayed (`data.task_dialogue` in DialfredEnv): workers each take every
+   n-th task and append a line per task to `dialogues-<worker>.part` as it is produced, so an
+   interrupted run resumes where it stopped; the parts are merged in task order at the end (same bytes
+   with any number of workers, and with or without the probe: tests/performer/test_performer_train.py);
 3. `vocabulary.json`: every token of the instructions, nouns and QAs of the folder, plus every word
    the oracle can say (templates, object nouns, colours, materials), so that no answer heard at
    evaluation is <unk>.

@@ -159,6 +159,55 @@ class ModelConfusionQuestioner:
         pass
 
 
+class ScheduleQuestioner:
+    """Before action 0 and every `gap`-th action after it: every question of `types` (one per noun for a
+    type that names an object, else one), one a call, in the registry's order; nothing in between.
+    Named `every:TYPES` (gap 1) or `every-N:TYPES` (`schedule_questioner`)."""
+
+    def __init__(self, types: tuple[str, ...], gap: int = 1):
+        unknown = [t for t in types if t not in question_types()]
+        if not types or unknown:
+            raise ValueError(f'a schedule asks some of the question types {question_types()}, got {types}')
+        if gap < 1:
+            raise ValueError(f'a schedule asks every N >= 1 actions, got {gap}')
+        self.types, self.gap = tuple(t for t in question_types() if t in types), gap
+        self.name = f'every{"" if gap == 1 else f"-{gap}"}:{"+".join(self.types)}'
+        self._nouns: list[str] = []
+        self._queue: list[Question] = []
+        self._filled_at = -1
+
+    def reset(self, task: Any, seed: int) -> None:
+        self._nouns = task_nouns(task)
+        self._queue, self._filled_at = [], -1
+
+    def ask(self, observation: Any, step: int) -> Optional[Question]:
+        if step % self.gap or step == self._filled_at and not self._queue:
+            return None
+        if step != self._filled_at:
+            self._filled_at = step
+            self._queue = [q for t in self.types for q in questions_of_type(t, self._nouns)]
+        return self._queue.pop(0) if self._queue else None
+
+    def hear(self, qa: QA) -> None:
+        pass
+
+
+SCHEDULE_PREFIX = 'every'
+
+
+def schedule_questioner(name: str) -> Optional[ScheduleQuestioner]:
+    """The ScheduleQuestioner a name like 'every:direction', 'every-2:location+appearance' or 'every:all'
+    means; None for a name of another kind; ValueError for a malformed one."""
+    head, sep, tail = name.partition(':')
+    if not sep or not (head == SCHEDULE_PREFIX or head.startswith(SCHEDULE_PREFIX + '-')):
+        return None
+    gap_text = head[len(SCHEDULE_PREFIX) + 1:] or '1'
+    if not gap_text.isdigit():
+        raise ValueError(f'{name!r}: a schedule is every:TYPES or every-N:TYPES with N a whole number')
+    types = question_types() if tail == 'all' else tuple(t for t in tail.split('+') if t)
+    return ScheduleQuestioner(types, int(gap_text))
+
+
 # The questioners of this module by name (questioners.make_questioner makes them).
 QUESTIONERS = {'random': RandomQuestioner, 'all': AllQuestioner, 'confusion': ModelConfusionQuestioner}
 

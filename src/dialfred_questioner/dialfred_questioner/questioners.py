@@ -2,6 +2,8 @@
 questioner node's `questioner` parameter accept.
 
 - 'random', 'all', 'confusion': the baselines that need no training (`baselines.QUESTIONERS`);
+- 'every:TYPES', 'every-N:TYPES': every question of those types before every (N-th) action
+  (`baselines.ScheduleQuestioner`);
 - a shipped learned questioner (`policy.SHIPPED_LEARNED`: 'pretrained', 'rl-begin', 'rl-anytime', ...):
   its checkpoint from the package's checkpoints folder, greedy, with the timing it was trained with;
 - 'learned:PATH': the learned questioner of any questioner checkpoint, the same way;
@@ -27,6 +29,9 @@ def make_questioner(name: str) -> Questioner:
     module's doc). ValueError for an unknown name, a missing or damaged checkpoint, a bad class."""
     if name in baselines.QUESTIONERS:
         return baselines.QUESTIONERS[name]()
+    schedule = baselines.schedule_questioner(name)
+    if schedule is not None:
+        return schedule
     # lazy: pybullet, torch, which the rest of this module does without
     from .policy import SHIPPED_LEARNED, learned_checkpoint, learned_questioner
     if learned_checkpoint(name) is not None:
@@ -34,6 +39,6 @@ def make_questioner(name: str) -> Questioner:
     if ':' not in name:
         near = difflib.get_close_matches(name, [*baselines.QUESTIONERS, *SHIPPED_LEARNED], n=1, cutoff=0.5)
         raise ValueError(f'unknown questioner {name!r}{f" (did you mean {near[0]}?)" if near else ""}; known: '
-                         f'{", ".join(baselines.QUESTIONERS)}, {", ".join(SHIPPED_LEARNED)}, learned:PATH, or '
+                         f'{", ".join(baselines.QUESTIONERS)}, every[-N]:TYPES, {", ".join(SHIPPED_LEARNED)}, learned:PATH, or '
                          'package.module:ClassName')
     return load_class(name, 'questioner', ('reset', 'ask', 'hear'))()
