@@ -147,3 +147,35 @@ def test_a_tiny_run_with_stream_items_trains_a_model_that_reads_streams(folder, 
     assert info['config'].stream_answers
     with pytest.raises(ValueError, match='--stream-answers'):
         TrainConfig(demonstrations=str(folder), streams=2)
+
+
+def test_reworded_answers_say_the_same_in_the_annotators_words_and_a_repeat_stays_a_repeat():
+    from dialfred_performer.data import reword
+    from dialfred_performer.mapper.words import read_answer
+    left = QA(Question('direction'), True, 'You should turn left.')
+    where = QA(Question('location', 'apple'), True, 'The apple is to your left in the fridge.')
+    unknown = QA(Question('location', 'apple'), False, "I don't know.", 'not in the room')
+    dialogue = [AskedQA(left, 0), AskedQA(where, 0), AskedQA(unknown, 1), AskedQA(left, 4)]
+    said = reword(dialogue, 1.0, (0, 7))
+    assert said == reword(dialogue, 1.0, (0, 7)) and said != reword(dialogue, 1.0, (0, 8))
+    assert said[0].qa.answer != left.answer and said[0].qa.answer == said[3].qa.answer     # a repeat stays one
+    assert read_answer('direction', said[0].qa.answer, '').turn_deg == 90                 # still "left"
+    assert said[2].qa == unknown                                                          # invalid: as it was
+    assert [a.step for a in said] == [0, 0, 1, 4]
+    assert reword(dialogue, 0.0, (0, 7)) == dialogue
+    shares = [sum(a.qa.answer != b.qa.answer for a, b in zip(reword(dialogue[:2], 0.5, (0, n)), dialogue[:2]))
+              for n in range(200)]
+    assert 0.35 < sum(shares) / 400 < 0.65
+
+
+def test_a_reworded_training_extends_the_vocabulary_with_the_annotators_words_keeping_every_id(folder, tmp_path):
+    from dialfred_performer.data import paraphrase_texts
+    from dialfred_performer.train import load_vocabulary
+    base = Vocabulary.load(folder / VOCABULARY_FILE)
+    cfg = TrainConfig(demonstrations=str(folder), out=str(tmp_path), reworded=0.3)
+    vocab = load_vocabulary(cfg)
+    assert vocab.words[:len(base)] == base.words and len(vocab) > len(base)
+    texts = paraphrase_texts(folder)
+    assert texts and all(vocab.index['<unk>'] not in vocab.ids(t.split()) for t in texts)
+    with pytest.raises(ValueError, match='reworded'):
+        TrainConfig(demonstrations=str(folder), reworded=1.5)

@@ -40,6 +40,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import zlib
 from pathlib import Path
 from typing import Callable, NamedTuple, Optional, Sequence
 
@@ -47,9 +48,9 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task
+from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task, answer_content, paraphrase
 from dialfred_oracle.answers import answer
-from dialfred_oracle.questions import oracle_question
+from dialfred_oracle.questions import Answer, oracle_question
 from dialfred_sim.ground_truth import snapshot, task_object_ids
 from dialfred_sim.protocol import ACTIONS, QA, every_question, question_types
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
@@ -123,7 +124,7 @@ class DemonstrationDataset(Dataset):
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
-                 streams: int = 0, stream: bool = False):
+                 streams: int = 0, stream: bool = False, reworded: float = 0.0):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
@@ -138,6 +139,9 @@ class DemonstrationDataset(Dataset):
                              'stream items need the answers of every step (make it again with prepare-performer)')
         self.streams = streams if self.dialogues else 0
         self.stream = stream                  # every item's language is encoded as an answer stream
+        if not 0 <= reworded <= 1:
+            raise ValueError(f'reworded is a probability, got {reworded}')
+        self.reworded = reworded              # the share of answers said in the annotator's words (`reword`)
         self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
         self.frame_size = self.demo.meta['resolution']
         if not 0 <= recovery <= 1:
@@ -202,7 +206,10 @@ class DemonstrationDataset(Dataset):
                 masks[row] = torch.from_numpy(np.unpackbits(packed)[:grid * grid].astype(bool))
             if not masks[row].any():              # no labels, or the target is not in view: the expert's cell
                 masks[row, cells[step]] = True
-        lang = encode_language(self.vocab, task['instruction'], self.dialogue(index), self.max_tokens, self.stream)
+        dialogue = self.dialogue(index)
+        if self.reworded:
+            dialogue = reword(dialogue, self.reworded, (self.seed, index))
+        lang = encode_language(self.vocab, task['instruction'], dialogue, self.max_tokens, self.stream)
         item = {'task_id': task['task_id'], 'actions': actions,
                 'frame_ids': torch.arange(task['first_frame'], task['first_frame'] + len(names)),
                 'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),
@@ -392,6 +399,42 @@ def stream_dialogue(entries: Sequence[AskedQA], steps: int, rng: np.random.Gener
                 now = [a for a in now if rng.random() < STREAM_NOUN_P] or [now[int(rng.integers(len(now)))]]
             out += now
     return out
+
+
+def reword(dialogue: Sequence[AskedQA], share: float, seed: tuple) -> list[AskedQA]:
+    """`dialogue` with each valid answer said in the synthetic annotator's words (`annotator.paraphrase` of
+    its parts) with probability `share`: whether, and the words, drawn from `seed` and the answer itself, so
+    that an answer heard again in one item is worded again the same way (a repeat stays a repeat)."""
+    out = []
+    for a in dialogue:
+        q = a.qa
+        if q.valid:
+            key = zlib.crc32(f'{q.question.question_type}|{q.question.object_noun}|{q.answer}'.encode())
+            rng = np.random.default_rng([*seed, key, 13])
+            if rng.random() < share:
+                content = answer_content(Answer(True, q.answer, question_type=q.question.question_type,
+                                                object_noun=q.question.object_noun),
+                                         q.question.question_type, q.question.object_noun)
+                q = QA(q.question, True, paraphrase(content, rng), q.reason)
+        out.append(AskedQA(q, a.step))
+    return out
+
+
+def paraphrase_texts(demonstrations_dir: Path, every: int = 10, draws: int = 4) -> list[str]:
+    """Answers of a demonstrations folder in the annotator's words (`reword` of every `every`-th task's
+    paper QAs, `draws` times each), as the model reads them: the words a reworded training adds to the
+    vocabulary."""
+    demo = load_demonstrations(demonstrations_dir)
+    dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
+    texts = []
+    for k, task in enumerate(demo.tasks[::every]):
+        d = dialogues.get(task['task_id'])
+        if d is None:
+            continue
+        qas = [a for s in paper_steps(task) for a in answers_at(d.qas, s)]
+        for n in range(draws):
+            texts += [' '.join(qa_tokens(a.qa)) for a in reword(qas, 1.0, (k, n))]
+    return texts
 
 
 def generate_dialogues(demonstrations_dir: Path, limit: Optional[int] = None, out: Optional[Path] = None) -> Path:

@@ -97,6 +97,13 @@ class Vocabulary:
     def __len__(self) -> int:
         return len(self.words)
 
+    def extended(self, texts: Iterable[str], min_count: int = 1) -> 'Vocabulary':
+        """This vocabulary with the new tokens of `texts` (seen at least `min_count` times) after its own
+        words, by frequency: every word keeps its id."""
+        counts = Counter(tok for text in texts for tok in tokenize(text) if tok not in self.index)
+        new = sorted((w for w, c in counts.items() if c >= min_count), key=lambda w: (-counts[w], w))
+        return Vocabulary([*self.words, *new])
+
     def __eq__(self, other) -> bool:
         return isinstance(other, Vocabulary) and self.words == other.words
 

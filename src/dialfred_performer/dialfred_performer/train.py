@@ -55,7 +55,7 @@ from dialfred_sim.tasks.demonstrations import default_dir
 
 from .blocks import BlockFeatures, block_batches, block_of, epoch_batches
 from .curves import draw_curves
-from .data import DIALOGUES_FILE, DemonstrationDataset, collate, held_out, vocabulary_texts
+from .data import DIALOGUES_FILE, DemonstrationDataset, collate, held_out, paraphrase_texts, vocabulary_texts
 from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,
                           rank_seed, rank_share, reduce_stats, sharded_loss, zero_stats)
 from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
@@ -86,6 +86,8 @@ class TrainConfig:
     streams: int = arg(0, 'answer-stream items per task beside the combinations\' (data.stream_dialogue: answers of '
                           'some types at some or every step; needs --stream-answers and a folder whose dialogues '
                           'log every step)')
+    reworded: float = arg(0.0, "the share of training answers said in the synthetic annotator's words instead of the "
+                               "oracle's templates (data.reword; the vocabulary then also has the annotator's words)")
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
     out: str = arg('out/performer', 'folder for checkpoints, metrics.jsonl and curves.png')
     model: PerformerConfig = field(default_factory=PerformerConfig)
@@ -172,6 +174,8 @@ class TrainConfig:
         if self.streams and not m.stream_answers:
             raise ValueError('--streams trains on answers at any step: it needs --stream-answers (the model reads its '
                              'language as an answer stream)')
+        if not 0 <= self.reworded <= 1:
+            raise ValueError(f'reworded must be in [0, 1], got {self.reworded}')
         if self.recovery > 0 and not m.failure_input:
             raise ValueError('--recovery teaches what to do after a failed click: it needs --failure-input')
 
@@ -245,7 +249,7 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
     m, _ = model_config(cfg)
     train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
                                  grid_size=m.grid_size, recovery=cfg.recovery, streams=cfg.streams,
-                                 stream=m.stream_answers)
+                                 stream=m.stream_answers, reworded=cfg.reworded)
     if not cfg.dialogues:
         train.combinations, train.streams = ((),), 0
     combos = train.per_task
@@ -268,12 +272,18 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
 
 
 def load_vocabulary(cfg: TrainConfig) -> Vocabulary:
+    """--vocabulary, or the training folder's (built from its texts if it has none); with --reworded, extended
+    by the annotator's words for the folder's answers (`data.paraphrase_texts`)."""
     path = Path(cfg.vocabulary) if cfg.vocabulary else Path(cfg.demonstrations) / VOCABULARY_FILE
     if path.is_file():
-        return Vocabulary.load(path)
-    if cfg.vocabulary:
+        vocab = Vocabulary.load(path)
+    elif cfg.vocabulary:
         raise FileNotFoundError(f'no vocabulary at {path}')
-    return Vocabulary.build(vocabulary_texts(Path(cfg.demonstrations)) + oracle_texts())
+    else:
+        vocab = Vocabulary.build(vocabulary_texts(Path(cfg.demonstrations)) + oracle_texts())
+    if cfg.reworded and not cfg.vocabulary:
+        vocab = vocab.extended(paraphrase_texts(Path(cfg.demonstrations)))
+    return vocab
 
 
 def epoch_items(data: Data, cfg: TrainConfig, epoch: int) -> list[int]:
