@@ -15,7 +15,7 @@ from dialfred_performer.model import SHIPPED_CHECKPOINT as SHIPPED
 from dialfred_performer.mapper.semantic_map import (UNREACHABLE, SemanticMap, distance_field, next_move,
                                                      reach_goals)
 from dialfred_sim.episode import SimReply
-from dialfred_sim.protocol import Observation, env_observation
+from dialfred_sim.protocol import QA, Observation, Question, env_observation
 
 
 def test_every_instruction_of_the_shipped_splits_is_read():
@@ -828,3 +828,18 @@ def test_the_last_stand_gives_up_on_an_instance_it_has_not_mapped_or_cannot_reac
     assert agent._designated_pose('Sofa', 1.8, 0.0) is None
     agent.stand_anchor = ('Sofa', 1.8, 0.0)
     assert agent._stand() is None and agent.stand_goal == () and agent.stand_actions == 0
+
+
+def test_a_new_location_answer_opens_its_direction_to_search_again():
+    """A location answer whose direction was searched in vain is spent (`cone_spent`); a newer answer of
+    the same object, heard from where the agent stands now, is searched again."""
+    from dialfred_performer.mapper.agent import MapAgent
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Go to the sofa.'})())
+    where = QA(Question('location', 'sofa'), True, 'The sofa is to your left.')
+    agent._take_in(where)
+    assert agent._answered_cone('Sofa', np.array([0.0]), np.array([1.0])).tolist() == [True]
+    agent.cone_spent.add('Sofa')                                    # searched there in vain
+    assert agent._answered_cone('Sofa', np.array([0.0]), np.array([1.0])) is None
+    agent._take_in(QA(Question('location', 'sofa'), True, 'The sofa is behind you.'))
+    assert agent._answered_cone('Sofa', np.array([-1.0, 0.0]), np.array([0.0, 1.0])).tolist() == [True, False]

@@ -42,6 +42,8 @@ class AnswerReading:
             self.held, self.held_known, self.held_confirmed = fact.object_type, True, True
         elif fact.kind == 'location' and fact.object_type == self.held and not self.held_confirmed:
             self.held = None                      # it is somewhere in the room, so not in hand
+        if fact.kind == 'location':
+            self.cone_spent.discard(fact.object_type)    # a new answer, from here: its direction is searched anew
         elif fact.kind == 'direction':
             self.direction = (fact, self.step)      # followed at this step (wayfinding._follow)
             if fact.turn_deg == 90:
