@@ -221,7 +221,8 @@ class DemonstrationDataset(Dataset):
                                                dtype=torch.long),
                 'lang_until': torch.tensor(lang.until if lang.until is not None else (NEVER,) * len(lang),
                                            dtype=torch.long),
-                'action_valid': torch.ones(len(names), dtype=torch.bool)}
+                'action_valid': torch.tensor([*task.get('targets', [True] * n), *[True] * (len(names) - n)],
+                                             dtype=torch.bool)}
         if self.with_frames:
             item['frames'] = frame_tensor(np.asarray(self.demo.frames_of(k)[:len(names)]), self.resolution)
         return self._recovery(index, item) if self.recovery > 0 else item
@@ -495,6 +496,20 @@ class OracleProbe:
     def end(self, record: dict) -> dict:
         if len(record['actions']) // 2 != self.middle:
             return {'qas': None}
+        return {'qas': [qa_to_dict(a) for a in self.log.entries]}
+
+
+class DetourProbe(OracleProbe):
+    """OracleProbe for a build with detours (`dialfred_sim.tasks.detours`), whose episodes' lengths are known
+    only at their end: the oracle at every step, the looks at step 0 only, and always the log (a detour
+    folder gives stream items, which read the looks of step 0 on; the paper's items, at the middle step,
+    come from the plain build)."""
+
+    def begin(self, task) -> None:
+        super().begin(task)
+        self.middle = 0
+
+    def end(self, record: dict) -> dict:
         return {'qas': [qa_to_dict(a) for a in self.log.entries]}
 
 

@@ -47,6 +47,7 @@ from .preprocess import Vocabulary
 VOCABULARY_FILE = 'vocabulary.json'
 ORACLE_PROBE = 'dialfred_performer.data:OracleProbe'    # the dialogues' QAs asked while rendering
 ANNOTATING_PROBE = 'dialfred_performer.data:AnnotatingProbe'   # ... and the synthetic annotators' rows
+DETOUR_PROBE = 'dialfred_performer.data:DetourProbe'       # a build with detours (its looks at step 0 only)
 SYNC_EVERY = 10          # tasks between fsyncs of a worker's part file
 
 
@@ -64,6 +65,9 @@ class PrepareConfig:
                                 '(scripts/annotate_dialogues.py --from-demonstrations then writes them)')
     labels: bool = arg(False, 'also write each frame\'s labels (classes, depth, the target\'s pixels) for training '
                               'perception (dialfred_sim.tasks.demonstrations)')
+    detours: bool = arg(False, 'play every task with a detour in one of its go-tos and the expert\'s way back '
+                               '(dialfred_sim.tasks.detours), into <split>_<resolution>_detours by default: frames '
+                               'off the expert\'s path, the oracle\'s answers there, the moves that lead back')
 
     def __post_init__(self):
         if self.split not in SPLIT_SIZES:
@@ -74,10 +78,16 @@ class PrepareConfig:
             raise ValueError(f'workers must be at least 1, got {self.workers}')
         if self.limit < 0:
             raise ValueError(f'limit must be >= 0 (0: all tasks), got {self.limit}')
+        if self.detours and self.annotate:
+            raise ValueError('--annotate makes the annotators\' rows of the tasks\' starts: take them from the plain '
+                             'build, not the one with --detours')
 
     @property
     def folder(self) -> Path:
-        return Path(self.out).expanduser() if self.out else default_dir(self.split, self.resolution)
+        if self.out:
+            return Path(self.out).expanduser()
+        plain = default_dir(self.split, self.resolution)
+        return plain.with_name(plain.name + '_detours') if self.detours else plain
 
 
 def oracle_texts() -> list[str]:
@@ -200,9 +210,10 @@ def prepare(config: PrepareConfig) -> dict:
     report = {'split': config.split, 'resolution': config.resolution, 'workers': config.workers,
               'folder': str(folder)}
     c0 = _clock()
+    probe = DETOUR_PROBE if config.detours else ANNOTATING_PROBE if config.annotate else ORACLE_PROBE
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
-                                limit=config.limit or None, progress=config.progress,
-                                probe=ANNOTATING_PROBE if config.annotate else ORACLE_PROBE, labels=config.labels)
+                                limit=config.limit or None, progress=config.progress, probe=probe,
+                                labels=config.labels, detours=config.detours)
     c1 = _clock()
     write_dialogues(folder, config.workers, config.progress)
     c2 = _clock()

@@ -47,12 +47,15 @@ from ..metrics import write_text_atomically
 from ..processes import worker_pool
 from ..protocol import scale_pixel
 from ..catalog import load_catalog
+from .detours import DETOUR_ROWS, detour_plan, rejoin_step, way_back
+from .schema import ExpertAction
 from .splits import SPLIT_SIZES, load_split
 
 CACHE_ENV = 'DIALFRED_DEMO_DIR'
 SYNC_EVERY = 25        # tasks between pushes of frames, then their done records, to disk
 DEPTH_STEP = 0.04      # metres per unit of depth.npy (255 units = 10.2 m and beyond)
 LABEL_FILES = ('classes.npy', 'depth.npy', 'targets.npy')
+DETOUR_SEED = 11        # detours.detour_plan draws from (DETOUR_SEED, the task's index in the split)
 
 
 def label_classes() -> tuple[str, ...]:
@@ -98,12 +101,13 @@ def default_dir(split: str, resolution: int) -> Path:
     return root / f'{split}_{resolution}'
 
 
-def frame_offsets(tasks) -> list[int]:
-    """Index of each task's first frame in frames.npy (each task has expert length + 1 frames)."""
+def frame_offsets(tasks, extra: int = 0) -> list[int]:
+    """Index of each task's first frame in frames.npy (each task has expert length + 1 frames, and `extra`
+    more: a build with detours keeps DETOUR_ROWS)."""
     offsets, n = [], 0
     for t in tasks:
         offsets.append(n)
-        n += len(t.expert_actions) + 1
+        n += len(t.expert_actions) + 1 + extra
     return offsets + [n]
 
 
@@ -122,35 +126,60 @@ def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) ->
 
 
 def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable] = None,
-                       labels: Optional[FrameLabels] = None) -> dict:
+                       labels: Optional[FrameLabels] = None, detour: Optional[tuple] = None) -> dict:
     """Replay `task`'s expert in `env`, writing its len(actions) + 1 frames into `frames` (a view of that
     many rows); the task's record for tasks.jsonl. `observe(env, k)`, if given, is called at every step
     k with the env as frame k shows it (before action k; k = len(actions) after the last). `labels`, if
-    given, writes each frame's labels into the same rows of its views."""
+    given, writes each frame's labels into the same rows of its views. With `detour` (step, wrong moves:
+    `detours.detour_plan`), the agent strays at that step and the expert brings it back (`detours`); the
+    record then also says which actions are imitation targets (`targets`: not the wrong moves) and
+    `detour`: [step, wrong moves, moves back]; `frames` needs DETOUR_ROWS more rows."""
     obs, _ = env.reset(options={'task': task})
-    actions, failed, success = [], 0, False
-    for k, a in enumerate(task.expert_actions):
-        frames[k] = obs['rgb']
+    script = [(a, True) for a in task.expert_actions]
+    rejoin = None
+    if detour is not None:
+        at, wrong = detour
+        rejoin = rejoin_step(task, at)
+        script = script[:at] + [(ExpertAction(w), False) for w in wrong]
+    actions, targets, failed, success, k = [], [], 0, False, 0
+    back = 0
+    while k < len(script):
+        a, target = script[k]
+        frames[len(actions)] = obs['rgb']
         if labels is not None:
-            labels.write(k, env, obs, a.target)
+            labels.write(len(actions), env, obs, a.target)
         if observe is not None:
-            observe(env, k)
+            observe(env, len(actions))
         x, y = expert_pixel(env, a, task.resolution, obs['segmentation'])
-        target = env.world.objects[a.target].type_name if a.target in env.world.objects else ''
-        actions.append([a.action, x, y, target])
+        kind = env.world.objects[a.target].type_name if a.target in env.world.objects else ''
+        actions.append([a.action, x, y, kind])
+        targets.append(target)
         obs, _, terminated, truncated, info = env.step({'action': a.action, 'pixel': (x, y)})
         failed += not info['last_action_success']
         success = bool(info['success'])
         if terminated or truncated:     # the goal held early (the rows left over stay zero)
             break
+        k += 1
+        if rejoin is not None and k == len(script):       # the wrong moves made: the way back, then the rest
+            moves = way_back(env.world, task.episode.poses[task.start + rejoin])
+            if moves is None:
+                raise RuntimeError(f'{task.task_id}: no way back from the detour at step {detour[0]}')
+            back = len(moves)
+            script += [(ExpertAction(m), True) for m in moves] + [(a, True) for a in task.expert_actions[rejoin:]]
+            rejoin = None
+            if len(script) + 1 > len(frames):
+                raise RuntimeError(f'{task.task_id}: the detour needs {len(script) + 1} frames, {len(frames)} kept')
     frames[len(actions)] = obs['rgb']
     if labels is not None:
         labels.write(len(actions), env, obs)
     if observe is not None:
         observe(env, len(actions))
-    return {'task_id': task.task_id, 'task_type': task.task_type, 'instruction': task.instruction,
-            'step_instructions': list(task.step_instructions), 'object_nouns': list(task.object_nouns),
-            'actions': actions, 'success': success, 'failed_actions': failed}
+    record = {'task_id': task.task_id, 'task_type': task.task_type, 'instruction': task.instruction,
+              'step_instructions': list(task.step_instructions), 'object_nouns': list(task.object_nouns),
+              'actions': actions, 'success': success, 'failed_actions': failed}
+    if detour is not None:
+        record.update(targets=targets, detour=[detour[0], len(detour[1]), back])
+    return record
 
 
 def _done_rows(out: Path) -> dict[int, dict]:
@@ -188,11 +217,11 @@ def load_probe(name: str):
 
 
 def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int,
-            probe: str = '', labels: bool = False) -> None:
+            probe: str = '', labels: bool = False, detours: bool = False) -> None:
     from ..env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     out = Path(out)
     tasks = load_split(split)[:limit]
-    offsets = frame_offsets(tasks)
+    offsets = frame_offsets(tasks, DETOUR_ROWS if detours else 0)
     done = _done_records(out)
     watcher = load_probe(probe)() if probe else None
     frames = np.load(out / 'frames.npy', mmap_mode='r+')
@@ -218,12 +247,13 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
                 continue
             rows = slice(offsets[k], offsets[k + 1])
             task_labels = FrameLabels(*(m[rows] for m in label_maps)) if labels else None
+            detour = detour_plan(tasks[k], np.random.default_rng([DETOUR_SEED, k])) if detours else None
             if watcher is None:
-                record = play_demonstration(env, tasks[k], frames[rows], labels=task_labels)
+                record = play_demonstration(env, tasks[k], frames[rows], labels=task_labels, detour=detour)
                 pending.append({'index': k, 'record': record})
             else:
                 watcher.begin(tasks[k])
-                record = play_demonstration(env, tasks[k], frames[rows], watcher, labels=task_labels)
+                record = play_demonstration(env, tasks[k], frames[rows], watcher, labels=task_labels, detour=detour)
                 pending.append({'index': k, 'record': record, 'probe': watcher.end(record)})
             if len(pending) >= SYNC_EVERY:
                 sync()
@@ -233,7 +263,7 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
 
 def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] = None, workers: int = 1,
                          limit: Optional[int] = None, progress: bool = True, probe: str = '',
-                         labels: bool = False) -> dict:
+                         labels: bool = False, detours: bool = False) -> dict:
     """Render the expert demonstrations of `split` (its first `limit` tasks) into `out`; resumes a build
     that was interrupted. Returns the contents of meta.json.
 
@@ -243,20 +273,24 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     after it, and keeps what `end` returns (JSON, or None for nothing) beside the task's record;
     `probe_values(out)` reads them back. A probe must leave the env as it found it: the frames and
     records are the same with or without one. `labels` also writes each frame's labels (the module's
-    classes.npy, depth.npy, targets.npy); the frames are the same with or without them."""
+    classes.npy, depth.npy, targets.npy); the frames are the same with or without them. `detours` plays
+    every task with a detour in one of its go-tos (`detours.py`; drawn from the task's index), in
+    DETOUR_ROWS more rows a task."""
     t0 = time.monotonic()
     if resolution < 16:
         raise ValueError(f'resolution must be at least 16, got {resolution}')
     out = Path(out) if out else default_dir(split, resolution)
     out.mkdir(parents=True, exist_ok=True)
     tasks = load_split(split)[:limit]
-    offsets = frame_offsets(tasks)
+    offsets = frame_offsets(tasks, DETOUR_ROWS if detours else 0)
     shape = (offsets[-1], resolution, resolution, 3)
     frames_path = out / 'frames.npy'
     started = (out / 'build.json').exists() and json.loads((out / 'build.json').read_text())
     plan = {'split': split, 'resolution': resolution, 'tasks': len(tasks), 'frames': offsets[-1]}
     if labels:
         plan['labels'] = True         # a build without labels is not one with them: it is made again
+    if detours:
+        plan['detours'] = True
     if started != plan or not frames_path.exists():
         for stale in [frames_path, out / 'meta.json', out / 'tasks.jsonl', *out.glob('done-*.txt'),
                       *(out / name for name in LABEL_FILES)]:
@@ -270,7 +304,7 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     elif (out / 'meta.json').exists():
         return json.loads((out / 'meta.json').read_text())       # already complete
     workers = max(1, min(workers, len(tasks)))
-    args = [(split, resolution, str(out), limit, k, workers, probe, labels) for k in range(workers)]
+    args = [(split, resolution, str(out), limit, k, workers, probe, labels, detours) for k in range(workers)]
     if workers == 1:
         _run_with_progress(None, args, out, len(tasks), progress)
     else:
