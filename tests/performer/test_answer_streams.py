@@ -179,3 +179,35 @@ def test_a_reworded_training_extends_the_vocabulary_with_the_annotators_words_ke
     assert texts and all(vocab.index['<unk>'] not in vocab.ids(t.split()) for t in texts)
     with pytest.raises(ValueError, match='reworded'):
         TrainConfig(demonstrations=str(folder), reworded=1.5)
+
+
+def test_a_detour_builds_episodes_join_the_training_held_out_with_their_tasks(folder, tmp_path):
+    """prepare-performer --detours: the same tasks with a detour each; DemonstrationDataset(detours=...)
+    reads both builds as one (task ids tagged, frames joined), a detour's wrong moves are no targets, its
+    answers are logged at every step, and a detour is held out with its task."""
+    from dialfred_performer.data import DETOUR_TAG, base_task_id
+    from dialfred_performer.train import load_data
+    detours = tmp_path / 'detours'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=5, out=str(detours), progress=False,
+                          detours=True))
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    ds = DemonstrationDataset(folder, vocab, 64, streams=2, stream=True, detours=detours)
+    assert len(ds.demo.tasks) == 10 and ds.demo.tasks[5]['task_id'].endswith(DETOUR_TAG)
+    strayed = [k for k, t in enumerate(ds.demo.tasks) if t.get('detour')]
+    assert strayed and all(k >= 5 for k in strayed)
+    k = strayed[0]
+    item = ds[ds.task_indices.index(k) * ds.per_task]
+    at, wrong, _ = ds.demo.tasks[k]['detour']
+    assert item['action_valid'][at:at + wrong].tolist() == [False] * wrong and item['action_valid'][:at].all()
+    from dialfred_sim.tasks.demonstrations import load_demonstrations
+    own = load_demonstrations(detours)
+    assert np.array_equal(np.asarray(ds.demo.frames_of(k)), np.asarray(own.frames_of(k - 5)))   # the joined rows
+    assert ds.dialogues[ds.demo.tasks[k]['task_id']].every_step
+    cfg = TrainConfig(demonstrations=str(folder), detours=str(detours), out=str(tmp_path / 'run'), val_fraction=0.3,
+                      streams=2, model=PerformerConfig(stream_answers=True))
+    data = load_data(cfg, vocab)
+    held = {base_task_id(data.train.demo.tasks[data.train.task_indices[i // data.train.per_task]]['task_id'])
+            for i in data.val_items}
+    trained = {base_task_id(data.train.demo.tasks[data.train.task_indices[i // data.train.per_task]]['task_id'])
+               for i in data.train_items}
+    assert held and not held & trained

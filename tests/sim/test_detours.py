@@ -69,3 +69,15 @@ def test_the_plan_is_drawn_from_the_seed_alone_and_the_way_back_from_here_is_not
     assert way_back(env.world, (a.i, a.j, a.rotation, a.horizon)) == []
     assert way_back(env.world, (10_000, 10_000, 0, 0.0)) is None
     env.close()
+
+
+def test_joined_rows_read_as_the_concatenation_would():
+    from dialfred_sim.tasks.demonstrations import JoinedRows
+    a, b = np.arange(12).reshape(6, 2), np.arange(100, 108).reshape(4, 2)
+    whole = np.concatenate([a, b])
+    rows = JoinedRows([a, b])
+    assert rows.shape == whole.shape and len(rows) == 10
+    for key in (3, -1, slice(1, 4), slice(4, 9), slice(None, None, 3), [9, 0, 6, 5], np.array([7, 7, 2])):
+        assert np.array_equal(rows[key], whole[key]), key
+    with pytest.raises(IndexError):
+        rows[[10]]

@@ -77,6 +77,15 @@ INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
 RECOVERY_BEFORE = 3           # a failed click is inserted at most this many (navigation) steps before an interaction
 
 
+# The tag a detour build's task ids get when its episodes join a plain build's (DemonstrationDataset's `detours`).
+DETOUR_TAG = '~detour'
+
+
+def base_task_id(task_id: str) -> str:
+    """The task a (maybe detoured) episode's id names: a detour is held out with its task."""
+    return task_id.split(DETOUR_TAG)[0]
+
+
 def held_out(task_id: str, fraction: float) -> bool:
     """Whether a task is in the validation part: its id's hash (stable across runs) below `fraction`
     (the performer's training and the perception's hold out the same tasks)."""
@@ -124,9 +133,17 @@ class DemonstrationDataset(Dataset):
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
-                 streams: int = 0, stream: bool = False, reworded: float = 0.0):
+                 streams: int = 0, stream: bool = False, reworded: float = 0.0, detours: Optional[Path] = None):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
+        if detours is not None:           # a build with detours of the same tasks: its episodes join these
+            extra = load_demonstrations(detours)
+            if extra.meta['resolution'] != self.demo.meta['resolution']:
+                raise ValueError(f'{detours}: {extra.meta["resolution"]} px frames, {demonstrations_dir} has '
+                                 f'{self.demo.meta["resolution"]} px')
+            self.demo = self.demo.joined([extra], [DETOUR_TAG])
+            self.dialogues.update({tid + DETOUR_TAG: d for tid, d in
+                                   load_dialogues(Path(detours) / DIALOGUES_FILE).items()})
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
         combinations = type_combinations() if combinations is None else combinations
         self.combinations = tuple(combinations) if self.dialogues else ((),)

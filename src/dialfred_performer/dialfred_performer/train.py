@@ -55,7 +55,8 @@ from dialfred_sim.tasks.demonstrations import default_dir
 
 from .blocks import BlockFeatures, block_batches, block_of, epoch_batches
 from .curves import draw_curves
-from .data import DIALOGUES_FILE, DemonstrationDataset, collate, held_out, paraphrase_texts, vocabulary_texts
+from .data import (DIALOGUES_FILE, DemonstrationDataset, base_task_id, collate, held_out, paraphrase_texts,
+                   vocabulary_texts)
 from .distributed import (Ranks, any_rank, check_batch, finish, gather_rng, global_counts, init, rank_device,
                           rank_seed, rank_share, reduce_stats, sharded_loss, zero_stats)
 from .malloc import MALLOC_SETTINGS, ensure_malloc_settings
@@ -86,6 +87,9 @@ class TrainConfig:
     streams: int = arg(0, 'answer-stream items per task beside the combinations\' (data.stream_dialogue: answers of '
                           'some types at some or every step; needs --stream-answers and a folder whose dialogues '
                           'log every step)')
+    detours: str = arg('', "a demonstrations folder of the same tasks made with --detours (prepare-performer): its "
+                           "episodes (wrong moves in a go-to, the expert's way back) join the training's, each task's "
+                           "items as many")
     reworded: float = arg(0.0, "the share of training answers said in the synthetic annotator's words instead of the "
                                "oracle's templates (data.reword; the vocabulary then also has the annotator's words)")
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
@@ -249,7 +253,8 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
     m, _ = model_config(cfg)
     train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
                                  grid_size=m.grid_size, recovery=cfg.recovery, streams=cfg.streams,
-                                 stream=m.stream_answers, reworded=cfg.reworded)
+                                 stream=m.stream_answers, reworded=cfg.reworded,
+                                 detours=Path(cfg.detours) if cfg.detours else None)
     if not cfg.dialogues:
         train.combinations, train.streams = ((),), 0
     combos = train.per_task
@@ -260,10 +265,11 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
         if not cfg.dialogues:
             val.combinations, val.streams = ((),), 0
         return Data(train, every, val, list(range(len(val))))
-    ids = [train.demo.tasks[k]['task_id'] for k in train.task_indices]
+    ids = [base_task_id(train.demo.tasks[k]['task_id']) for k in train.task_indices]
     out = {i for i, t in enumerate(ids) if held_out(t, cfg.val_fraction)}
     if cfg.val_fraction > 0 and not out and len(ids) > 1:      # a tiny folder still gets one
-        out = {min(range(len(ids)), key=lambda i: hashlib.sha256(ids[i].encode()).hexdigest())}
+        first = min(ids, key=lambda t: hashlib.sha256(t.encode()).hexdigest())
+        out = {i for i, t in enumerate(ids) if t == first}        # with its detour, if any
     train_items = [i for i in every if i // combos not in out]
     train.no_recovery = out              # the held-out tasks are validated as the expert played them
     if not train_items:
@@ -427,6 +433,8 @@ class Training:
         self.out = out = Path(cfg.out)
         self.commit = git_commit()        # the code this run starts with, recorded in every checkpoint it writes
         check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
+        if cfg.detours:
+            check_folder(Path(cfg.detours), 'detour', cfg.dialogues)
         if cfg.validation:
             check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
         if cfg.resume and not (out / 'last.pt').is_file():

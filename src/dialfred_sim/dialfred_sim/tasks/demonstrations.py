@@ -38,7 +38,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -364,6 +364,56 @@ class Demonstrations:
         """The n + 1 frames of task k (a view: nothing is read until it is used)."""
         first = self.tasks[k]['first_frame']
         return self.frames[first:first + len(self.tasks[k]['actions']) + 1]
+
+    def joined(self, others: Sequence['Demonstrations'], tags: Sequence[str]) -> 'Demonstrations':
+        """This build and `others` read as one: their tasks after this one's, each task id of `others[i]`
+        followed by `tags[i]` (a detour build's tasks have the plain build's ids), frames and labels
+        (labels only if every build has them) as `JoinedRows`."""
+        tasks, frames, offset = list(self.tasks), [self.frames], len(self.frames)
+        for other, tag in zip(others, tags, strict=True):
+            tasks += [{**t, 'task_id': t['task_id'] + tag, 'first_frame': t['first_frame'] + offset}
+                      for t in other.tasks]
+            frames.append(other.frames)
+            offset += len(other.frames)
+        builds = [self, *others]
+        labels = None
+        if all(b.labels is not None for b in builds):
+            labels = {name: JoinedRows([b.labels[name] for b in builds]) for name in self.labels}
+        return Demonstrations(JoinedRows(frames), tasks, {**self.meta, 'tasks': len(tasks), 'frames': offset}, labels)
+
+
+class JoinedRows:
+    """The rows of several arrays (memmaps of frames or labels) read as one array: an integer, a slice or an
+    array of row indices gives what the concatenation would, reading only those rows."""
+
+    def __init__(self, parts: Sequence[np.ndarray]):
+        self.parts = list(parts)
+        self.bounds = np.cumsum([0, *(len(p) for p in self.parts)])
+        self.shape = (int(self.bounds[-1]), *self.parts[0].shape[1:])
+        self.dtype = self.parts[0].dtype
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, key):
+        if isinstance(key, slice):
+            start, stop, step = key.indices(len(self))
+            part = int(np.searchsorted(self.bounds, start, side='right')) - 1
+            if step == 1 and 0 <= part < len(self.parts) and stop <= self.bounds[part + 1]:
+                return self.parts[part][start - self.bounds[part]:stop - self.bounds[part]]
+            key = np.arange(start, stop, step)
+        ids = np.asarray(key)
+        one = ids.ndim == 0
+        ids = np.atleast_1d(ids).astype(np.int64)
+        ids = np.where(ids < 0, ids + len(self), ids)
+        if ids.size and (ids.min() < 0 or ids.max() >= len(self)):
+            raise IndexError(f'row {int(ids.max()) if ids.max() >= len(self) else int(ids.min())} of {len(self)}')
+        out = np.empty((len(ids), *self.shape[1:]), self.dtype)
+        which = np.searchsorted(self.bounds, ids, side='right') - 1
+        for part in np.unique(which):
+            mask = which == part
+            out[mask] = self.parts[part][ids[mask] - self.bounds[part]]
+        return out[0] if one else out
 
 
 def load_demonstrations(path: Path) -> Demonstrations:
