@@ -115,7 +115,7 @@ def test_a_missing_or_bad_checkpoint_is_named_with_what_makes_it(tmp_path, monke
     with pytest.raises(ValueError, match='is not a questioner checkpoint'):
         make_questioner(f'learned:{tmp_path / "bad.pt"}')
     with pytest.raises(ValueError, match=r"unknown questioner 'rl-sometimes'( \(did you mean [\w-]+\?\))?; known: "
-                                         "random, all, confusion, pretrained, rl-begin"):
+                                         r"random, all, confusion, every\[-N\]:TYPES, pretrained, rl-begin"):
         make_questioner('rl-sometimes')
 
 
