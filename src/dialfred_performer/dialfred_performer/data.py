@@ -57,7 +57,8 @@ from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
 
 from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
-from .preprocess import NEVER, AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_to_dict, qa_tokens
+from .preprocess import (NEVER, AskedQA, Vocabulary, encode_language, frame_tensor, qa_from_dict, qa_key, qa_to_dict,
+                         qa_tokens)
 
 
 
@@ -351,7 +352,7 @@ def oracle_qas(env, nouns: Sequence[str], step: int, looks: bool = True) -> list
 class AnswerLog:
     """A task's answers at every step as a log of changes: every QA at step 0, then a QA at a later
     step only where its answer (valid, words, reason) differs from the last one logged for its
-    (type, noun). `at(step)` reads back what the oracle said at any step."""
+    (type, noun). `answers_at` reads back what the oracle said at any step."""
 
     def __init__(self):
         self.entries: list[AskedQA] = []
@@ -363,11 +364,6 @@ class AnswerLog:
             if self._last.get(key) != value:
                 self._last[key] = value
                 self.entries.append(a)
-
-
-def qa_key(asked: AskedQA) -> tuple[str, str]:
-    """(question type, object noun): what a later answer of a log supersedes."""
-    return asked.qa.question.question_type, asked.qa.question.object_noun
 
 
 def answers_at(entries: Sequence[AskedQA], step: int, types: Optional[Sequence[str]] = None) -> list[AskedQA]:
@@ -507,8 +503,12 @@ class OracleProbe:
         self.middle = len(task.expert_actions) // 2
         self.log = AnswerLog()
 
+    def looks_at(self, step: int) -> bool:
+        """Whether the looks (appearance) are asked at `step`: at 0 and the middle."""
+        return step in (0, self.middle)
+
     def __call__(self, env, step: int) -> None:
-        self.log.add(oracle_qas(env, self.nouns, step, looks=step in (0, self.middle)))
+        self.log.add(oracle_qas(env, self.nouns, step, looks=self.looks_at(step)))
 
     def end(self, record: dict) -> dict:
         if len(record['actions']) // 2 != self.middle:
@@ -522,9 +522,8 @@ class DetourProbe(OracleProbe):
     folder gives stream items, which read the looks of step 0 on; the paper's items, at the middle step,
     come from the plain build)."""
 
-    def begin(self, task) -> None:
-        super().begin(task)
-        self.middle = 0
+    def looks_at(self, step: int) -> bool:
+        return step == 0
 
     def end(self, record: dict) -> dict:
         return {'qas': [qa_to_dict(a) for a in self.log.entries]}

@@ -193,6 +193,11 @@ def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[Aske
     return LanguageInput(tuple(ids), tuple(types), tuple(steps))
 
 
+def qa_key(asked: AskedQA) -> tuple[str, str]:
+    """(question type, object noun): what a newer answer supersedes (in a stream, and in a task's log)."""
+    return asked.qa.question.question_type, asked.qa.question.object_noun
+
+
 def stream_qas(dialogue: Sequence[AskedQA]) -> list[tuple[AskedQA, int]]:
     """(QA, the step a newer answer of its (type, noun) supersedes it, or NEVER) for each QA of `dialogue`
     that says something new: a QA repeating the answer its (type, noun) last got is left out."""
@@ -201,8 +206,7 @@ def stream_qas(dialogue: Sequence[AskedQA]) -> list[tuple[AskedQA, int]]:
     for asked in dialogue:
         if asked.step < 0:
             raise ValueError(f'a QA is asked at a step >= 0, got {asked.step}')
-        q = asked.qa
-        key = (q.question.question_type, q.question.object_noun)
+        q, key = asked.qa, qa_key(asked)
         last = current.get(key)
         if last is not None:
             old = kept[last][0].qa

@@ -181,7 +181,7 @@ class ScheduleQuestioner:
         self._queue, self._filled_at = [], -1
 
     def ask(self, observation: Any, step: int) -> Optional[Question]:
-        if step % self.gap or step == self._filled_at and not self._queue:
+        if step % self.gap or (step == self._filled_at and not self._queue):
             return None
         if step != self._filled_at:
             self._filled_at = step

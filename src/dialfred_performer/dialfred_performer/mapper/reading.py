@@ -40,9 +40,9 @@ class AnswerReading:
             return
         if fact.kind == 'held' and fact.receptacle == '':
             self.held, self.held_known, self.held_confirmed = fact.object_type, True, True
-        elif fact.kind == 'location' and fact.object_type == self.held and not self.held_confirmed:
-            self.held = None                      # it is somewhere in the room, so not in hand
-        if fact.kind == 'location':
+        elif fact.kind == 'location':
+            if fact.object_type == self.held and not self.held_confirmed:
+                self.held = None                  # it is somewhere in the room, so not in hand
             self.cone_spent.discard(fact.object_type)    # a new answer, from here: its direction is searched anew
         elif fact.kind == 'direction':
             self.direction = (fact, self.step)      # followed at this step (wayfinding._follow)

@@ -23,7 +23,6 @@ from typing import Optional
 
 import numpy as np
 
-from ..actions import Action
 from .expert import Expert
 
 WRONG_MOVES = ('MoveAhead', 'RotateLeft', 'RotateRight')
@@ -76,5 +75,3 @@ def way_back(world, pose: tuple) -> Optional[list[str]]:
     looks = [a.name for a in Expert._look_actions(world.agent.horizon, pose[3])]
     return walk + looks
 
-
-__all__ = ['Action', 'DETOUR_ROWS', 'detour_plan', 'rejoin_step', 'way_back']
