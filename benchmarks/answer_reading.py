@@ -9,7 +9,8 @@ Fields: location: the direction bin, the receptacle, in or on it, held; appearan
 the turn (left, right, around, straight or stay). Sources: `templates` (the oracle's words), `annotator`
 (the synthetic annotator's paraphrases, dialfred_oracle.annotator.paraphrase: the wording the questioner's
 data uses) and `held-out` (dialfred_oracle.wording.HeldOutWording, written apart from both; it leaves a
-detail out of about a quarter of its location and appearance answers, which lowers recall, not precision).
+detail out of about a quarter of its location answers: `recall` counts those fields, `recall_said` only the
+fields the words say, `HeldOutWording.spoken`'s).
 
     ./dialfred bench answer_reading [--split valid_unseen] [--limit N]
 """
@@ -51,6 +52,17 @@ def fields(fact) -> dict:
     return out
 
 
+COUNTS = ('answers', 'truth', 'read', 'right', 'truth_said', 'right_said')
+# A field the words leave unsaid, by the name HeldOutWording.spoken gives it ('receptacle': with in or on).
+UNSAID_FIELDS = {'inside': 'receptacle'}
+
+
+def rates(c: dict) -> dict:
+    return {**c, 'recall': round(c['right'] / c['truth'], 4),
+            'recall_said': round(c['right_said'] / c['truth_said'], 4) if c['truth_said'] else None,
+            'precision': round(c['right'] / c['read'], 4) if c['read'] else None}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--split', default='valid_unseen')
@@ -76,16 +88,20 @@ def main() -> None:
                         continue
                     content = answer_content(oracle, qtype, noun)
                     rng = np.random.default_rng(zlib.crc32(f'{task.task_id}|{qtype}|{noun}'.encode()))
-                    said = {'templates': oracle.text, 'annotator': paraphrase(content, rng),
-                            'held-out': held_out.say(Asked(task.task_id, qtype, noun, ''), content) or oracle.text}
-                    for source, words in said.items():
+                    spoken = held_out.spoken(Asked(task.task_id, qtype, noun, ''), content)
+                    said = {'templates': (oracle.text, frozenset()), 'annotator': (paraphrase(content, rng), frozenset()),
+                            'held-out': tuple(spoken) if spoken else (oracle.text, frozenset())}
+                    for source, (words, unsaid) in said.items():
                         got = fields(read_answer(qtype, words, noun))
-                        c = counts[source].setdefault(qtype, {'answers': 0, 'truth': 0, 'read': 0, 'right': 0})
+                        c = counts[source].setdefault(qtype, dict.fromkeys(COUNTS, 0))
                         c['answers'] += 1
                         c['truth'] += len(truth)
                         c['read'] += len(got)
                         right = sum(got.get(k) == v for k, v in truth.items())
                         c['right'] += right
+                        told = [k for k in truth if UNSAID_FIELDS.get(k, k) not in unsaid]
+                        c['truth_said'] += len(told)
+                        c['right_said'] += sum(got.get(k) == truth[k] for k in told)
                         if right < len(truth) and len(examples[source]) < 12:
                             examples[source].append({'task': task.task_id, 'oracle': oracle.text, 'said': words,
                                                      'read': got, 'truth': truth})
@@ -94,14 +110,12 @@ def main() -> None:
         env.close()
     report = {'split': args.split, 'tasks': len(tasks), 'sources': {}}
     for source in sources:
-        row, total = {}, {'answers': 0, 'truth': 0, 'read': 0, 'right': 0}
+        row, total = {}, dict.fromkeys(COUNTS, 0)
         for qtype, c in counts[source].items():
-            row[qtype] = {**c, 'recall': round(c['right'] / c['truth'], 4),
-                          'precision': round(c['right'] / c['read'], 4) if c['read'] else None}
+            row[qtype] = rates(c)
             for k in total:
                 total[k] += c[k]
-        row['all'] = {**total, 'recall': round(total['right'] / total['truth'], 4),
-                      'precision': round(total['right'] / total['read'], 4) if total['read'] else None}
+        row['all'] = rates(total)
         report['sources'][source] = {'types': row, 'misread_examples': examples[source]}
     print(json.dumps(report, indent=1))
 

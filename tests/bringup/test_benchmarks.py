@@ -407,3 +407,4 @@ def test_answer_reading_reads_the_templates_whole_and_scores_every_wording_sourc
         row = rows[source]['types']['all']
         assert row['answers'] == rows['templates']['types']['all']['answers'] > 10
         assert 0 < row['recall'] <= 1 and row['right'] <= row['read']
+        assert row['right_said'] <= row['truth_said'] <= row['truth'] and row['recall_said'] >= row['recall']

@@ -127,7 +127,7 @@ def test_an_answerer_words_valid_answers_only_and_must_say_text():
 
 
 def test_the_held_out_wording_says_the_oracles_facts_in_other_words_the_same_each_time(env):
-    wording, seen, lengths, forms, facts = HeldOutWording(), 0, [], set(), []
+    wording, seen, lengths, forms, facts, unsaid = HeldOutWording(), 0, [], set(), [], []
     for task in load_split(SPLIT)[:30]:
         env.reset(options={'task': task})
         for noun in task_nouns(task)[:2]:
@@ -139,6 +139,9 @@ def test_the_held_out_wording_says_the_oracles_facts_in_other_words_the_same_eac
                 content = answer_content(oracle, qtype, noun)
                 words = wording.say(q, content)
                 assert words == HeldOutWording().say(q, content)       # seeded by the question and the answer
+                spoken = wording.spoken(q, content)
+                assert spoken.text == words and spoken.unsaid <= {'bin', 'receptacle'}
+                unsaid.append(bool(spoken.unsaid))
                 assert words and words != oracle.text
                 lengths.append(len(tokenize(words)))
                 forms.add(words.lower())
@@ -151,6 +154,7 @@ def test_the_held_out_wording_says_the_oracles_facts_in_other_words_the_same_eac
     assert seen >= 60 and len(forms) > 0.8 * seen
     assert len(facts) >= 10 and sum(facts) >= 0.75 * len(facts)
     assert 2 <= sum(lengths) / len(lengths) <= 12
+    assert 0 < sum(unsaid) < len(unsaid)                    # a detail left unsaid in some location answers
 
 
 def test_an_evaluation_records_its_answerer_never_resumes_with_another_and_scores_by_replay(tmp_path):

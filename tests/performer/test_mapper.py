@@ -63,7 +63,7 @@ def test_what_the_reader_took_from_an_answer_is_said_in_its_fields_and_recorded_
              ('appearance', 'The apple is red and made of food.'): 'Apple: red',
              ('direction', 'You should turn around.'): 'turn around',
              ('direction', "You don't need to move."): 'stay here',
-             ('location', 'somewhere over by the worktop, I think'): 'nothing it can read'}
+             ('location', 'somewhere over by the whatsit, I think'): 'nothing it can read'}
     agent = MapAgent.__new__(MapAgent)          # the reader needs none of the agent's state
     for (qtype, text), said in cases.items():
         qa = QA(Question(qtype, 'apple' if qtype != 'direction' else ''), True, text)
@@ -120,6 +120,16 @@ def test_a_direction_answer_is_followed_at_the_step_it_comes_round_what_blocks_t
     ('location', 'mug', "you're holding it", ('held', 'Mug')),
     ('appearance', 'mug', 'a greyish one', ('appearance', 'Mug', 'gray')),
     ('appearance', 'mug', 'dark blue, made of plastic', ('appearance', 'Mug', 'navy')),
+    # misspelt (a letter swapped, dropped or doubled), "right" as in correct, an hour in words, a name the
+    # catalog lacks, in or on left unsaid (as things lie in a fridge), colour words beyond the palette's
+    ('direction', '', 'tunr lfet', ('direction', 90, False)),
+    ('direction', '', 'the light is on, go forwardd', ('direction', 0, False)),
+    ('location', 'apple', 'if I recall right, check the fridge', ('location', 'Apple', None, 'Fridge', True)),
+    ('location', 'apple', "at ten o'clock on the worktop", ('location', 'Apple', 45.0, 'CounterTop', False)),
+    ('location', 'apple', 'behind you, on the coutner', ('location', 'Apple', 180.0, 'CounterTop', False)),
+    ('appearance', 'mug', 'deep crimson', ('appearance', 'Mug', 'maroon')),
+    ('appearance', 'mug', 'charcoal, I think', ('appearance', 'Mug', 'black')),
+    ('appearance', 'mug', 'sky blue', ('appearance', 'Mug', 'blue')),
 ])
 def test_a_persons_words_are_read_into_the_oracles_fields(qtype, noun, words, read):
     from dialfred_performer.mapper.words import read_answer
@@ -130,6 +140,14 @@ def test_a_persons_words_are_read_into_the_oracles_fields(qtype, noun, words, re
     assert got == read
     assert read_answer('location', "I'm not sure, sorry", 'apple') is None
     assert read_answer('location', 'The apple is to your left in the fridge.').receptacle == 'Fridge'   # templates
+
+
+def test_a_misspelling_is_put_right_only_where_it_is_no_word_and_means_one_word():
+    from dialfred_performer.mapper.words import COMMON, _lexicon, _misspellings
+    table, known = _misspellings(), _lexicon() | COMMON
+    assert table['rihgt'] == 'right' and table['fridgge'] == 'fridge' and table['behnd'] == 'behind'
+    assert not set(table) & known and set(table.values()) <= _lexicon()
+    assert 'light' not in table and 'her' not in table           # words of their own stay as they are
 
 
 def test_a_point_seen_in_the_simulator_lands_where_the_simulator_put_it():

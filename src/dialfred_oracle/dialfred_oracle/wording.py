@@ -24,7 +24,7 @@ the same way (runs repeat exactly; a copy of a question the transport sends agai
 from __future__ import annotations
 
 import zlib
-from typing import Optional, Sequence
+from typing import NamedTuple, Optional, Sequence
 
 import numpy as np
 
@@ -96,27 +96,28 @@ def _name(noun: str, rng: np.random.Generator) -> str:
     return _one(rng, others) if others and rng.random() < 0.5 else noun
 
 
-def location_words(c: AnswerContent, rng: np.random.Generator) -> str:
+def location_words(c: AnswerContent, rng: np.random.Generator) -> tuple[str, frozenset]:
+    """The words and the fields they leave unsaid ('bin', 'receptacle')."""
     o = _name(c.noun, rng)
     if c.held or (c.where == 'held' and not c.receptacle):
         return _one(rng, ("it's already in your hands", 'you have got it already', f'the {o}? you are carrying it',
-                          'look in your hand'))
+                          'look in your hand')), frozenset()
     r = _name(c.receptacle, rng) if c.receptacle else ''
     p = {'in': _one(rng, ('inside', 'within', 'in')), 'on': _one(rng, ('on', 'sitting on', 'resting on', 'atop'))}.get(
         c.preposition, c.preposition or 'on')
     if c.where == 'held':
-        return _one(rng, (f'{p} the {r} you carry', f'check the {r} in your hands', f'your {r}, {p} it'))
+        return _one(rng, (f'{p} the {r} you carry', f'check the {r} in your hands', f'your {r}, {p} it')), frozenset()
     w = _one(rng, WHERE[c.where]) if c.where in WHERE else ''
     if r and w and rng.random() < P_LEAVE_OUT:           # one detail left out
         w, r = (w, '') if rng.random() < 0.5 else ('', r)
     if r and w:
         return _one(rng, (f'{p} the {r}, {w}', f'{w}, {p} the {r}', f'the {r} {w} has it', f'{o} is {w}, {p} the {r}',
-                          f'go {w} to the {r}, it is {p} there', f'{p} that {r} {w}'))
+                          f'go {w} to the {r}, it is {p} there', f'{p} that {r} {w}')), frozenset()
     if r:
-        return _one(rng, (f'{p} the {r}', f'the {r} has it', f'{o} is {p} the {r}', f'try the {r}'))
+        return _one(rng, (f'{p} the {r}', f'the {r} has it', f'{o} is {p} the {r}', f'try the {r}')), frozenset({'bin'})
     if w:
-        return _one(rng, (w, f'{o} is {w}', f'from where you stand, {w}', f'look {w}'))
-    return c.oracle_text.rstrip('.')
+        return _one(rng, (w, f'{o} is {w}', f'from where you stand, {w}', f'look {w}')), frozenset({'receptacle'})
+    return c.oracle_text.rstrip('.'), frozenset()
 
 
 def appearance_words(c: AnswerContent, rng: np.random.Generator) -> str:
@@ -161,19 +162,34 @@ def dress(text: str, rng: np.random.Generator) -> str:
     return text[:1].upper() + text[1:] + _one(rng, ('.', '', '!', '.'))
 
 
+class Spoken(NamedTuple):
+    """Held-out words for an answer, and the fields of the oracle's answer they leave unsaid ('bin': the
+    direction, 'receptacle': the place with in or on): a reader cannot read those back."""
+
+    text: str
+    unsaid: frozenset = frozenset()
+
+
 class HeldOutWording:
     """The answerer (`say(asked, content)`): the oracle's answer in held-out words; None (the oracle's own)
     for an answer its templates do not cover."""
 
     def say(self, asked, content: AnswerContent) -> Optional[str]:
+        spoken = self.spoken(asked, content)
+        return spoken.text if spoken else None
+
+    def spoken(self, asked, content: AnswerContent) -> Optional[Spoken]:
+        """`say`'s words with what they leave unsaid (benchmarks/answer_reading.py scores a reader on the
+        fields said)."""
         rng = np.random.default_rng(zlib.crc32('|'.join((asked.task_id, asked.question_type, asked.object_noun,
                                                          content.oracle_text)).encode()))
+        unsaid = frozenset()
         if asked.question_type == 'location' and (content.held or content.where or content.receptacle):
-            words = location_words(content, rng)
+            words, unsaid = location_words(content, rng)
         elif asked.question_type == 'appearance' and content.colour:
             words = appearance_words(content, rng)
         elif asked.question_type == 'direction':
             words = direction_words(content, rng)
         else:
             words = None
-        return dress(words, rng) if words else None
+        return Spoken(dress(words, rng), unsaid) if words else None
