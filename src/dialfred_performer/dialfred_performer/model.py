@@ -25,6 +25,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from dialfred_sim.dataclass_cli import arg
 from dialfred_sim.metrics import git_commit
 from dialfred_sim.protocol import ACTIONS, BODY, MAX_STEPS
 
@@ -40,33 +41,33 @@ CHECKPOINT_FORMAT = 'dialfred-performer/1'
 class PerformerConfig:
     """Sizes of the performer. The vocabulary size comes from the vocabulary it is built with."""
 
-    resolution: int = 64           # frames are resized to resolution x resolution (a multiple of 8)
-    d_model: int = 128
-    heads: int = 4
-    layers: int = 2
-    ff: int = 256
-    dropout: float = 0.1
-    max_tokens: int = 256          # language tokens: instruction + every QA
-    max_steps: int = MAX_STEPS     # frames of one episode (the simulator truncates at MAX_STEPS)
-    visual: str = 'cnn'            # 'cnn': three convolutions learnt through the action loss, a pointer over
-                                   # 8 x 8-pixel cells; 'perception': the pretrained Perception network
-                                   # (dialfred_performer.perception), frozen, and a pointer over every pixel
-    perception_net: str = ''       # visual='perception': the network's sizes (JSON of PerceptionNetConfig)
-    pointer_key: int = 32          # visual='perception': the size of each pixel's pointer key
-    reach_input: bool = False      # visual='perception': the action head also reads how far away what the
-                                   # pointer points at is (the network's predicted distance under the
-                                   # pointer's distribution: `reach_features`), gradient-free
-    failure_input: bool = False    # an interaction that failed in the world (the observation's
-                                   # last_action_success) is a previous action of its own (`failed_id`),
-                                   # learnt from recovery examples (data.insert_failed_interaction)
-    frozen_arithmetic: str = 'fp32'   # visual='perception': the frozen network's arithmetic while the performer
-                                   # trained ('fp32' or 'bf16', from the training's --perception-precision); the
-                                   # agent and the questioner's copy run it so where the CPU does bfloat16
-                                   # natively, else in fp32 (`build_visual`)
-    stream_answers: bool = False   # the language is an answer stream (preprocess.encode_language(stream=True)):
-                                   # repeats add nothing, a newer answer of a (type, noun) supersedes the older
-                                   # from its step on, each QA's positions restart after the instruction; trained
-                                   # on answers at any step (data.DemonstrationDataset's streams)
+    resolution: int = arg(64, 'frames are resized to resolution x resolution pixels (a multiple of 8)')
+    d_model: int = arg(128, 'the width of the transformer (every token and frame embedding)')
+    heads: int = arg(4, "the transformer's attention heads")
+    layers: int = arg(2, "the transformer's layers")
+    ff: int = arg(256, 'the width of each layer\'s feed-forward block')
+    dropout: float = arg(0.1, 'dropout in the transformer while training')
+    max_tokens: int = arg(256, 'language tokens the model reads: the instruction and every QA')
+    max_steps: int = arg(MAX_STEPS, 'frames of one episode (the simulator truncates at MAX_STEPS)')
+    visual: str = arg('cnn', "'cnn': three convolutions learnt through the action loss and a pointer over 8 x 8-pixel "
+                      "cells; 'perception': the pretrained Perception network (dialfred_performer.perception), "
+                      'frozen, and a pointer over every pixel (set by --perception)')
+    perception_net: str = arg('', "visual='perception': the network's sizes (JSON of PerceptionNetConfig; set by "
+                              '--perception)')
+    pointer_key: int = arg(32, "visual='perception': the size of each pixel's pointer key")
+    reach_input: bool = arg(False, "visual='perception': the action head also reads how far away what the pointer "
+                            "points at is (the network's predicted distance under the pointer's distribution: "
+                            '`reach_features`), gradient-free')
+    failure_input: bool = arg(False, 'an interaction that failed in the world (the observation\'s last_action_success) '
+                              'is a previous action of its own (`failed_id`), learnt from recovery examples '
+                              '(--recovery, data.insert_failed_interaction)')
+    frozen_arithmetic: str = arg('fp32', "visual='perception': the frozen network's arithmetic while the performer "
+                                 "trained ('fp32' or 'bf16', set by --perception-precision); the agent and the "
+                                 "questioner's copy run it so where the CPU does bfloat16 natively, else in fp32")
+    stream_answers: bool = arg(False, 'the language is an answer stream (preprocess.encode_language(stream=True)): '
+                               'a repeat adds nothing, a newer answer of a (type, noun) supersedes the older from its '
+                               "step on, each QA's positions restart after the instruction; trained on answers at any "
+                               'step (--streams)')
 
     def __post_init__(self):
         if self.visual not in ('cnn', 'perception'):
