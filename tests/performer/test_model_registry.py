@@ -17,7 +17,7 @@ from dialfred_bringup.paths import REPO
 from dialfred_bringup.reproduce.stages import MODEL_CODE
 from dialfred_performer import node as performer_node
 from dialfred_performer.model_registry import (MAP_CAMERA, PERFORMER_MODELS, SHIPPED_CHECKPOINT, PerformerModel,
-                                       camera_resolution, load_policy, performer_model, register)
+                                       camera_resolution, load_policy, performer_model, register, unregister)
 
 
 def test_the_built_in_models_and_every_consumer_read_the_registry():
@@ -56,7 +56,7 @@ def test_a_registered_toy_model_is_evaluated_by_name(tmp_path):
         config = EvalConfig(split='valid_unseen', agent='toy', limit=1, workers=1, out=tmp_path / 'toy.jsonl')
         report = run_eval(config, progress=False)
     finally:
-        del PERFORMER_MODELS['toy']
+        unregister('toy')
     [result] = report.results
     assert result.agent.startswith('toy-') and result.end_reason == 'stop' and result.steps == 1
     assert config.resolution == 48                                         # the model's camera, from the registry

@@ -102,3 +102,19 @@ def test_the_generator_and_the_goals_never_branch_on_a_type_or_a_job():
         source = Path(module.__file__).read_text()
         said = sorted(n for n in names if f"'{n}'" in source or f'"{n}"' in source)
         assert not said, f'{module.__name__} names {said}'
+
+
+def test_a_registry_keeps_its_order_names_the_known_ones_and_refuses_a_taken_name():
+    from dialfred_sim.registry import Registry
+    r = Registry('widget', sorted_names=True)
+    r.add('b', 2), r.add('a', 1)
+    assert list(r) == ['b', 'a'] and r.named('a') == 1 and 'a' in r and r.get('c') is None and len(r) == 2
+    with pytest.raises(ValueError, match="a widget named 'a' is registered already"):
+        r.add('a', 3)
+    with pytest.raises(ValueError, match="unknown widget 'c'; expected one of a, b"):
+        r.named('c')
+    assert r.remove('b') == 2 and list(r) == ['a']
+    with pytest.raises(ValueError, match="no widget named 'b' is registered"):
+        r.remove('b')
+    with pytest.raises(TypeError):
+        r['z'] = 0                                   # only add() registers

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
+from dialfred_sim.registry import Registry
+
 from .checkpoint_header import HeaderError, read_header
 from .shipped import SHIPPED_CHECKPOINT
 
@@ -44,22 +46,22 @@ class PerformerModel:
     fixed_camera: Optional[int] = None
 
 
-PERFORMER_MODELS: dict[str, PerformerModel] = {}
+PERFORMER_MODELS: Registry[PerformerModel] = Registry('performer model')
 
 
 def register(model: PerformerModel) -> PerformerModel:
     """Add `model` to the registry (ValueError if its name is taken)."""
-    if model.name in PERFORMER_MODELS:
-        raise ValueError(f'a performer model named {model.name!r} is registered already')
-    PERFORMER_MODELS[model.name] = model
-    return model
+    return PERFORMER_MODELS.add(model.name, model)
+
+
+def unregister(name: str) -> None:
+    """Remove a model registered after the shipped ones (ValueError for an unknown name)."""
+    PERFORMER_MODELS.remove(name)
 
 
 def performer_model(name: str) -> PerformerModel:
     """The registered model `name` (ValueError naming the known ones otherwise)."""
-    if name not in PERFORMER_MODELS:
-        raise ValueError(f'unknown performer model {name!r}; expected one of {", ".join(PERFORMER_MODELS)}')
-    return PERFORMER_MODELS[name]
+    return PERFORMER_MODELS.named(name)
 
 
 def load_policy(model: str, path: Path):

@@ -13,6 +13,7 @@ import numpy as np
 
 from dialfred_sim.ground_truth import ObjectFact, Snapshot
 from dialfred_sim.protocol import QuestionType, question_kinds, register_question_type
+from dialfred_sim.registry import Registry
 
 
 @dataclass(frozen=True)
@@ -172,7 +173,7 @@ class OracleQuestion:
         return content.oracle_text.rstrip('.')
 
 
-_REGISTRY: dict[str, OracleQuestion] = {}
+_REGISTRY: Registry[OracleQuestion] = Registry('question type')
 
 
 def register(question: OracleQuestion) -> OracleQuestion:
@@ -182,14 +183,12 @@ def register(question: OracleQuestion) -> OracleQuestion:
         raise ValueError(f'the question type {question.name!r} has rules already')
     if question.kind not in question_kinds():
         register_question_type(question.kind)
-    _REGISTRY[question.name] = question
-    return question
+    return _REGISTRY.add(question.name, question)
 
 
 def unregister(name: str) -> None:
     """Remove a type's rules (its protocol entry stays: protocol.unregister_question_type removes it)."""
-    if _REGISTRY.pop(name, None) is None:
-        raise ValueError(f'no question type named {name!r} has rules')
+    _REGISTRY.remove(name)
 
 
 def oracle_question(question_type: str) -> Optional[OracleQuestion]:

@@ -16,6 +16,7 @@ from typing import Mapping, Optional
 import numpy as np
 
 from ..catalog import load_catalog
+from ..registry import Registry
 from ..world.objects import WorldObject
 from ..world.scene import World
 from .expert import Expert, ExpertFailed
@@ -321,24 +322,19 @@ class MovableReceptacle(Job):
         return params['mover']
 
 
-_REGISTRY: dict[str, Job] = {}
+_REGISTRY: Registry[Job] = Registry('job', sorted_names=True)
 
 
 def register(job: Job) -> Job:
     """Add `job` to the registry (ValueError if its name is taken or it names no room)."""
     if not job.name or not job.rooms:
         raise ValueError(f'a job needs a name and the rooms it happens in, got {job.name!r} {dict(job.rooms)}')
-    if job.name in _REGISTRY:
-        raise ValueError(f'a job named {job.name!r} is registered already')
-    _REGISTRY[job.name] = job
-    return job
+    return _REGISTRY.add(job.name, job)
 
 
 def job_named(name: str) -> Job:
     """The registered job `name` (ValueError naming the known ones otherwise)."""
-    if name not in _REGISTRY:
-        raise ValueError(f'unknown job {name!r}; expected one of {", ".join(sorted(_REGISTRY))}')
-    return _REGISTRY[name]
+    return _REGISTRY.named(name)
 
 
 def room_jobs(room_type: str) -> dict[str, float]:

@@ -18,6 +18,7 @@ import numpy as np
 
 from .instructions import (MOVE_SAID_P, NOW_P, PLEASE_P, StepPhrase, article, sentence, step_clause, verb,
                            with_pronoun)
+from ..registry import Registry
 from .schema import PRIMITIVE_KINDS, Condition, Primitive
 
 # goal(prims, world_types): the conditions of the type's object actions over its primitives (`world_types`
@@ -81,30 +82,24 @@ class TaskType:
         return step_by_step, sentence(clause)
 
 
-_REGISTRY: dict[str, TaskType] = {}
+_REGISTRY: Registry[TaskType] = Registry('task type')
 
 
 def register(kind: TaskType) -> TaskType:
     """Add `kind` to the registry (ValueError if its name is taken)."""
-    if kind.name in _REGISTRY:
-        raise ValueError(f'a task type named {kind.name!r} is registered already')
-    _REGISTRY[kind.name] = kind
-    return kind
+    return _REGISTRY.add(kind.name, kind)
 
 
 def unregister(name: str) -> None:
     """Remove a type registered after the paper's (ValueError for one of the paper's or an unknown name)."""
     if name in TASK_TYPES:
         raise ValueError(f"{name!r} is one of the paper's task types and stays registered")
-    if _REGISTRY.pop(name, None) is None:
-        raise ValueError(f'no task type named {name!r} is registered')
+    _REGISTRY.remove(name)
 
 
 def task_type(name: str) -> TaskType:
     """The registered type `name` (ValueError naming the known ones otherwise)."""
-    if name not in _REGISTRY:
-        raise ValueError(f'unknown task type {name!r}; expected one of {", ".join(_REGISTRY)}')
-    return _REGISTRY[name]
+    return _REGISTRY.named(name)
 
 
 def task_types() -> tuple[TaskType, ...]:
