@@ -21,7 +21,7 @@ from dialfred_performer.data import (DIALOGUES_FILE, DemonstrationDataset, answe
                                      paper_steps, qa_key, stream_dialogue)
 from dialfred_performer.model import PerformerConfig, load_checkpoint
 from dialfred_performer.prepare import VOCABULARY_FILE, PrepareConfig, prepare
-from dialfred_performer.preprocess import NEVER, AskedQA, Vocabulary, encode_language, qa_to_dict
+from dialfred_performer.preprocess import NEVER, STREAM_SLOT, AskedQA, Vocabulary, encode_language, qa_to_dict
 from dialfred_performer.train import TrainConfig, train
 from dialfred_sim.protocol import QA, Question
 
@@ -124,12 +124,23 @@ def test_the_stream_encoding_drops_repeats_and_lets_superseded_answers_give_way_
     spans = sorted({(s, u) for s, u in zip(lang.steps[ins:], lang.until[ins:])})
     assert spans == [(0, 3), (0, NEVER), (3, NEVER)]          # the repeats at 2 and 5 add nothing
     assert lang.positions[:ins] == tuple(range(ins)) and min(lang.positions[ins:]) == ins
+    # each (type, noun) owns a slot, by first appearance: the location's answers restart at the instruction's
+    # end, the direction's a slot later; what is heard together never shares a position
+    starts = {(t, s): p for t, s, p in reversed(list(zip(lang.types[ins:], lang.steps[ins:], lang.positions[ins:])))}
+    assert sorted(starts.values()) == [ins, ins, ins + STREAM_SLOT]
+    for step in (0, 3, 5):
+        seen = [p for s, u, p in zip(lang.steps, lang.until, lang.positions) if s <= step < u]
+        assert len(seen) == len(set(seen))
     plain = encode_language(vocab, 'Pick up the apple.', dialogue)
     assert len(plain) > len(lang) and plain.positions is None and plain.until is None
     # over the budget: the superseded answer (step 0, until 3) goes first, the current ones stay
     size = len(lang) - (lang.until.count(3))
     cut = encode_language(vocab, 'Pick up the apple.', dialogue, max_tokens=size, stream=True)
     assert len(cut) == size and 3 not in cut.until and sorted(set(cut.steps[ins:])) == [0, 3]
+    assert set(cut.positions[ins:]) <= set(lang.positions[ins:])      # slots are kept when answers give way
+    # a table too small for a slot a key wraps them onto one another, and no position passes the table
+    small = encode_language(vocab, 'Pick up the apple.', dialogue, stream=True, table=ins + STREAM_SLOT)
+    assert max(small.positions) < ins + STREAM_SLOT
 
 
 def test_stream_dialogue_asks_nothing_of_an_empty_log():

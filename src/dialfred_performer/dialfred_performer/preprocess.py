@@ -163,18 +163,20 @@ class LanguageInput:
 
 
 def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA] = (),
-                    max_tokens: int | None = None, stream: bool = False) -> LanguageInput:
+                    max_tokens: int | None = None, stream: bool = False, table: int | None = None) -> LanguageInput:
     """The instruction, then every QA of `dialogue` in order, as ids, types and steps. With
     `max_tokens`, the instruction is kept and the oldest QAs are dropped first until it fits.
 
     With `stream` (a performer trained on answers at any step, `PerformerConfig.stream_answers`): a
     QA that repeats the answer its (type, noun) last got adds nothing; a newer answer of a (type,
-    noun) supersedes the older one from its step on (the older tokens' `until`); each QA's tokens are
-    placed right after the instruction (positions restart), so that the stream may grow without
-    outgrowing the position table; and over `max_tokens` the oldest superseded QAs give way first,
-    then the oldest QAs."""
+    noun) supersedes the older one from its step on (the older tokens' `until`); each (type, noun)
+    owns STREAM_SLOT positions after the instruction, in the order the stream first asks it, and each of
+    its answers is placed there (positions restart at its slot), so that the stream may grow without
+    outgrowing the position table (`table`, default `max_tokens` or 256: slots wrap where more would
+    not fit) and the answers heard together never share a position; over `max_tokens` the oldest
+    superseded QAs give way first, then the oldest QAs."""
     if stream:
-        return _encode_stream(vocab, instruction, dialogue, max_tokens)
+        return _encode_stream(vocab, instruction, dialogue, max_tokens, table or max_tokens or STREAM_TABLE)
     ins = tokenize(instruction)
     ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
     parts, token_type = [], type_of_question()
@@ -218,11 +220,20 @@ def stream_qas(dialogue: Sequence[AskedQA]) -> list[tuple[AskedQA, int]]:
     return [(a, until) for a, until in kept]
 
 
+# An answer stream's positions: each (type, noun) owns this many after the instruction (the oracle's QAs are
+# at most 19 tokens; a longer one runs into the next slot), in a table of STREAM_TABLE by default.
+STREAM_SLOT, STREAM_TABLE = 24, 256
+
+
 def _encode_stream(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA],
-                   max_tokens: Optional[int]) -> LanguageInput:
+                   max_tokens: Optional[int], table: int) -> LanguageInput:
     ins = tokenize(instruction)[:max_tokens]
     token_type = type_of_question()
-    parts = [(qa_tokens(a.qa), a, until) for a, until in stream_qas(dialogue)]
+    slot_of: dict[tuple[str, str], int] = {}
+    parts = []
+    for a, until in stream_qas(dialogue):          # slots by first appearance, before any QA gives way
+        parts.append((qa_tokens(a.qa), a, until, slot_of.setdefault(qa_key(a), len(slot_of))))
+    slots = max(1, (table - len(ins)) // STREAM_SLOT)
     if max_tokens is not None:
         room = max_tokens - len(ins)
         order = [k for k, p in enumerate(parts) if p[2] != NEVER] + [k for k, p in enumerate(parts) if p[2] == NEVER]
@@ -235,12 +246,12 @@ def _encode_stream(vocab: Vocabulary, instruction: str, dialogue: Sequence[Asked
         parts = [p for k, p in enumerate(parts) if k not in dropped]
     ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
     positions, until = list(range(len(ins))), [NEVER] * len(ins)
-    for toks, asked, end in parts:
-        n = len(toks)
+    for toks, asked, end, slot in parts:
+        n, start = len(toks), len(ins) + (slot % slots) * STREAM_SLOT
         ids += vocab.ids(toks)
         types += [token_type[asked.qa.question.question_type]] * n
         steps += [asked.step] * n
-        positions += range(len(ins), len(ins) + n)
+        positions += [min(start + i, table - 1) for i in range(n)]
         until += [end] * n
     return LanguageInput(tuple(ids), tuple(types), tuple(steps), tuple(positions), tuple(until))
 
