@@ -408,3 +408,16 @@ def test_answer_reading_reads_the_templates_whole_and_scores_every_wording_sourc
         assert row['answers'] == rows['templates']['types']['all']['answers'] > 10
         assert 0 < row['recall'] <= 1 and row['right'] <= row['read']
         assert row['right_said'] <= row['truth_said'] <= row['truth'] and row['recall_said'] >= row['recall']
+
+
+@pytest.mark.slow   # two evaluations end to end
+def test_direction_following_plays_the_blind_follower_and_a_performer_asked_before_every_action(tmp_path):
+    report = run_bench('direction_following', '--agents', 'follower', 'et', '--limit', '4', '--out', str(tmp_path),
+                       '--no-progress')
+    follower, et = report['agents']['follower']['every_step'], report['agents']['et']
+    assert follower['tasks'] == 4 and follower['NQ'] > 1                 # asked before every action
+    assert et['every_step']['NQ'] > 1 and et['none']['NQ'] == 0
+    assert et['move_SR_gain'] == (None if et['none']['move_SR'] is None else
+                                  round(et['every_step']['move_SR'] - et['none']['move_SR'], 2))
+    assert set(report['beats_the_blind_follower_on_move']) <= {'et'}
+    assert len([p for p in tmp_path.glob('*.jsonl') if not p.name.endswith('.trace.jsonl')]) == 3   # one per run
