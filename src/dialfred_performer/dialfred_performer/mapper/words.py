@@ -89,7 +89,7 @@ COLOUR_RGB = {'grey': (128, 128, 128), 'slate': (112, 128, 144), 'charcoal': (54
               'caramel': (175, 111, 9), 'copper': (184, 115, 51), 'bronze': (205, 127, 50), 'brass': (181, 166, 66),
               'ebony': (40, 36, 32), 'jet': (20, 20, 20), 'snow': (250, 250, 250), 'golden': (212, 175, 55),
               'rosy': (255, 150, 190), 'silvery': (190, 195, 205)}
-DARKEN, LIGHTEN = 0.7, 0.35          # how much darker or lighter they make it (of the colour; towards white)
+DARKEN, LIGHTEN, DULL = 0.7, 0.35, 0.4     # how much darker, lighter (towards white), duller (towards grey)
 # Words that make a colour darker, lighter or duller ("deep blue", "pale green", "dusty pink").
 DARKER, LIGHTER, DULLER = {'dark', 'deep', 'darkish'}, {'light', 'pale', 'pastel', 'lightish'}, \
     {'dull', 'muted', 'dusty', 'faded'}
@@ -180,9 +180,10 @@ def _lexicon() -> set[str]:
 def _misspellings() -> dict[str, str]:
     """A misspelling (a letter dropped, doubled or two swapped) of one of the reader's words of four letters or
     more -> that word; none that is a word itself, or a misspelling of two of them."""
-    known = _lexicon() | COMMON
+    lexicon = _lexicon()
+    known = lexicon | COMMON
     seen: dict[str, set[str]] = {}
-    for w in (w for w in _lexicon() if len(w) >= 4 and w.isalpha()):
+    for w in (w for w in lexicon if len(w) >= 4 and w.isalpha()):
         variants = {w[:i] + w[i + 1:] for i in range(len(w))} | {w[:i] + w[i] + w[i:] for i in range(len(w))} | \
             {w[:i] + w[i + 1] + w[i] + w[i + 2:] for i in range(len(w) - 1)}
         for v in variants - {w}:
@@ -217,7 +218,8 @@ def read_answer(question_type: str, text: str, noun: str = '') -> Optional[Fact]
     ("I don't know", or words it does not know)."""
     fact = parse_answer(question_type, text)
     if fact is not None and fact.kind == 'appearance' and fact.colour not in PALETTE:
-        return dataclasses.replace(fact, colour=_colour(fact.colour)) if _colour(fact.colour) else None
+        colour = _colour(fact.colour)
+        return dataclasses.replace(fact, colour=colour) if colour else None
     if fact is not None:          # "The mug is grey and made of glass": the template's form, another word
         return fact
     low = ' '.join(_spelt(_tokens(text)))
@@ -280,19 +282,23 @@ def _colour(low: str) -> str:
     said = _colour_words(_tokens(low))
     if not said:
         return ''
-    names = [w for w, _ in said if w in PALETTE]
-    if len(said) == 1 and names and not (set(_tokens(low)) & (DARKER | LIGHTER | DULLER)):
-        return names[0]
-    rgb = np.mean([c for _, c in said], axis=0)
     words = set(_tokens(low))
+    if len(said) == 1 and said[0][0] in PALETTE and not words & (DARKER | LIGHTER | DULLER):
+        return said[0][0]
+    rgb = np.mean([c for _, c in said], axis=0)
     if words & DARKER:
         rgb = rgb * DARKEN
     if words & LIGHTER:
         rgb = rgb + (255.0 - rgb) * LIGHTEN
     if words & DULLER:
-        rgb = rgb + (128.0 - rgb) * 0.4
+        rgb = rgb + (128.0 - rgb) * DULL
     lab = _lab(rgb)
-    return min(PALETTE, key=lambda n: float(np.sum((_lab(np.array(PALETTE[n], float)) - lab) ** 2)))
+    return min(_palette_lab().items(), key=lambda kv: float(np.sum((kv[1] - lab) ** 2)))[0]
+
+
+@functools.lru_cache(maxsize=1)
+def _palette_lab() -> dict[str, np.ndarray]:
+    return {name: _lab(rgb) for name, rgb in PALETTE.items()}
 
 
 def _colour_words(tokens: list[str]) -> list[tuple[str, tuple]]:
