@@ -51,9 +51,12 @@ from torch.utils.data import Dataset
 from dialfred_oracle.annotator import ANNOTATION_RESOLUTION, annotate_task, answer_content, paraphrase
 from dialfred_oracle.answers import answer
 from dialfred_oracle.questions import Answer, oracle_question
+from dialfred_oracle.questions.base import direction_bin
+from dialfred_oracle.questions.direction import GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT, advice
 from dialfred_sim.ground_truth import snapshot, task_object_ids
 from dialfred_sim.protocol import ACTIONS, QA, every_question, question_types
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
+from dialfred_sim.world.rooms import GRID
 
 from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
@@ -527,6 +530,27 @@ class DetourProbe(OracleProbe):
 
     def end(self, record: dict) -> dict:
         return {'qas': [qa_to_dict(a) for a in self.log.entries]}
+
+
+class DirectionGuide:
+    """A guided walk's `advise(env)` (`dialfred_sim.tasks.detours.GuidedWalk`): what the oracle's direction
+    answer at the agent's pose says to do, as `examples/direction_follower.py` reads it: "go straight ahead"
+    MoveAhead, "turn left" / "turn right" the turn, "turn around" a turn to the side the expert's end lies
+    on (left when straight behind), "You don't need to move." Stop."""
+
+    def __call__(self, env) -> str:
+        a = env.world.agent
+        i, j, rotation, horizon = env.task.expert_end_pose
+        agent, end = (float(a.x), float(a.y), float(a.rotation)), (i * GRID, j * GRID, float(rotation))
+        said = advice(agent, end)
+        if said == TURN_AROUND:
+            side = direction_bin(agent[:2], agent[2], end[:2])
+            return 'RotateRight' if 'right' in side else 'RotateLeft'
+        return GUIDED_ACTION[said]
+
+
+# What each direction answer tells a guided walk to do (DirectionGuide; "turn around": by side).
+GUIDED_ACTION = {GO_STRAIGHT: 'MoveAhead', TURN_LEFT: 'RotateLeft', TURN_RIGHT: 'RotateRight', STAY: 'Stop'}
 
 
 class AnnotatingProbe(OracleProbe):

@@ -48,6 +48,7 @@ VOCABULARY_FILE = 'vocabulary.json'
 ORACLE_PROBE = 'dialfred_performer.data:OracleProbe'    # the dialogues' QAs asked while rendering
 ANNOTATING_PROBE = 'dialfred_performer.data:AnnotatingProbe'   # ... and the synthetic annotators' rows
 DETOUR_PROBE = 'dialfred_performer.data:DetourProbe'       # a build with detours (its looks at step 0 only)
+DIRECTION_GUIDE = 'dialfred_performer.data:DirectionGuide'   # a build with guided walks: the direction answers' way
 SYNC_EVERY = 10          # tasks between fsyncs of a worker's part file
 
 
@@ -68,6 +69,10 @@ class PrepareConfig:
     detours: bool = arg(False, 'play every task with a detour in one of its go-tos and the expert\'s way back '
                                '(dialfred_sim.tasks.detours), into <split>_<resolution>_detours by default: frames '
                                'off the expert\'s path, the oracle\'s answers there, the moves that lead back')
+    guided: bool = arg(False, 'play every task\'s last go-to as a guided walk (dialfred_sim.tasks.detours): the moves '
+                              'and turns the oracle\'s direction answers say, step by step, into '
+                              '<split>_<resolution>_guided by default (the expert\'s shortest way does not turn '
+                              'where an answer says to)')
 
     def __post_init__(self):
         if self.split not in SPLIT_SIZES:
@@ -78,16 +83,19 @@ class PrepareConfig:
             raise ValueError(f'workers must be at least 1, got {self.workers}')
         if self.limit < 0:
             raise ValueError(f'limit must be >= 0 (0: all tasks), got {self.limit}')
-        if self.detours and self.annotate:
+        if self.detours and self.guided:
+            raise ValueError('a build has --detours or --guided walks, not both')
+        if (self.detours or self.guided) and self.annotate:
             raise ValueError('--annotate makes the annotators\' rows of the tasks\' starts: take them from the plain '
-                             'build, not the one with --detours')
+                             'build, not one with --detours or --guided')
 
     @property
     def folder(self) -> Path:
         if self.out:
             return Path(self.out).expanduser()
         plain = default_dir(self.split, self.resolution)
-        return plain.with_name(plain.name + '_detours') if self.detours else plain
+        return plain.with_name(plain.name + '_detours') if self.detours else \
+            plain.with_name(plain.name + '_guided') if self.guided else plain
 
 
 def oracle_texts() -> list[str]:
@@ -210,10 +218,11 @@ def prepare(config: PrepareConfig) -> dict:
     report = {'split': config.split, 'resolution': config.resolution, 'workers': config.workers,
               'folder': str(folder)}
     c0 = _clock()
-    probe = DETOUR_PROBE if config.detours else ANNOTATING_PROBE if config.annotate else ORACLE_PROBE
+    probe = DETOUR_PROBE if config.detours or config.guided else ANNOTATING_PROBE if config.annotate else ORACLE_PROBE
     meta = build_demonstrations(config.split, config.resolution, folder, workers=config.workers,
                                 limit=config.limit or None, progress=config.progress, probe=probe,
-                                labels=config.labels, detours=config.detours)
+                                labels=config.labels, detours=config.detours,
+                                guide=DIRECTION_GUIDE if config.guided else '')
     c1 = _clock()
     write_dialogues(folder, config.workers, config.progress)
     c2 = _clock()

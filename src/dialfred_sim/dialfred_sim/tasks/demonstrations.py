@@ -47,7 +47,7 @@ from ..metrics import write_text_atomically
 from ..processes import worker_pool
 from ..protocol import scale_pixel
 from ..catalog import load_catalog
-from .detours import DETOUR_ROWS, detour_plan, rejoin_step, way_back
+from .detours import DETOUR_ROWS, GuidedWalk, detour_plan, guided_plan, rejoin_step, way_back
 from .schema import ExpertAction
 from .splits import SPLIT_SIZES, load_split
 
@@ -126,24 +126,50 @@ def expert_pixel(env, action, task_resolution: int, segmentation: np.ndarray) ->
 
 
 def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable] = None,
-                       labels: Optional[FrameLabels] = None, detour: Optional[tuple] = None) -> dict:
+                       labels: Optional[FrameLabels] = None, detour: Optional[tuple] = None,
+                       guide: Optional[Callable] = None) -> dict:
     """Replay `task`'s expert in `env`, writing its len(actions) + 1 frames into `frames` (a view of that
     many rows); the task's record for tasks.jsonl. `observe(env, k)`, if given, is called at every step
     k with the env as frame k shows it (before action k; k = len(actions) after the last). `labels`, if
     given, writes each frame's labels into the same rows of its views. With `detour` (step, wrong moves:
     `detours.detour_plan`), the agent strays at that step and the expert brings it back (`detours`); the
     record then also says which actions are imitation targets (`targets`: not the wrong moves) and
-    `detour`: [step, wrong moves, moves back]; `frames` needs DETOUR_ROWS more rows."""
+    `detour`: [step, wrong moves, moves back]; `frames` needs DETOUR_ROWS more rows. With `guide` (an
+    `advise(env)`, see `detours.GuidedWalk`), the task's last go-to is a guided walk (`detours.guided_plan`):
+    the record says `guided`: [step, actions walked, moves back], or None for a task without one (played as
+    the expert played it), and `targets` (every action); `frames` needs DETOUR_ROWS more rows."""
     obs, _ = env.reset(options={'task': task})
     script = [(a, True) for a in task.expert_actions]
-    rejoin = None
+    rejoin, walk = None, None
+    plan = guided_plan(task) if guide is not None else None
     if detour is not None:
         at, wrong = detour
         rejoin = rejoin_step(task, at)
         script = script[:at] + [(ExpertAction(w), False) for w in wrong]
+    elif plan is not None:
+        rejoin = plan[1]
+        walk = GuidedWalk(task.episode.poses[task.start + rejoin], guide)
+        script = script[:plan[0]]
     actions, targets, failed, success, k = [], [], 0, False, 0
     back = 0
-    while k < len(script):
+    while True:
+        if k == len(script) and rejoin is not None:
+            # A detour's wrong moves made, or a guided walk's next action: then the way back and the rest.
+            rest = task.expert_actions[rejoin:]
+            told = walk.next(env, len(frames) - len(actions) - 1 - len(rest)) if walk is not None else None
+            if told is not None:
+                script.append((ExpertAction(told), True))
+            else:
+                moves = way_back(env.world, task.episode.poses[task.start + rejoin])
+                if moves is None:
+                    raise RuntimeError(f'{task.task_id}: no way back from step {k}')
+                back = len(moves)
+                script += [(ExpertAction(m), True) for m in moves] + [(a, True) for a in rest]
+                rejoin = None
+                if len(script) + 1 > len(frames):
+                    raise RuntimeError(f'{task.task_id}: the detour needs {len(script) + 1} frames, {len(frames)} kept')
+        if k == len(script):
+            break
         a, target = script[k]
         frames[len(actions)] = obs['rgb']
         if labels is not None:
@@ -160,15 +186,6 @@ def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable
         if terminated or truncated:     # the goal held early (the rows left over stay zero)
             break
         k += 1
-        if rejoin is not None and k == len(script):       # the wrong moves made: the way back, then the rest
-            moves = way_back(env.world, task.episode.poses[task.start + rejoin])
-            if moves is None:
-                raise RuntimeError(f'{task.task_id}: no way back from the detour at step {detour[0]}')
-            back = len(moves)
-            script += [(ExpertAction(m), True) for m in moves] + [(a, True) for a in task.expert_actions[rejoin:]]
-            rejoin = None
-            if len(script) + 1 > len(frames):
-                raise RuntimeError(f'{task.task_id}: the detour needs {len(script) + 1} frames, {len(frames)} kept')
     frames[len(actions)] = obs['rgb']
     if labels is not None:
         labels.write(len(actions), env, obs)
@@ -179,6 +196,8 @@ def play_demonstration(env, task, frames: np.ndarray, observe: Optional[Callable
               'actions': actions, 'success': success, 'failed_actions': failed}
     if detour is not None:
         record.update(targets=targets, detour=[detour[0], len(detour[1]), back])
+    if guide is not None:
+        record.update(targets=targets, guided=None if plan is None else [plan[0], walk.walked, back])
     return record
 
 
@@ -209,7 +228,7 @@ def probe_values(out: Path) -> dict[str, object]:
 
 
 def load_probe(name: str):
-    """The probe class named 'package.module:Class' (see build_demonstrations)."""
+    """The class named 'package.module:Class': a probe or a guide (see build_demonstrations)."""
     module, _, attr = name.partition(':')
     if not module or not attr:
         raise ValueError(f"a probe is named 'package.module:Class', got {name!r}")
@@ -217,13 +236,14 @@ def load_probe(name: str):
 
 
 def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: int, shards: int,
-            probe: str = '', labels: bool = False, detours: bool = False) -> None:
+            probe: str = '', labels: bool = False, detours: bool = False, guide: str = '') -> None:
     from ..env import DialfredEnv  # lazy: gymnasium, which the rest of this module does without
     out = Path(out)
     tasks = load_split(split)[:limit]
-    offsets = frame_offsets(tasks, DETOUR_ROWS if detours else 0)
+    offsets = frame_offsets(tasks, DETOUR_ROWS if detours or guide else 0)
     done = _done_records(out)
     watcher = load_probe(probe)() if probe else None
+    advise = load_probe(guide)() if guide else None
     frames = np.load(out / 'frames.npy', mmap_mode='r+')
     label_maps = [np.load(out / name, mmap_mode='r+') for name in LABEL_FILES] if labels else []
     env = DialfredEnv(resolution=resolution)
@@ -249,11 +269,13 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
             task_labels = FrameLabels(*(m[rows] for m in label_maps)) if labels else None
             detour = detour_plan(tasks[k], np.random.default_rng([DETOUR_SEED, k])) if detours else None
             if watcher is None:
-                record = play_demonstration(env, tasks[k], frames[rows], labels=task_labels, detour=detour)
+                record = play_demonstration(env, tasks[k], frames[rows], labels=task_labels, detour=detour,
+                                            guide=advise)
                 pending.append({'index': k, 'record': record})
             else:
                 watcher.begin(tasks[k])
-                record = play_demonstration(env, tasks[k], frames[rows], watcher, labels=task_labels, detour=detour)
+                record = play_demonstration(env, tasks[k], frames[rows], watcher, labels=task_labels, detour=detour,
+                                            guide=advise)
                 pending.append({'index': k, 'record': record, 'probe': watcher.end(record)})
             if len(pending) >= SYNC_EVERY:
                 sync()
@@ -263,7 +285,7 @@ def _worker(split: str, resolution: int, out: str, limit: Optional[int], shard: 
 
 def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] = None, workers: int = 1,
                          limit: Optional[int] = None, progress: bool = True, probe: str = '',
-                         labels: bool = False, detours: bool = False) -> dict:
+                         labels: bool = False, detours: bool = False, guide: str = '') -> dict:
     """Render the expert demonstrations of `split` (its first `limit` tasks) into `out`; resumes a build
     that was interrupted. Returns the contents of meta.json.
 
@@ -275,14 +297,17 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     records are the same with or without one. `labels` also writes each frame's labels (the module's
     classes.npy, depth.npy, targets.npy); the frames are the same with or without them. `detours` plays
     every task with a detour in one of its go-tos (`detours.py`; drawn from the task's index), in
-    DETOUR_ROWS more rows a task."""
+    DETOUR_ROWS more rows a task. `guide` ('package.module:Class', a class whose instances are an
+    `advise(env)`: see `detours.GuidedWalk`) plays every task's last go-to as a guided walk, in as many rows."""
+    if detours and guide:
+        raise ValueError('a build has detours or guided walks, not both')
     t0 = time.monotonic()
     if resolution < 16:
         raise ValueError(f'resolution must be at least 16, got {resolution}')
     out = Path(out) if out else default_dir(split, resolution)
     out.mkdir(parents=True, exist_ok=True)
     tasks = load_split(split)[:limit]
-    offsets = frame_offsets(tasks, DETOUR_ROWS if detours else 0)
+    offsets = frame_offsets(tasks, DETOUR_ROWS if detours or guide else 0)
     shape = (offsets[-1], resolution, resolution, 3)
     frames_path = out / 'frames.npy'
     started = (out / 'build.json').exists() and json.loads((out / 'build.json').read_text())
@@ -291,6 +316,8 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
         plan['labels'] = True         # a build without labels is not one with them: it is made again
     if detours:
         plan['detours'] = True
+    if guide:
+        plan['guide'] = guide
     if started != plan or not frames_path.exists():
         for stale in [frames_path, out / 'meta.json', out / 'tasks.jsonl', *out.glob('done-*.txt'),
                       *(out / name for name in LABEL_FILES)]:
@@ -304,7 +331,7 @@ def build_demonstrations(split: str, resolution: int = 128, out: Optional[Path] 
     elif (out / 'meta.json').exists():
         return json.loads((out / 'meta.json').read_text())       # already complete
     workers = max(1, min(workers, len(tasks)))
-    args = [(split, resolution, str(out), limit, k, workers, probe, labels, detours) for k in range(workers)]
+    args = [(split, resolution, str(out), limit, k, workers, probe, labels, detours, guide) for k in range(workers)]
     if workers == 1:
         _run_with_progress(None, args, out, len(tasks), progress)
     else:

@@ -15,6 +15,21 @@ queries.
 
 `demonstrations.build_demonstrations(..., detours=True)` plays every task so (a task without a go-to as
 the expert played it), each task's frames in `len(expert actions) + 1 + DETOUR_ROWS` rows.
+
+Guided walks: an expert walks the shortest way, which a direction answer ("You should turn left.": where
+the expert's end lies, as the crow flies) does not say: in the expert's demonstrations a third of the
+steps told to turn left walk straight on. A performer that imitates them learns to walk past the answer.
+A guided walk shows the other behaviour: from the first action of the task's last go-to (the one that
+ends where the task's expert ends, where the direction answers point) the agent does what a direction
+`advise(env)` says at each step (a move or a turn, or Stop when there), taking the expert's shortest way
+for a few moves where a move it is told to make is blocked; then the expert's way to the go-to's end pose
+and the rest of the expert's actions. It gives up on the directions (and walks the expert's way) where it
+comes back to a pose it stood on, or where the rows left would not hold the way back.
+
+    guided_plan(task)                  -> (step, rejoin step) or None
+    GuidedWalk(goal, advise).next(env, rows) -> the next action, or None when the walk is over
+
+`build_demonstrations(..., guide='package.module:Class')` plays every task so (`advise` is a `Class()`).
 """
 
 from __future__ import annotations
@@ -24,6 +39,7 @@ from typing import Optional
 import numpy as np
 
 from .expert import Expert
+from .navigation import successors
 
 WRONG_MOVES = ('MoveAhead', 'RotateLeft', 'RotateRight')
 WRONG_P = (0.5, 0.25, 0.25)          # a wrong move is a step ahead half the time, else a turn
@@ -75,3 +91,57 @@ def way_back(world, pose: tuple) -> Optional[list[str]]:
     looks = [a.name for a in Expert._look_actions(world.agent.horizon, pose[3])]
     return walk + looks
 
+
+
+GUIDE_SIDESTEP = 3                   # a blocked move the directions ask for: this many of the expert's moves
+
+
+def guided_plan(task) -> Optional[tuple[int, int]]:
+    """(the step of the task at which a guided walk starts, the step at which its go-to ends): the first
+    action of the task's last go-to, where that go-to ends on the grid point where the task's expert ends
+    (the direction answers point there); None otherwise (no go-to, or one that walks on after it)."""
+    gotos = [p for p in task.primitives if p.kind == 'goto' and p.end > task.start]
+    if not gotos:
+        return None
+    last = gotos[-1]
+    if tuple(task.episode.poses[last.end][:2]) != tuple(task.expert_end_pose[:2]):
+        return None
+    return max(last.start, task.start) - task.start, last.end - task.start
+
+
+class GuidedWalk:
+    """The agent walking where `advise(env)` says (an action name: MoveAhead, RotateLeft, RotateRight, or
+    Stop for "here"), towards `goal` (i, j, rotation, horizon: the go-to's end pose); see the module."""
+
+    def __init__(self, goal: tuple, advise):
+        self.goal, self.advise = tuple(goal), advise
+        self.stood: set[tuple] = set()
+        self.sidestep: list[str] = []
+        self.walked = 0                  # actions taken on the walk (told, or a sidestep's)
+
+    def next(self, env, rows: int) -> Optional[str]:
+        """The walk's next action from where `env`'s agent stands, with `rows` actions left for the walk and the
+        expert's way from its end to the goal; None when the walk is over (told "here", back on a pose it stood
+        on, or the rows would not hold another action and the way back)."""
+        world = env.world
+        a = world.agent
+        pose = (a.i, a.j, a.rotation)
+        back = way_back(world, self.goal)
+        if back is None or len(back) + 2 > rows:
+            return None
+        if self.sidestep:
+            self.walked += 1
+            return self.sidestep.pop(0)
+        if pose in self.stood:
+            return None
+        self.stood.add(pose)
+        told = self.advise(env)
+        if told == 'Stop':
+            return None
+        if told not in {act.name for act, _ in successors(world, pose)}:
+            if not back:
+                return None
+            self.sidestep = back[:GUIDE_SIDESTEP]
+            told = self.sidestep.pop(0)
+        self.walked += 1
+        return told
