@@ -222,3 +222,46 @@ def test_a_detour_builds_episodes_join_the_training_held_out_with_their_tasks(fo
     trained = {base_task_id(data.train.demo.tasks[data.train.task_indices[i // data.train.per_task]]['task_id'])
                for i in data.train_items}
     assert held and not held & trained
+
+
+def test_a_guided_build_walks_as_the_direction_answers_say_and_its_items_hear_them_at_every_step(folder, tmp_path):
+    """prepare-performer --guided: each task's last go-to walked as the oracle's direction answer of each step
+    says (a sidestep where the way it says is blocked); every item of such an episode hears the direction at
+    every step; a task without a walk is left out; a guided episode is held out with its task."""
+    from dialfred_performer.data import GUIDED_ACTION, GUIDED_TAG, base_task_id
+    guided = tmp_path / 'guided'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=5, out=str(guided), progress=False,
+                          guided=True))
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    ds = DemonstrationDataset(folder, vocab, 64, streams=2, stream=True, guided=guided)
+    walked = [k for k, t in enumerate(ds.demo.tasks) if t.get('guided')]
+    assert walked and all(ds.demo.tasks[k]['task_id'].endswith(GUIDED_TAG) for k in walked)
+    told = obeyed = 0
+    for k in walked:
+        task = ds.demo.tasks[k]
+        assert task['success'] and task['failed_actions'] == 0, task['task_id']
+        at, n, _ = task['guided']
+        log = ds.dialogues[task['task_id']].qas
+        for step in range(at, at + n):
+            said = answers_at(log, step, ('direction',))[0].qa.answer
+            told += 1
+            obeyed += task['actions'][step][0] == GUIDED_ACTION.get(said, task['actions'][step][0])
+        for c in range(ds.per_task):
+            heard = ds.dialogue(ds.task_indices.index(k) * ds.per_task + c)
+            steps = [a.step for a in heard if a.qa.question.question_type == 'direction']
+            assert steps == list(range(ds.steps_of(k)))        # the direction at every step, in step order
+    assert told and obeyed / told >= 0.8
+    left_out = [k for k, t in enumerate(ds.demo.tasks) if t['task_id'].endswith(GUIDED_TAG) and not t.get('guided')]
+    assert not set(left_out) & set(ds.task_indices)
+    assert base_task_id('valid_unseen/000001' + GUIDED_TAG) == 'valid_unseen/000001'
+    from dialfred_performer.train import load_data
+    cfg = TrainConfig(demonstrations=str(folder), guided=str(guided), out=str(tmp_path / 'run'), val_fraction=0.3,
+                      streams=2, model=PerformerConfig(stream_answers=True))
+    data = load_data(cfg, vocab)
+    task_of = lambda i: base_task_id(data.train.demo.tasks[data.train.task_indices[i // data.train.per_task]]['task_id'])
+    held, trained = {task_of(i) for i in data.val_items}, {task_of(i) for i in data.train_items}
+    assert held and not held & trained
+    with pytest.raises(ValueError, match='guided'):
+        DemonstrationDataset(folder, vocab, 64, guided=folder)
+    with pytest.raises(ValueError, match='not both'):
+        PrepareConfig(split='valid_unseen', detours=True, guided=True)

@@ -4,7 +4,9 @@ Claims: every task of valid_unseen's first 12 with a go-to strays at a step of o
 its wrong moves (not imitation targets) and is brought back by the expert; from where it rejoins, its
 actions and frames are the expert's own (the same pose renders the same frame); each still reaches its
 goal; a task without a go-to is played as the expert played it; the plan is drawn from the seed alone;
-the way back to where the agent stands is no move at all.
+the way back to where the agent stands is no move at all. A guided walk does what its advice says, takes
+the expert's way where a move it is told is blocked, gives up on a pose it stood on, is over when told
+"here", and then rejoins the expert's actions (tests/performer/test_answer_streams.py: the oracle's).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import numpy as np
 import pytest
 
 from dialfred_sim.tasks.demonstrations import build_demonstrations, load_demonstrations
-from dialfred_sim.tasks.detours import DETOUR_MOVES, detour_plan, rejoin_step, way_back
+from dialfred_sim.tasks.detours import DETOUR_MOVES, DETOUR_ROWS, detour_plan, guided_plan, rejoin_step, way_back
 from dialfred_sim.tasks.splits import load_split
 
 TASKS = 12
@@ -81,3 +83,37 @@ def test_joined_rows_read_as_the_concatenation_would():
         assert np.array_equal(rows[key], whole[key]), key
     with pytest.raises(IndexError):
         rows[[10]]
+
+
+def _guided(task, advise):
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.tasks.demonstrations import play_demonstration
+    env = DialfredEnv(resolution=32)
+    frames = np.zeros((len(task.expert_actions) + 1 + DETOUR_ROWS, 32, 32, 3), np.uint8)
+    try:
+        return play_demonstration(env, task, frames, guide=advise)
+    finally:
+        env.close()
+
+
+def test_a_guided_walk_does_what_it_is_told_until_told_here_or_back_where_it_stood():
+    tasks = load_split('valid_unseen')
+    move = next(t for t in tasks if t.task_type == 'Move' and len(t.expert_actions) >= 6)
+    at, rejoin = guided_plan(move)
+    assert at == 0 and rejoin == move.primitives[-1].end - move.start     # the go-to's end: where the answers point
+    here = _guided(move, lambda env: 'Stop')        # told "here" at once: the expert's way from the start
+    assert here['guided'][:2] == [0, 0] and here['success']
+    assert here['failed_actions'] == 0 and len(here['actions']) <= len(move.expert_actions)   # the shortest way
+    spin = _guided(move, lambda env: 'RotateLeft')  # four turns bring it back to where it stood: then the expert's way
+    assert spin['guided'][1] == 4 and [a[0] for a in spin['actions'][:4]] == ['RotateLeft'] * 4
+    assert spin['success'] and spin['targets'] == [True] * len(spin['actions'])
+    ahead = _guided(move, lambda env: 'MoveAhead')  # a wall ahead: the expert's moves for a while, not a bump
+    assert ahead['failed_actions'] == 0 and ahead['success']
+
+
+def test_a_task_without_a_last_go_to_ending_where_the_expert_ends_has_no_guided_walk():
+    tasks = load_split('valid_unseen')[:40]
+    plain = [t for t in tasks if not any(p.kind == 'goto' for p in t.primitives)]
+    assert plain and all(guided_plan(t) is None for t in plain)
+    record = _guided(plain[0], lambda env: 'MoveAhead')
+    assert record['guided'] is None and [a[0] for a in record['actions']] == [a.action for a in plain[0].expert_actions]

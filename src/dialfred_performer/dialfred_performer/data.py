@@ -81,13 +81,15 @@ INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
 RECOVERY_BEFORE = 3           # a failed click is inserted at most this many (navigation) steps before an interaction
 
 
-# The tag a detour build's task ids get when its episodes join a plain build's (DemonstrationDataset's `detours`).
+# The tags a detour build's and a guided build's task ids get when their episodes join a plain build's
+# (DemonstrationDataset's `detours` and `guided`).
 DETOUR_TAG = '~detour'
+GUIDED_TAG = '~guided'
 
 
 def base_task_id(task_id: str) -> str:
-    """The task a (maybe detoured) episode's id names: a detour is held out with its task."""
-    return task_id.split(DETOUR_TAG)[0]
+    """The task a (maybe detoured or guided) episode's id names: such an episode is held out with its task."""
+    return task_id.split(DETOUR_TAG)[0].split(GUIDED_TAG)[0]
 
 
 def held_out(task_id: str, fraction: float) -> bool:
@@ -137,17 +139,24 @@ class DemonstrationDataset(Dataset):
     def __init__(self, demonstrations_dir: Path, vocab: Vocabulary, resolution: int, max_tokens: int = 256,
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
-                 streams: int = 0, stream: bool = False, reworded: float = 0.0, detours: Optional[Path] = None):
+                 streams: int = 0, stream: bool = False, reworded: float = 0.0, detours: Optional[Path] = None,
+                 guided: Optional[Path] = None):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
-        if detours is not None:           # a build with detours of the same tasks: its episodes join these
-            extra = load_demonstrations(detours)
+        # Builds of the same tasks with detours, or with guided walks: their episodes join these.
+        extras = [(Path(p), tag) for p, tag in ((detours, DETOUR_TAG), (guided, GUIDED_TAG)) if p is not None]
+        builds = []
+        for path, tag in extras:
+            extra = load_demonstrations(path)
             if extra.meta['resolution'] != self.demo.meta['resolution']:
-                raise ValueError(f'{detours}: {extra.meta["resolution"]} px frames, {demonstrations_dir} has '
+                raise ValueError(f'{path}: {extra.meta["resolution"]} px frames, {demonstrations_dir} has '
                                  f'{self.demo.meta["resolution"]} px')
-            self.demo = self.demo.joined([extra], [DETOUR_TAG])
-            self.dialogues.update({tid + DETOUR_TAG: d for tid, d in
-                                   load_dialogues(Path(detours) / DIALOGUES_FILE).items()})
+            if tag == GUIDED_TAG and not extra.meta.get('guide'):
+                raise ValueError(f'{path}: not a build with guided walks (prepare-performer --guided)')
+            builds.append(extra)
+            self.dialogues.update({tid + tag: d for tid, d in load_dialogues(path / DIALOGUES_FILE).items()})
+        if builds:
+            self.demo = self.demo.joined(builds, [tag for _, tag in extras])
         self.vocab, self.resolution, self.max_tokens, self.seed = vocab, resolution, max_tokens, seed
         combinations = type_combinations() if combinations is None else combinations
         self.combinations = tuple(combinations) if self.dialogues else ((),)
@@ -163,7 +172,9 @@ class DemonstrationDataset(Dataset):
         if not 0 <= reworded <= 1:
             raise ValueError(f'reworded is a probability, got {reworded}')
         self.reworded = reworded              # the share of answers said in the annotator's words (`reword`)
-        self.task_indices = [k for k, t in enumerate(self.demo.tasks) if t['success'] or not only_successful]
+        # A guided build's task without a guided walk is the plain build's episode again: left out.
+        self.task_indices = [k for k, t in enumerate(self.demo.tasks) if (t['success'] or not only_successful)
+                             and (t.get('guided') is not None or not t['task_id'].endswith(GUIDED_TAG))]
         self.frame_size = self.demo.meta['resolution']
         if not 0 <= recovery <= 1:
             raise ValueError(f'recovery is a probability, got {recovery}')
@@ -191,12 +202,14 @@ class DemonstrationDataset(Dataset):
         """The QAs of item `index`. A paper item (the first len(combinations) of a task's): for each type
         of its combination, the oracle's answers of that type at step 0 or at the middle step (drawn from
         the seed and the index), in step order. A stream item (the task's other `streams`): see
-        `stream_dialogue`."""
+        `stream_dialogue`. Every item of a guided walk's episode: see `guided_dialogue`."""
         k, c = divmod(index, self.per_task)
         task = self.demo.tasks[self.task_indices[k]]
         dialogue = self.dialogues.get(task['task_id'])
         qas = dialogue.qas if dialogue is not None else []
         rng = np.random.default_rng([self.seed, index])
+        if task['task_id'].endswith(GUIDED_TAG):
+            return guided_dialogue(qas, self.steps_of(self.task_indices[k]), rng)
         if c >= len(self.combinations):
             return stream_dialogue(qas, self.steps_of(self.task_indices[k]), rng)
         chosen = []
@@ -416,6 +429,17 @@ def stream_dialogue(entries: Sequence[AskedQA], steps: int, rng: np.random.Gener
                 now = [a for a in now if rng.random() < STREAM_NOUN_P] or [now[int(rng.integers(len(now)))]]
             out += now
     return out
+
+
+def guided_dialogue(entries: Sequence[AskedQA], steps: int, rng: np.random.Generator) -> list[AskedQA]:
+    """The QAs of an item of a guided walk's episode (`dialfred_sim.tasks.detours.GuidedWalk`), whose moves are
+    the direction answers': the direction at every step (without them the walk's turns have no reason), and
+    with probability 1/2 the other types as a stream item asks them (`stream_dialogue`)."""
+    others = [a for a in entries if a.qa.question.question_type != 'direction']
+    out = stream_dialogue(others, steps, rng) if others and rng.random() < 0.5 else []
+    out += [a for step in range(steps) for a in answers_at(entries, step, ('direction',))]
+    order = {t: n for n, t in enumerate(question_types())}
+    return sorted(out, key=lambda a: (a.step, order[a.qa.question.question_type]))
 
 
 def reword(dialogue: Sequence[AskedQA], share: float, seed: tuple) -> list[AskedQA]:

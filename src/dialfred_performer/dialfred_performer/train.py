@@ -90,6 +90,9 @@ class TrainConfig:
     detours: str = arg('', "a demonstrations folder of the same tasks made with --detours (prepare-performer): its "
                            "episodes (wrong moves in a go-to, the expert's way back) join the training's, each task's "
                            "items as many")
+    guided: str = arg('', "a demonstrations folder of the same tasks made with --guided (prepare-performer): its "
+                          "episodes (the last go-to walked as the direction answers say) join the training's, "
+                          "each with the direction answer at every step (data.guided_dialogue), as many items")
     reworded: float = arg(0.0, "the share of training answers said in the synthetic annotator's words instead of the "
                                "oracle's templates (data.reword; the vocabulary then also has the annotator's words)")
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
@@ -254,7 +257,8 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
     train = DemonstrationDataset(Path(cfg.demonstrations), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
                                  grid_size=m.grid_size, recovery=cfg.recovery, streams=cfg.streams,
                                  stream=m.stream_answers, reworded=cfg.reworded,
-                                 detours=Path(cfg.detours) if cfg.detours else None)
+                                 detours=Path(cfg.detours) if cfg.detours else None,
+                                 guided=Path(cfg.guided) if cfg.guided else None)
     if not cfg.dialogues:
         train.combinations, train.streams = ((),), 0
     combos = train.per_task
@@ -435,6 +439,8 @@ class Training:
         check_folder(Path(cfg.demonstrations), 'training', cfg.dialogues)
         if cfg.detours:
             check_folder(Path(cfg.detours), 'detour', cfg.dialogues)
+        if cfg.guided:
+            check_folder(Path(cfg.guided), 'guided', cfg.dialogues)
         if cfg.validation:
             check_folder(Path(cfg.validation), 'validation', cfg.dialogues)
         if cfg.resume and not (out / 'last.pt').is_file():
