@@ -421,3 +421,15 @@ def test_direction_following_plays_the_blind_follower_and_a_performer_asked_befo
                                   round(et['every_step']['move_SR'] - et['none']['move_SR'], 2))
     assert set(report['beats_the_blind_follower_on_move']) <= {'et'}
     assert len([p for p in tmp_path.glob('*.jsonl') if not p.name.endswith('.trace.jsonl')]) == 3   # one per run
+
+
+@pytest.mark.slow   # a small guided build, then the benchmark script
+def test_direction_agreement_counts_the_guided_walks_apart_and_they_obey(tmp_path):
+    from dialfred_performer.prepare import PrepareConfig, prepare
+    prepare(PrepareConfig(split='valid_unseen', resolution=32, workers=1, limit=4, out=str(tmp_path / 'g'),
+                          progress=False, guided=True))
+    report = run_bench('direction_agreement', '--demonstrations', str(tmp_path / 'g'))
+    assert report['tasks'] == 4 and report['walk']['steps'] > 0 and report['expert']['steps'] > 0
+    assert report['walk']['obeyed'] >= 0.8
+    for part in ('expert', 'walk'):
+        assert sum(row['steps'] for row in report[part]['answers'].values()) == report[part]['steps']
