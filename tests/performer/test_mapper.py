@@ -108,6 +108,29 @@ def test_a_direction_answer_is_followed_at_the_step_it_comes_round_what_blocks_t
     assert agent._decide()[0] == 'Stop' and [s.kind for s in agent.plan] == ['stop']
 
 
+def test_answers_that_lead_round_in_a_circle_send_the_steps_aside_further_from_the_other_side():
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.wayfinding import ASIDE_MAX, FOLLOW_LOOP
+    from dialfred_sim.protocol import QA, Question
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(_a_walk())
+    agent.map.blocked.add(agent.pose.forward())
+    here, elsewhere = agent.pose, agent.pose.after('RotateLeft')
+    sides = []
+    for visit in range(FOLLOW_LOOP * (ASIDE_MAX + 1)):
+        for pose in (here, elsewhere, here):    # an answer where a move failed adds no visit; coming back does
+            agent.pose = pose
+            agent._take_in(QA(Question('direction', ''), True, 'You should go straight ahead.'))
+            told = agent._follow()
+            agent.step += 1
+        sides.append((told, len(agent.macro)))
+    assert sides[:FOLLOW_LOOP - 1] == [('RotateLeft', 1)] * (FOLLOW_LOOP - 1)          # one point aside, to the left
+    assert sides[FOLLOW_LOOP - 1] == ('RotateRight', 2)                                 # a circle: further, the other side
+    assert max(n for _, n in sides) == ASIDE_MAX
+    agent.reset(_a_walk())
+    assert agent.aside_points == 1 and not agent.followed                               # each task starts afresh
+
+
 @pytest.mark.parametrize('qtype, noun, words, read', [
     ('direction', '', 'turn around and walk forward', ('direction', 180, False)),
     ('direction', '', "don't turn, just go forward", ('direction', 0, False)),

@@ -107,6 +107,9 @@ class MapAgent(Sensing, AnswerReading, Targets, Navigation):
         self.direction: Optional[tuple[Fact, int]] = None     # the last direction answer and the step it came at
         self.turn_aside = 'RotateLeft'         # following directions: the side to step to when a move is blocked
         self.sidestep = False                  # the macro is that step aside (wayfinding._follow)
+        self.aside_points = 1                  # ... its length in grid points (longer after each circle)
+        self.followed: Counter = Counter()     # (i, j, heading) -> arrivals there while following (circles)
+        self.followed_last: Optional[tuple] = None     # the pose of the last answer followed
         self.last: Optional[tuple[str, Step, tuple]] = None     # (action, step, (x, y) map point)
         self.step = 0
         self.step_actions = 0

@@ -33,6 +33,10 @@ from .rules import ANSWER_CONE_DEG, EXPLORING, REPLAN, SCAN_TURNS, STAND_MAX_ACT
 
 # A direction answer's turn (language.Fact.turn_deg, counter-clockwise): the first turn towards it.
 TURN_FOR = {90: 'RotateLeft', -90: 'RotateRight', 180: 'RotateLeft'}
+# Following directions: a pose the answers brought the agent back to more than FOLLOW_LOOP times is a circle; each
+# circle makes its steps aside one grid point longer, up to ASIDE_MAX, from the other side.
+FOLLOW_LOOP = 2
+ASIDE_MAX = 4
 
 
 class Navigation:
@@ -212,12 +216,22 @@ class Navigation:
         self.confidence = WALKING
         if fact.stay:
             return THERE
+        here = (self.pose.i, self.pose.j, self.pose.heading)
+        arrived = here != self.followed_last        # answers heard where an action failed add no visit
+        self.followed_last = here
+        self.followed[here] += arrived
+        if self.followed[here] > FOLLOW_LOOP:
+            # Led round in a circle (an obstacle between the agent and the goal, the answers sending it back
+            # and forth along one side): the next steps aside go one point further, from the other side.
+            self.followed.clear()
+            self.aside_points = min(self.aside_points + 1, ASIDE_MAX)
+            self.turn_aside = 'RotateRight' if self.turn_aside == 'RotateLeft' else 'RotateLeft'
         if fact.turn_deg in TURN_FOR:
             return TURN_FOR[fact.turn_deg]
         if self.pose.forward() in self.map.blocked:     # a move failed into it (the map's clearance is not asked)
             # A step aside, then the next answer: around the obstacle on one side, the other side once a step
             # aside is blocked too (agent._decide's macro).
-            self.macro = deque(['MoveAhead'])
+            self.macro = deque(['MoveAhead'] * self.aside_points)
             self.sidestep = True
             return self.turn_aside
         return 'MoveAhead'
