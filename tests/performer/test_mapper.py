@@ -117,7 +117,7 @@ def test_answers_that_lead_round_in_a_circle_send_the_steps_aside_further_from_t
     agent.map.blocked.add(agent.pose.forward())
     here, elsewhere = agent.pose, agent.pose.after('RotateLeft')
     sides = []
-    for visit in range(FOLLOW_LOOP * (ASIDE_MAX + 1)):
+    for _ in range(FOLLOW_LOOP * (ASIDE_MAX + 1)):
         for pose in (here, elsewhere, here):    # an answer where a move failed adds no visit; coming back does
             agent.pose = pose
             agent._take_in(QA(Question('direction', ''), True, 'You should go straight ahead.'))
