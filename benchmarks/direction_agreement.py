@@ -15,19 +15,8 @@ import collections
 import json
 from pathlib import Path
 
-from dialfred_oracle.questions.direction import STAY, TURN_AROUND
-from dialfred_performer.data import DIALOGUES_FILE, GUIDED_ACTION, answers_at, load_dialogues
+from dialfred_performer.data import DIALOGUES_FILE, answers_at, load_dialogues, obeys
 from dialfred_sim.tasks.demonstrations import default_dir, load_demonstrations
-
-
-def obeys(answer: str, action: str) -> bool:
-    """Whether `action` does what `answer` says: its move or turn ("turn around": either turn); for "You don't
-    need to move.", anything but a move or a turn (a look, an interaction, Stop)."""
-    if answer == TURN_AROUND:
-        return action in ('RotateLeft', 'RotateRight')
-    if answer == STAY:
-        return action not in ('MoveAhead', 'RotateLeft', 'RotateRight')
-    return GUIDED_ACTION.get(answer) == action
 
 
 def agreement(folder: Path) -> dict:

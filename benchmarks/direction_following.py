@@ -4,7 +4,9 @@
 same agent asked nothing and against the blind follower of examples/direction_follower.py (it sees nothing
 and only does what it hears: the baseline issue 74 names, 74.0% of valid_unseen's Move tasks). Prints JSON
 per agent: SR on the Move tasks (the go-to alone, where a direction says everything) and overall, questions
-a task, and the SR points the directions are worth on the Move tasks and on the tasks with a go-to.
+a task, the SR points the directions are worth on the Move tasks and on the tasks with a go-to, and how
+often an agent asked at every step did what the answer of the step said on the Move tasks (`obeyed`, per
+answer: `data.obeys`; the traces of the results).
 
 Results files go to --out (one per agent and questioner); a run that is cut off resumes there.
 
@@ -23,6 +25,7 @@ import time
 from pathlib import Path
 
 from dialfred_bringup.machine import cpu_model
+from dialfred_performer.data import obeys
 from dialfred_sim.metrics import load_results
 from dialfred_sim.tasks import task_type
 
@@ -46,6 +49,27 @@ def rates(results: list) -> dict:
             'goto_tasks': len(goto), 'goto_SR': sr(goto),
             'NQ': round(sum(r.questions for r in results) / max(len(results), 1), 2),
             'move_NQ': round(sum(r.questions for r in move) / max(len(move), 1), 2)}
+
+
+def obedience(results: Path) -> dict:
+    """On the Move tasks of a results file asked for directions at every step: the share of the steps whose
+    action did what the step's answer said, overall and per answer ({answer: [steps, share]})."""
+    moves = {r['task_id']: [d['answer'] for d in r['dialogue'] if d['type'] == 'direction' and d['valid']]
+             for r in map(json.loads, results.read_text().splitlines()) if r['task_type'] == 'Move'}
+    counts: dict[str, list[int]] = {}
+    for line in results.with_name(results.name.replace('.jsonl', '.trace.jsonl')).read_text().splitlines():
+        trace = json.loads(line)
+        said = moves.get(trace['task_id'])
+        if said is None:
+            continue
+        for answer, step in zip(said, trace['asked_at']):
+            if step < len(trace['actions']):
+                row = counts.setdefault(answer, [0, 0])
+                row[0] += 1
+                row[1] += obeys(answer, trace['actions'][step][0])
+    steps = sum(n for n, _ in counts.values())
+    return {'steps': steps, 'share': round(sum(k for _, k in counts.values()) / steps, 3) if steps else None,
+            'answers': {a: [n, round(k / n, 3)] for a, (n, k) in sorted(counts.items())}}
 
 
 def play(agent: str, questioner: str, args, out: Path) -> dict:
@@ -85,6 +109,7 @@ def main() -> None:
                   'checkpoint': args.checkpoint or 'shipped', 'agents': {}}
         for agent in args.agents:
             row = {'every_step': play(agent, EVERY_STEP, args, out)}
+            row['obeyed'] = obedience(out / f'{agent}_{EVERY_STEP.replace(":", "-")}.jsonl')
             if agent != 'follower':            # the follower without answers only turns and stops
                 row['none'] = play(agent, '', args, out)
                 for scope in ('move_SR', 'goto_SR'):

@@ -420,6 +420,8 @@ def test_direction_following_plays_the_blind_follower_and_a_performer_asked_befo
     assert et['move_SR_gain'] == (None if et['none']['move_SR'] is None else
                                   round(et['every_step']['move_SR'] - et['none']['move_SR'], 2))
     assert set(report['beats_the_blind_follower_on_move']) <= {'et'}
+    obeyed = report['agents']['follower']['obeyed']       # it does what it hears, but where a move is blocked
+    assert obeyed['steps'] > 0 and obeyed['share'] >= 0.8 and 0 <= report['agents']['et']['obeyed']['share'] <= 1
     assert len([p for p in tmp_path.glob('*.jsonl') if not p.name.endswith('.trace.jsonl')]) == 3   # one per run
 
 

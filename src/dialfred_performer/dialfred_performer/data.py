@@ -577,6 +577,16 @@ class DirectionGuide:
 GUIDED_ACTION = {GO_STRAIGHT: 'MoveAhead', TURN_LEFT: 'RotateLeft', TURN_RIGHT: 'RotateRight', STAY: 'Stop'}
 
 
+def obeys(answer: str, action: str) -> bool:
+    """Whether `action` does what the oracle's direction `answer` says: its move or turn ("turn around":
+    either turn); for "You don't need to move.", anything but a move or a turn (a look, an interaction, Stop)."""
+    if answer == TURN_AROUND:
+        return action in ('RotateLeft', 'RotateRight')
+    if answer == STAY:
+        return action not in ('MoveAhead', 'RotateLeft', 'RotateRight')
+    return GUIDED_ACTION.get(answer) == action
+
+
 class AnnotatingProbe(OracleProbe):
     """OracleProbe, and at step 0 the synthetic annotators' row of the task as
     `scripts/annotate_dialogues.py` makes it (`annotator.annotate_task` on the task's start, seen at
