@@ -54,9 +54,8 @@ from dialfred_oracle.questions import Answer, oracle_question
 from dialfred_oracle.questions.base import direction_bin
 from dialfred_oracle.questions.direction import GO_STRAIGHT, STAY, TURN_AROUND, TURN_LEFT, TURN_RIGHT, advice
 from dialfred_sim.ground_truth import snapshot, task_object_ids
-from dialfred_sim.protocol import ACTIONS, QA, every_question, question_types
+from dialfred_sim.protocol import ACTIONS, BODY, QA, every_question, question_types
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
-from dialfred_sim.world.rooms import GRID
 
 from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
@@ -565,7 +564,7 @@ class DirectionGuide:
     def __call__(self, env) -> str:
         a = env.world.agent
         i, j, rotation, horizon = env.task.expert_end_pose
-        agent, end = (float(a.x), float(a.y), float(a.rotation)), (i * GRID, j * GRID, float(rotation))
+        agent, end = (float(a.x), float(a.y), float(a.rotation)), (i * BODY.grid_step, j * BODY.grid_step, float(rotation))
         said = advice(agent, end)
         if said == TURN_AROUND:
             side = direction_bin(agent[:2], agent[2], end[:2])
