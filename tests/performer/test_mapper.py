@@ -618,6 +618,37 @@ def test_a_location_answer_sends_the_agent_to_the_instance_in_its_direction():
     assert agent._answered_cone('Sofa', np.array([1.0]), np.array([0.0])) is None
 
 
+def test_a_direction_answer_lasts_sending_the_last_go_to_to_the_instance_where_it_points():
+    from dialfred_performer.mapper.agent import MapAgent
+    from dialfred_performer.mapper.language import Fact
+    agent = MapAgent.from_checkpoint(SHIPPED)
+    agent.reset(type('T', (), {'instruction': 'Go to the sofa.'})())
+    smap = SemanticMap(n_classes=len(agent.classes), map_m=8.0)
+    k = agent.class_id['Sofa']
+    smap.class_votes[k] = np.zeros((smap.n, smap.n), np.float32)
+    smap.class_height[k] = np.zeros((smap.n, smap.n), np.float32)
+    for x, y in ((1.6, 0.0), (0.0, 2.4)):             # one ahead and near, one to the left and farther
+        cx, cy = smap.cell_of(x, y)
+        smap.class_votes[k][cx, cy], smap.class_height[k][cx, cy] = 1.0, 0.5
+    agent.map = smap
+    step = Step('goto', 'Sofa')
+    assert agent._navigate(k, step) == 'MoveAhead'                   # the nearer one
+    heard_at = Pose(0, 0, 0)
+    agent.facts[('direction', '')] = (Fact('direction', turn_deg=-90), heard_at)       # "turn right": neither
+    assert agent._led_cone(step, np.array([1.6, 0.0]), np.array([0.0, 2.4])).tolist() == [False, False]
+    agent.visits.clear()
+    assert agent._navigate(k, step) == 'MoveAhead'
+    agent.facts[('direction', '')] = (Fact('direction', turn_deg=90), heard_at)        # "turn left", steps ago
+    assert agent._led_cone(step, np.array([1.6, 0.0]), np.array([0.0, 2.4])).tolist() == [False, True]
+    agent.visits.clear()
+    assert agent._navigate(k, step) == 'RotateLeft'                  # the one where it points
+    agent.plan.appendleft(Step('goto', 'Sofa'))                      # not the last go-to: the answer is not about it
+    assert agent._led(step) is None
+    agent.plan.popleft()
+    agent.facts[('direction', '')] = (Fact('direction', stay=True), heard_at)          # "here": nowhere to point
+    assert agent._led(step) is None and agent._led(Step('pickup', 'Sofa')) is None
+
+
 def _a_box_carried_in_the_open():
     """(task, the object in hand): the first task of valid_unseen that starts with a box (the bulkiest
     thing its tasks carry) in hand and puts it down (so the agent knows what it holds), at a point with

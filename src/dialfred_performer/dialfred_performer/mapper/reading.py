@@ -17,6 +17,11 @@ from .language import Step, describe_fact
 from .words import read_answer
 from .rules import ANSWER_CONE_DEG
 
+# A direction answer points where the task's expert ended: its sector (straight on: the three front bins;
+# left, right: one bin; turn around: the three rear ones) widened by half a bin, as a half-width in degrees
+# about the answer's turn, seen from where it was heard (`_led`).
+LEAD_HALF_WIDTH = {0: 90.0, 90: 45.0, -90: 45.0, 180: 90.0}
+
 
 class AnswerReading:
     """The reading of the map performer (its state is `MapAgent`'s: see `MapAgent.reset_state`)."""
@@ -66,6 +71,26 @@ class AnswerReading:
         if f.bearing_deg is None:            # the words named a place, not a side
             return None
         return off_bearing(at, f.bearing_deg, x, y) <= ANSWER_CONE_DEG
+
+    def _led(self, step: Step) -> Optional[tuple[Pose, float, float]]:
+        """(where it was heard, bearing, half-width) of the last direction answer, which lasts until the next:
+        for the plan's last go-to only (the expert's end is where that go-to ends); None without either, or
+        when the answer was "here"."""
+        if step.kind != 'goto' or any(s.kind == 'goto' for s in list(self.plan)[1:]):
+            return None
+        fact = self.facts.get(('direction', ''))
+        if fact is None or fact[0].stay or fact[0].turn_deg not in LEAD_HALF_WIDTH:
+            return None
+        f, at = fact
+        return at, float(f.turn_deg), LEAD_HALF_WIDTH[f.turn_deg]
+
+    def _led_cone(self, step: Step, x: np.ndarray, y: np.ndarray) -> Optional[np.ndarray]:
+        """Which map points (x, y) lie where the last direction answer points (`_led`); None without one."""
+        lead = self._led(step)
+        if lead is None:
+            return None
+        at, bearing, half = lead
+        return off_bearing(at, bearing, x, y) <= half
 
     def _colour_wanted(self, step: Step) -> Optional[str]:
         """The colour an appearance answer gave for the step's target, if the target is pickupable.

@@ -38,6 +38,7 @@ class Targets:
             return None
         comps = mask_components(mask)
         colour = self._colour_wanted(step)
+        led_mapped = self._led_elsewhere(k, step)
         best, best_score = None, None
         for comp in comps:
             inside = comp & reach
@@ -48,6 +49,9 @@ class Targets:
             cone = self._answered_cone(step.target, p[:1], p[1:2])
             if cone is not None and not cone[0]:
                 continue                      # not where the location answer said
+            led = self._led_cone(step, p[:1], p[1:2])
+            if led is not None and not led[0] and led_mapped:
+                continue                      # not where the direction answer points, and the map has one there
             score = -float(inside.sum())
             if colour is not None:
                 named = self._colour_of(comp)
@@ -134,6 +138,14 @@ class Targets:
             return none
         d = np.where(near, np.hypot(self.points[..., 0] - put[0], self.points[..., 1] - put[1]), np.inf)
         return d == d.min() if d.min() <= PLACED_M else none
+
+    def _led_elsewhere(self, k: int, step: Step) -> bool:
+        """Whether the map holds class k where the last direction answer points (`reading._led_cone`)."""
+        cx, cy, _ = self.map.object_cells(k)
+        if not len(cx):
+            return False
+        led = self._led_cone(step, *self.map.cell_centre(cx, cy))
+        return led is not None and bool(led.any())
 
     def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
         """How far a mask of `type_name` centred on map point p lies from the instance acted on before

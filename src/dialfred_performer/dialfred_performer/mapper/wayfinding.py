@@ -61,6 +61,12 @@ class Navigation:
             if move is not None:
                 return move
             self.cone_spent.add(step.target)
+        led = self._led_cone(step, *self.map.cell_centre(cx, cy)) if len(cx) and cone is None else None
+        if led is not None and led.any():
+            # A direction answer of an earlier step: the instances where it points first.
+            move = self._approach(k, step, free, cx[led], cy[led], height[led])
+            if move is not None:
+                return move
         if len(cx):
             move = self._approach(k, step, free, cx, cy, height)
             if move is not None:
@@ -172,8 +178,12 @@ class Navigation:
         goals = unexamined_goals(self.map, free)
         for (i, j) in self.map.visited:
             goals[i + off, j + off] = False
+        lead = self._led(step)
         if fact is not None and fact[0].bearing_deg is not None and goals.any():
             toward = goals & self._cone(fact[1], fact[0].bearing_deg)
+            goals = toward if toward.any() else goals
+        elif lead is not None and goals.any():      # ... or where a direction answer points
+            toward = goals & self._cone(*lead)
             goals = toward if toward.any() else goals
         if goals.any():
             dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
