@@ -178,13 +178,7 @@ class Navigation:
         goals = unexamined_goals(self.map, free)
         for (i, j) in self.map.visited:
             goals[i + off, j + off] = False
-        lead = self._led(step)
-        if fact is not None and fact[0].bearing_deg is not None and goals.any():
-            toward = goals & self._cone(fact[1], fact[0].bearing_deg)
-            goals = toward if toward.any() else goals
-        elif lead is not None and goals.any():      # ... or where a direction answer points
-            toward = goals & self._cone(*lead)
-            goals = toward if toward.any() else goals
+        goals = self._answered_goals(goals, fact, step)
         if goals.any():
             dist = distance_field(free, goals, until=(self.pose.i + off, self.pose.j + off))
             if dist[self.pose.i + off, self.pose.j + off] < UNREACHABLE:
@@ -211,6 +205,21 @@ class Navigation:
         if move is None:
             return 'RotateLeft' if self._loop_guard('RotateLeft') else None
         return move if self._loop_guard(move) else None
+
+    def _answered_goals(self, goals: np.ndarray, fact, step: Step) -> np.ndarray:
+        """The goals in the direction the step's location answer (`fact`) gave, else where the last direction
+        answer points (`reading._led`); all of them when none lies there or no answer says."""
+        if not goals.any():
+            return goals
+        if fact is not None and fact[0].bearing_deg is not None:
+            cone = self._cone(fact[1], fact[0].bearing_deg)
+        else:
+            lead = self._led(step)
+            if lead is None:
+                return goals
+            cone = self._cone(*lead)
+        toward = goals & cone
+        return toward if toward.any() else goals
 
     # ------------------------------------------------------------------ the last stand
 
