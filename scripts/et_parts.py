@@ -13,8 +13,6 @@ import json
 import sys
 from pathlib import Path
 
-import torch
-
 from dialfred_performer.shipped import SHIPPED_CHECKPOINT
 from dialfred_performer.perception import Perception, PerceptionNetConfig, save_perception
 from dialfred_performer.train import load_checkpoint
@@ -26,11 +24,10 @@ def main() -> int:
     ap.add_argument('--out', required=True, help='folder for perception.pt and vocabulary.json')
     args = ap.parse_args()
     model, vocab, _ = load_checkpoint(Path(args.checkpoint))
-    config = torch.load(args.checkpoint, map_location='cpu', weights_only=False)['config']
-    if config.get('visual') != 'perception':
+    if model.config.visual != 'perception':
         print(f'error: {args.checkpoint} sees through its own convolutions, not a perception network', file=sys.stderr)
         return 2
-    net = Perception(PerceptionNetConfig(**json.loads(config['perception_net'])))
+    net = Perception(PerceptionNetConfig(**json.loads(model.config.perception_net)))
     net.load_state_dict({k[len('visual.net.'):]: v for k, v in model.state_dict().items() if k.startswith('visual.net.')})
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
