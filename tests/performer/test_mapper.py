@@ -593,20 +593,26 @@ def test_the_agent_takes_the_tight_way_when_the_safe_one_has_none():
     assert move in ('MoveAhead', 'RotateLeft', 'RotateRight')
 
 
-def test_a_location_answer_sends_the_agent_to_the_instance_in_its_direction():
+def _two_sofas():
+    """(agent, the sofa's class, its go-to) for "Go to the sofa." with two sofas mapped: one ahead and near
+    (1.6, 0), one to the left and farther (0, 2.4), the agent at the origin facing +x."""
     from dialfred_performer.mapper.agent import MapAgent
-    from dialfred_performer.mapper.language import Fact
     agent = MapAgent.from_checkpoint(SHIPPED)
     agent.reset(type('T', (), {'instruction': 'Go to the sofa.'})())
     smap = SemanticMap(n_classes=len(agent.classes), map_m=8.0)
     k = agent.class_id['Sofa']
     smap.class_votes[k] = np.zeros((smap.n, smap.n), np.float32)
     smap.class_height[k] = np.zeros((smap.n, smap.n), np.float32)
-    for x, y in ((1.6, 0.0), (0.0, 2.4)):             # one ahead and near, one to the left and farther
+    for x, y in ((1.6, 0.0), (0.0, 2.4)):
         cx, cy = smap.cell_of(x, y)
         smap.class_votes[k][cx, cy], smap.class_height[k][cx, cy] = 1.0, 0.5
     agent.map = smap
-    step = Step('goto', 'Sofa')
+    return agent, k, Step('goto', 'Sofa')
+
+
+def test_a_location_answer_sends_the_agent_to_the_instance_in_its_direction():
+    from dialfred_performer.mapper.language import Fact
+    agent, k, step = _two_sofas()
     assert agent._navigate(k, step) == 'MoveAhead'                   # the nearer one
     assert agent._answered_cone('Sofa', np.array([1.0]), np.array([0.0])) is None
     agent.facts[('location', 'Sofa')] = (Fact('location', 'Sofa', bearing_deg=90.0), Pose(0, 0, 0))
@@ -619,19 +625,8 @@ def test_a_location_answer_sends_the_agent_to_the_instance_in_its_direction():
 
 
 def test_a_direction_answer_lasts_sending_the_last_go_to_to_the_instance_where_it_points():
-    from dialfred_performer.mapper.agent import MapAgent
     from dialfred_performer.mapper.language import Fact
-    agent = MapAgent.from_checkpoint(SHIPPED)
-    agent.reset(type('T', (), {'instruction': 'Go to the sofa.'})())
-    smap = SemanticMap(n_classes=len(agent.classes), map_m=8.0)
-    k = agent.class_id['Sofa']
-    smap.class_votes[k] = np.zeros((smap.n, smap.n), np.float32)
-    smap.class_height[k] = np.zeros((smap.n, smap.n), np.float32)
-    for x, y in ((1.6, 0.0), (0.0, 2.4)):             # one ahead and near, one to the left and farther
-        cx, cy = smap.cell_of(x, y)
-        smap.class_votes[k][cx, cy], smap.class_height[k][cx, cy] = 1.0, 0.5
-    agent.map = smap
-    step = Step('goto', 'Sofa')
+    agent, k, step = _two_sofas()
     assert agent._navigate(k, step) == 'MoveAhead'                   # the nearer one
     heard_at = Pose(0, 0, 0)
     agent.facts[('direction', '')] = (Fact('direction', turn_deg=-90), heard_at)       # "turn right": neither

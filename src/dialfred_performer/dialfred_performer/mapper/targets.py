@@ -49,8 +49,7 @@ class Targets:
             cone = self._answered_cone(step.target, p[:1], p[1:2])
             if cone is not None and not cone[0]:
                 continue                      # not where the location answer said
-            led = self._led_cone(step, p[:1], p[1:2])
-            if led is not None and not led[0] and led_mapped:
+            if led_mapped and not self._led_cone(step, p[:1], p[1:2])[0]:
                 continue                      # not where the direction answer points, and the map has one there
             score = -float(inside.sum())
             if colour is not None:
@@ -140,12 +139,12 @@ class Targets:
         return d == d.min() if d.min() <= PLACED_M else none
 
     def _led_elsewhere(self, k: int, step: Step) -> bool:
-        """Whether the map holds class k where the last direction answer points (`reading._led_cone`)."""
-        cx, cy, _ = self.map.object_cells(k)
-        if not len(cx):
+        """Whether the map holds class k where the last direction answer points (`reading._led_cone`); the map
+        is not searched where no such answer holds (most steps)."""
+        if self._led(step) is None:
             return False
-        led = self._led_cone(step, *self.map.cell_centre(cx, cy))
-        return led is not None and bool(led.any())
+        cx, cy, _ = self.map.object_cells(k)
+        return bool(len(cx)) and bool(self._led_cone(step, *self.map.cell_centre(cx, cy)).any())
 
     def _place_penalty(self, type_name: str, p: np.ndarray) -> float:
         """How far a mask of `type_name` centred on map point p lies from the instance acted on before
