@@ -23,7 +23,7 @@ import torch
 
 from dialfred_sim.protocol import ACTIONS, QA, Decision, Observation, as_observation
 
-from .data import INTERACTION_IDS
+from .data import INTERACTION_IDS, MOVE_AHEAD
 from .model import Performer, StepInputs, StepOutputs, load_checkpoint
 from .nn import PerceivedFrames
 from .nn.enc_action import failed_id
@@ -111,10 +111,11 @@ class PerformerAgent:
         return result
 
     def _note_failure(self, observation: Observation) -> None:
-        """With the failure input: the previous action becomes its failed id if it was an interaction and
-        the observation says it failed (`last_action_success`)."""
+        """With the failure input: the previous action becomes its failed id if it was an interaction (or, with
+        `failed_moves`, a MoveAhead) and the observation says it failed (`last_action_success`)."""
         previous = self.state.previous_actions[-1]
-        if previous in INTERACTION_IDS and not observation.last_action_success:
+        kinds = INTERACTION_IDS + ((MOVE_AHEAD,) if self.config.failed_moves else ())
+        if previous in kinds and not observation.last_action_success:
             self.state.previous_actions[-1] = failed_id(previous, len(ACTIONS))
 
     def action_probabilities(self, observation: Observation) -> np.ndarray:

@@ -56,6 +56,7 @@ from dialfred_oracle.questions.direction import GO_STRAIGHT, STAY, TURN_AROUND, 
 from dialfred_sim.ground_truth import snapshot, task_object_ids
 from dialfred_sim.protocol import ACTIONS, BODY, QA, every_question, question_types
 from dialfred_sim.tasks.demonstrations import load_demonstrations, probe_values
+from dialfred_sim.tasks.detours import GUIDE_SIDESTEP
 
 from .nn.enc_action import failed_id
 from .nn.heads import pixel_cell
@@ -77,6 +78,7 @@ NAVIGATION = frozenset(ACTIONS.index(a) for a in ('MoveAhead', 'RotateLeft', 'Ro
 # Actions that name a target pixel (the pointer is trained and used on these only).
 INTERACTIONS = ('Pickup', 'Put', 'Open', 'Close', 'ToggleOn', 'ToggleOff', 'Slice')
 INTERACTION_IDS = tuple(ACTIONS.index(a) for a in INTERACTIONS)
+MOVE_AHEAD = ACTIONS.index('MoveAhead')
 RECOVERY_BEFORE = 3           # a failed click is inserted at most this many (navigation) steps before an interaction
 
 
@@ -139,7 +141,7 @@ class DemonstrationDataset(Dataset):
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
                  streams: int = 0, stream: bool = False, reworded: float = 0.0, detours: Optional[Path] = None,
-                 guided: Optional[Path] = None):
+                 guided: Optional[Path] = None, blocked: float = 0.0):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         # Builds of the same tasks with detours, or with guided walks: their episodes join these.
@@ -178,7 +180,12 @@ class DemonstrationDataset(Dataset):
         if not 0 <= recovery <= 1:
             raise ValueError(f'recovery is a probability, got {recovery}')
         self.recovery = recovery
-        self.no_recovery: set[int] = set()    # task positions (index // combinations) never augmented: held out
+        if not 0 <= blocked <= 1:
+            raise ValueError(f'blocked is a probability, got {blocked}')
+        if blocked and guided is None:
+            raise ValueError('blocked moves are read from guided walks: it needs a guided build')
+        self.blocked = blocked                # the share of guided items that bump into what blocks a told move
+        self.no_recovery: set[int] = set()    # task positions (index // per_task) never augmented: held out
         self.grid_size = grid_size or resolution // 8      # the pointer's cells per side
         # False: items carry their frames' ids only (`frame_ids`), for a run that gathers the frozen
         # network's output per block (blocks.BlockFeatures) instead of perceiving frames per batch.
@@ -258,7 +265,22 @@ class DemonstrationDataset(Dataset):
                                              dtype=torch.bool)}
         if self.with_frames:
             item['frames'] = frame_tensor(np.asarray(self.demo.frames_of(k)[:len(names)]), self.resolution)
+        if self.blocked > 0:
+            item = self._bumps(index, item, task)
         return self._recovery(index, item) if self.recovery > 0 else item
+
+    def _bumps(self, index: int, item: dict, task: dict) -> dict:
+        """`item` of a guided walk's episode with a failed MoveAhead before each of its sidesteps (`blocked_steps`),
+        for a `blocked` share of those items (drawn from the seed and the index): what a performer that does as
+        it is told meets there, and the walk's way round after it."""
+        if not task.get('guided') or index // self.per_task in self.no_recovery:
+            return item
+        if np.random.default_rng([self.seed, index, 11]).random() >= self.blocked:
+            return item
+        dialogue = self.dialogues.get(task['task_id'])
+        for at in reversed(blocked_steps(task, dialogue.qas if dialogue is not None else [])):
+            item = insert_failed_action(item, at, MOVE_AHEAD)
+        return item
 
     def _recovery(self, index: int, item: dict) -> dict:
         """`item` with a failed interaction inserted (`insert_failed_interaction`), for a `recovery` share
@@ -291,18 +313,22 @@ def recovery_places(actions: Sequence[int]) -> list[tuple[int, int]]:
 
 def insert_failed_interaction(item: dict, at: int, interaction: int) -> dict:
     """A recovery example made of an item (`DemonstrationDataset.__getitem__`'s dict): at step `at` the
-    performer does the interaction of step `interaction` too early (from frame `at`; neither its action
-    nor its pointer is a target), then sees frame `at` again with that failed interaction as its
-    previous action (`failed_id`) and the expert's action of step `at` as the target; the rest follows
-    as before. QAs asked after step `at` move one step later with their frames."""
+    performer does the interaction of step `interaction` too early (`insert_failed_action`)."""
+    return insert_failed_action(item, at, int(item['actions'][interaction]))
+
+
+def insert_failed_action(item: dict, at: int, failed: int) -> dict:
+    """`item` (`DemonstrationDataset.__getitem__`'s dict) with action `failed` done at step `at`, from frame
+    `at`, failing (neither it nor its pointer is a target); then frame `at` again, with that failed action as
+    the previous one (`failed_id`) and the expert's action of step `at` as the target; the rest follows as
+    before. QAs asked after step `at` move one step later with their frames."""
     actions, previous = item['actions'], item['previous_actions']
-    clicked = int(actions[interaction])
     out = dict(item)
     for key in ('frames', 'frame_ids'):
         if key in item:
             out[key] = torch.cat([item[key][:at + 1], item[key][at:]])
-    out['actions'] = torch.cat([actions[:at], actions[interaction:interaction + 1], actions[at:]])
-    out['previous_actions'] = torch.cat([previous[:at + 1], torch.tensor([failed_id(clicked, len(ACTIONS))]),
+    out['actions'] = torch.cat([actions[:at], torch.tensor([failed]), actions[at:]])
+    out['previous_actions'] = torch.cat([previous[:at + 1], torch.tensor([failed_id(failed, len(ACTIONS))]),
                                          previous[at + 1:]])
     out['target_cells'] = torch.cat([item['target_cells'][:at], torch.tensor([-1]), item['target_cells'][at:]])
     out['action_valid'] = torch.cat([item['action_valid'][:at], torch.tensor([False]), item['action_valid'][at:]])
@@ -574,6 +600,26 @@ class DirectionGuide:
 
 # What each direction answer tells a guided walk to do (DirectionGuide; "turn around": by side).
 GUIDED_ACTION = {GO_STRAIGHT: 'MoveAhead', TURN_LEFT: 'RotateLeft', TURN_RIGHT: 'RotateRight', STAY: 'Stop'}
+
+
+def blocked_steps(task: dict, entries: Sequence[AskedQA]) -> list[int]:
+    """The steps of a guided walk's record (`task['guided']`: [step, actions walked, moves back]) at which the
+    way the direction answer said was blocked, and the walk took the expert's way round instead
+    (`detours.GuidedWalk`'s sidestep): told "go straight ahead" (the one told move that a wall or furniture can
+    block), it did something else. A sidestep's own steps are not looked at again."""
+    if not task.get('guided'):
+        return []
+    at, walked, _ = task['guided']
+    out, skip = [], 0
+    for step in range(at, at + walked):
+        if skip:
+            skip -= 1
+            continue
+        said = answers_at(entries, step, ('direction',))
+        if said and said[0].qa.answer == GO_STRAIGHT and task['actions'][step][0] != 'MoveAhead':
+            out.append(step)
+            skip = GUIDE_SIDESTEP - 1
+    return out
 
 
 def obeys(answer: str, action: str) -> bool:

@@ -61,6 +61,9 @@ class PerformerConfig:
     failure_input: bool = arg(False, 'an interaction that failed in the world (the observation\'s last_action_success) '
                               'is a previous action of its own (`failed_id`), learnt from recovery examples '
                               '(--recovery, data.insert_failed_interaction)')
+    failed_moves: bool = arg(False, 'with --failure-input: a MoveAhead that something blocked is a previous action of '
+                             'its own too (`failed_id`), learnt from guided walks that bump into it (--blocked, '
+                             'data.blocked_steps)')
     frozen_arithmetic: str = arg('fp32', "visual='perception': the frozen network's arithmetic while the performer "
                                  "trained ('fp32' or 'bf16', set by --perception-precision); the agent and the "
                                  "questioner's copy run it so where the CPU does bfloat16 natively, else in fp32")
@@ -74,6 +77,8 @@ class PerformerConfig:
             raise ValueError(f"visual must be 'cnn' or 'perception', got {self.visual!r}")
         if self.frozen_arithmetic not in ('fp32', 'bf16'):
             raise ValueError(f"frozen_arithmetic must be 'fp32' or 'bf16', got {self.frozen_arithmetic!r}")
+        if self.failed_moves and not self.failure_input:
+            raise ValueError('failed_moves is a kind of failure input: it needs failure_input')
         if self.visual == 'perception' and not self.perception_net:
             raise ValueError("visual='perception' needs perception_net (train with --perception PATH)")
 

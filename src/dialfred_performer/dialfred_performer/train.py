@@ -131,6 +131,9 @@ class TrainConfig:
                                                'numbers up to rounding)')
     recovery: float = arg(0.0, 'the share of training items with a failed click inserted before an interaction '
                                '(data.insert_failed_interaction; needs --failure-input)')
+    blocked: float = arg(0.0, "the share of guided walks' items (--guided) with a failed MoveAhead before each "
+                              "sidestep, where the way the direction answer said was blocked (data.blocked_steps; "
+                              'needs --failed-moves)')
     seed: int = arg(0, 'seeds python, numpy and torch, the shuffles and the dialogue draws')
     deterministic: bool = arg(True, 'torch.use_deterministic_algorithms (warn only on CUDA)')
     device: str = arg('auto', "'auto' (cuda if present, else cpu), 'cpu', 'cuda' or 'cuda:N'")
@@ -183,6 +186,11 @@ class TrainConfig:
                              'language as an answer stream)')
         if not 0 <= self.reworded <= 1:
             raise ValueError(f'reworded must be in [0, 1], got {self.reworded}')
+        if not 0 <= self.blocked <= 1:
+            raise ValueError(f'blocked must be in [0, 1], got {self.blocked}')
+        if self.blocked > 0 and not (m.failed_moves and self.guided):
+            raise ValueError('--blocked teaches what to do after a blocked move in guided walks: it needs '
+                             '--failure-input --failed-moves and --guided')
         if self.recovery > 0 and not m.failure_input:
             raise ValueError('--recovery teaches what to do after a failed click: it needs --failure-input')
 
@@ -258,7 +266,7 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
                                  grid_size=m.grid_size, recovery=cfg.recovery, streams=cfg.streams,
                                  stream=m.stream_answers, reworded=cfg.reworded,
                                  detours=Path(cfg.detours) if cfg.detours else None,
-                                 guided=Path(cfg.guided) if cfg.guided else None)
+                                 guided=Path(cfg.guided) if cfg.guided else None, blocked=cfg.blocked)
     if not cfg.dialogues:
         train.combinations, train.streams = ((),), 0
     combos = train.per_task
