@@ -7,7 +7,8 @@ those of a folder made the old way (QAs at step 0 and the middle only); a stream
 after its first step, only types the log has, and hears the oracle of its step; the stream encoding
 drops repeats, marks superseded answers and restarts positions, and its budget lets superseded answers
 give way first; a tiny training run with stream items writes a model that reads streams; stream items
-are refused without the stream encoding or on a folder logged the old way.
+are refused without the stream encoding or on a folder logged the old way. A guided walk's blocked moves
+(`blocked_steps`) are blocked in the world, and --blocked bumps into each before the walk's way round.
 """
 
 from __future__ import annotations
@@ -224,14 +225,20 @@ def test_a_detour_builds_episodes_join_the_training_held_out_with_their_tasks(fo
     assert held and not held & trained
 
 
-def test_a_guided_build_walks_as_the_direction_answers_say_and_its_items_hear_them_at_every_step(folder, tmp_path):
+@pytest.fixture(scope='module')
+def guided(tmp_path_factory):
+    out = tmp_path_factory.mktemp('guided') / 'guided'
+    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=5, out=str(out), progress=False,
+                          guided=True))
+    return out
+
+
+def test_a_guided_build_walks_as_the_direction_answers_say_and_its_items_hear_them_at_every_step(folder, guided,
+                                                                                                   tmp_path):
     """prepare-performer --guided: each task's last go-to walked as the oracle's direction answer of each step
     says (a sidestep where the way it says is blocked); every item of such an episode hears the direction at
     every step; a task without a walk is left out; a guided episode is held out with its task."""
     from dialfred_performer.data import GUIDED_ACTION, GUIDED_TAG, base_task_id
-    guided = tmp_path / 'guided'
-    prepare(PrepareConfig(split='valid_unseen', resolution=64, workers=1, limit=5, out=str(guided), progress=False,
-                          guided=True))
     vocab = Vocabulary.load(folder / VOCABULARY_FILE)
     ds = DemonstrationDataset(folder, vocab, 64, streams=2, stream=True, guided=guided)
     walked = [k for k, t in enumerate(ds.demo.tasks) if t.get('guided')]
@@ -265,3 +272,49 @@ def test_a_guided_build_walks_as_the_direction_answers_say_and_its_items_hear_th
         DemonstrationDataset(folder, vocab, 64, guided=folder)
     with pytest.raises(ValueError, match='not both'):
         PrepareConfig(split='valid_unseen', detours=True, guided=True)
+
+
+def test_a_guided_item_bumps_into_each_blocked_move_then_takes_the_walks_way_round(folder, guided):
+    """--blocked: the steps `blocked_steps` reads off a guided walk are those where MoveAhead, which the direction
+    answer said, is blocked in the world (replayed); an item with bumps fails a MoveAhead there (no target, the
+    same frame after it, its failed id the next previous action) before the walk's own action; the held-out
+    tasks and the plain episodes get none; --blocked needs the failed-move input and a guided build."""
+    from dialfred_performer.data import GUIDED_TAG, MOVE_AHEAD, base_task_id, blocked_steps
+    from dialfred_performer.nn.enc_action import failed_id
+    from dialfred_sim.env import DialfredEnv
+    from dialfred_sim.protocol import ACTIONS
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    plain = DemonstrationDataset(folder, vocab, 64, streams=1, stream=True, guided=guided)
+    bumped = DemonstrationDataset(folder, vocab, 64, streams=1, stream=True, guided=guided, blocked=1.0)
+    env = DialfredEnv(resolution=64)
+    found = 0
+    for pos, k in enumerate(bumped.task_indices):
+        task = bumped.demo.tasks[k]
+        steps = blocked_steps(task, bumped.dialogues[task['task_id']].qas)
+        assert not steps or task['task_id'].endswith(GUIDED_TAG)
+        for at in steps:
+            env.reset(options={'task_id': base_task_id(task['task_id'])})
+            for name, x, y, _ in task['actions'][:at]:
+                env.step({'action': name, 'pixel': (x, y)})
+            assert not env.step({'action': 'MoveAhead', 'pixel': (-1, -1)})[4]['last_action_success']
+        index = pos * bumped.per_task
+        item, before = bumped[index], plain[index]
+        assert len(item['actions']) == len(before['actions']) + len(steps)
+        for n, at in enumerate(steps):
+            here = at + n                                  # the earlier bumps' rows come first
+            assert item['actions'][here] == MOVE_AHEAD and not item['action_valid'][here]
+            assert item['frame_ids'][here] == item['frame_ids'][here + 1]
+            assert item['previous_actions'][here + 1] == failed_id(MOVE_AHEAD, len(ACTIONS))
+            assert item['actions'][here + 1] == before['actions'][at] != MOVE_AHEAD
+        found += len(steps)
+    env.close()
+    assert found, 'no blocked move in the guided walks of the first tasks: take more tasks'
+    bumped.no_recovery = set(range(len(bumped.task_indices)))          # every task held out: no bumps
+    assert all(len(bumped[i]['actions']) == len(plain[i]['actions']) for i in range(len(bumped)))
+    with pytest.raises(ValueError, match='guided build'):
+        DemonstrationDataset(folder, vocab, 64, blocked=0.5)
+    with pytest.raises(ValueError, match='--failed-moves'):
+        TrainConfig(demonstrations=str(folder), guided=str(guided), blocked=0.5,
+                    model=PerformerConfig(failure_input=True))
+    with pytest.raises(ValueError, match='needs failure_input'):
+        PerformerConfig(failed_moves=True)

@@ -5,7 +5,8 @@ frame the expert approached from, with the failed id as the next previous action
 action and pointer not targets, and the later QAs moved one step with their frames; the places it may
 go are the navigation steps right before an interaction; the dataset makes them for the chosen share
 of training items only (never for held-out tasks); the loss ignores the inserted click; the agent
-feeds the failed id when the observation says its interaction failed, and only then; training with
+feeds the failed id when the observation says its interaction failed (or, with failed_moves, its MoveAhead
+was blocked), and only then; training with
 --recovery needs --failure-input; a run may start from a performer without it (--init).
 """
 
@@ -110,14 +111,14 @@ def test_the_loss_ignores_the_inserted_click(folder):
     assert performer_loss(outputs, changed)[1]['action'] != parts['action']
 
 
-def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction(folder):
+def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction_or_a_blocked_move_if_asked(folder):
     vocab = Vocabulary.load(folder / VOCABULARY_FILE)
     frame = np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8)
 
-    def after(first: str, success, incremental: bool = True) -> tuple[list[int], np.ndarray]:
+    def after(first: str, success, incremental: bool = True, config=TINY) -> tuple[list[int], np.ndarray]:
         """The previous actions and the action probabilities at step 1, after `first` and a reply `success`."""
         torch.manual_seed(0)
-        model = Performer(TINY, len(vocab))
+        model = Performer(config, len(vocab))
         with torch.no_grad():
             model.action_head.linear.bias[A[first]] += 50.0          # the first action is `first`
         agent = PerformerAgent(model, vocab, incremental=incremental)
@@ -134,6 +135,10 @@ def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction(folder):
     assert np.allclose(after('Pickup', False, incremental=False)[1], p_failed, atol=1e-5)   # both paths alike
     assert after('Pickup', None)[0] == [START, A['Pickup']]               # no outcome given: the default, done
     assert after('MoveAhead', False)[0] == [START, A['MoveAhead']]       # a blocked move is not a failed click
+    moves = dataclasses.replace(TINY, failed_moves=True)                   # unless blocked moves are failures too
+    assert after('MoveAhead', False, config=moves)[0] == [START, failed_id(A['MoveAhead'], len(ACTIONS))]
+    assert after('MoveAhead', True, config=moves)[0] == [START, A['MoveAhead']]
+    assert after('RotateLeft', False, config=moves)[0] == [START, A['RotateLeft']]
 
 
 def test_recovery_needs_the_failure_input():

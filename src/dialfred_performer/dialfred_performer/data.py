@@ -28,6 +28,12 @@ where the expert was still approaching (that step's action is not a target), and
 follows (nothing moved) with the failed action as the previous one and the expert's approach as the
 target. The frames are the demonstration's own: no render.
 
+Bumps (`blocked` > 0, guided walks only; the performer's `failed_moves`): a guided walk never tries a move
+that is blocked; it takes the expert's way round (`blocked_steps` finds where). A performer that does as it
+is told walks into the obstacle, sees the same frame, and without being told it failed does it again until
+the episode ends on failures. A share of the guided items get that failed MoveAhead inserted before each
+sidestep (`insert_failed_action`), so the way round follows a bump as it will in a run.
+
 `dialogues.jsonl`, one line per task: {"task_id": ..., "every_step": true, "qas": [{"question_type",
 "object_noun", "valid", "answer", "reason", "step"}, ...]} (`preprocess.qa_to_dict`): the log of changes
 (a line without "every_step", as folders made before the log, holds the QAs of step 0 and the middle).
