@@ -318,3 +318,24 @@ def test_a_guided_item_bumps_into_each_blocked_move_then_takes_the_walks_way_rou
                     model=PerformerConfig(failure_input=True))
     with pytest.raises(ValueError, match='needs failure_input'):
         PerformerConfig(failed_moves=True)
+
+
+def test_without_stream_directions_only_the_guided_walks_hear_the_direction_at_many_steps(folder, guided):
+    """--no-stream-directions: the stream items of the plain episodes ask no direction; the paper's items and
+    every item of a guided walk keep theirs, the same as with it."""
+    from dialfred_performer.data import GUIDED_TAG
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    both = DemonstrationDataset(folder, vocab, 64, streams=3, stream=True, guided=guided)
+    some = DemonstrationDataset(folder, vocab, 64, streams=3, stream=True, guided=guided, stream_directions=False)
+    papers = len(both.combinations)
+    heard_before = 0
+    for index in range(len(both)):
+        pos, c = divmod(index, both.per_task)
+        walk = both.demo.tasks[both.task_indices[pos]]['task_id'].endswith(GUIDED_TAG)
+        before, after = both.dialogue(index), some.dialogue(index)
+        if c < papers or walk:
+            assert _as_text(after) == _as_text(before)
+        else:
+            heard_before += any(a.qa.question.question_type == 'direction' for a in before)
+            assert not any(a.qa.question.question_type == 'direction' for a in after)
+    assert heard_before

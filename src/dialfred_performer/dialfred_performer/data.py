@@ -147,7 +147,7 @@ class DemonstrationDataset(Dataset):
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
                  streams: int = 0, stream: bool = False, reworded: float = 0.0, detours: Optional[Path] = None,
-                 guided: Optional[Path] = None, blocked: float = 0.0):
+                 guided: Optional[Path] = None, blocked: float = 0.0, stream_directions: bool = True):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         # Builds of the same tasks with detours, or with guided walks: their episodes join these.
@@ -176,6 +176,9 @@ class DemonstrationDataset(Dataset):
                              'stream items need the answers of every step (make it again with prepare-performer)')
         self.streams = streams if self.dialogues else 0
         self.stream = stream                  # every item's language is encoded as an answer stream
+        # False: the stream items of plain and detour episodes ask no direction (the expert's shortest way often
+        # walks on where the answer says to turn); a guided walk's items still hear it at every step.
+        self.stream_directions = stream_directions
         if not 0 <= reworded <= 1:
             raise ValueError(f'reworded is a probability, got {reworded}')
         self.reworded = reworded              # the share of answers said in the annotator's words (`reword`)
@@ -223,6 +226,8 @@ class DemonstrationDataset(Dataset):
         if task['task_id'].endswith(GUIDED_TAG):
             return guided_dialogue(qas, self.steps_of(self.task_indices[k]), rng)
         if c >= len(self.combinations):
+            if not self.stream_directions:
+                qas = [a for a in qas if a.qa.question.question_type != 'direction']
             return stream_dialogue(qas, self.steps_of(self.task_indices[k]), rng)
         chosen = []
         for qtype in self.combinations[c]:

@@ -93,6 +93,9 @@ class TrainConfig:
     guided: str = arg('', "a demonstrations folder of the same tasks made with --guided (prepare-performer): its "
                           "episodes (the last go-to walked as the direction answers say) join the training's, "
                           "each with the direction answer at every step (data.guided_dialogue), as many items")
+    stream_directions: bool = arg(True, "the stream items of the plain and detour episodes ask for directions too "
+                                        "(--no-stream-directions: only a guided walk's items hear the direction at "
+                                        "many steps, where every move is what it says; the paper's items keep theirs)")
     reworded: float = arg(0.0, "the share of training answers said in the synthetic annotator's words instead of the "
                                "oracle's templates (data.reword; the vocabulary then also has the annotator's words)")
     vocabulary: str = arg('', "vocabulary.json; '' = the training folder's, else built from its texts")
@@ -266,7 +269,8 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
                                  grid_size=m.grid_size, recovery=cfg.recovery, streams=cfg.streams,
                                  stream=m.stream_answers, reworded=cfg.reworded,
                                  detours=Path(cfg.detours) if cfg.detours else None,
-                                 guided=Path(cfg.guided) if cfg.guided else None, blocked=cfg.blocked)
+                                 guided=Path(cfg.guided) if cfg.guided else None, blocked=cfg.blocked,
+                                 stream_directions=cfg.stream_directions)
     if not cfg.dialogues:
         train.combinations, train.streams = ((),), 0
     combos = train.per_task
