@@ -339,3 +339,27 @@ def test_without_stream_directions_only_the_guided_walks_hear_the_direction_at_m
             heard_before += any(a.qa.question.question_type == 'direction' for a in before)
             assert not any(a.qa.question.question_type == 'direction' for a in after)
     assert heard_before
+
+
+def test_with_fresh_directions_a_guided_item_hears_each_steps_direction_at_that_step_only(folder, guided):
+    """fresh_directions: the items' direction answers hold for their own step (the guided walk's at every step,
+    the oldest giving way first over max_tokens); the other types' as before."""
+    from dialfred_performer.data import GUIDED_TAG
+    from dialfred_performer.preprocess import type_of_question
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    ds = DemonstrationDataset(folder, vocab, 64, streams=1, stream=True, guided=guided, fresh=('direction',))
+    plain = DemonstrationDataset(folder, vocab, 64, streams=1, stream=True, guided=guided)
+    direction = type_of_question()['direction']
+    walks = [pos for pos, k in enumerate(ds.task_indices) if ds.demo.tasks[k]['task_id'].endswith(GUIDED_TAG)]
+    assert walks
+    for pos in walks:
+        item, before = ds[pos * ds.per_task], plain[pos * ds.per_task]
+        spans = {(int(s), int(u)) for t, s, u in zip(item['lang_types'], item['lang_steps'], item['lang_until'])
+                 if t == direction}
+        assert spans and all(u == s + 1 for s, u in spans)
+        last = ds.steps_of(ds.task_indices[pos]) - 1
+        assert max(s for s, _ in spans) == last                  # the newest kept: the last step's
+        others = lambda it: [(int(t), int(s)) for t, s in zip(it['lang_types'], it['lang_steps']) if t != direction]
+        assert set(others(item)) <= set(others(before))
+    with pytest.raises(ValueError, match='stream=True'):
+        DemonstrationDataset(folder, vocab, 64, fresh=('direction',))

@@ -18,7 +18,7 @@ import torch
 
 from dialfred_performer.agent import PerformerAgent
 from dialfred_performer.model import Performer, PerformerConfig
-from dialfred_performer.preprocess import Vocabulary
+from dialfred_performer.preprocess import Vocabulary, type_of_question
 from dialfred_sim.protocol import ACTIONS, QA, Observation, Question
 from dialfred_sim.env import DialfredEnv
 
@@ -64,13 +64,13 @@ def test_the_decision_benchmark_prints_ms_per_step_at_steps_1_20_60():
         assert set(report[path]['ms_per_step_median']) == {'step_1', 'step_20', 'step_60'}
 
 
-def _twin_agents(max_tokens: int = 256, stream: bool = False):
+def _twin_agents(max_tokens: int = 256, stream: bool = False, fresh: bool = False):
     from types import SimpleNamespace as NS
     vocab = Vocabulary.build(['put the red apple in the fridge', 'the apple is to your left in the fridge .',
                               'you should turn around', 'it is red and made of plastic'])
     torch.manual_seed(3)
     model = Performer(PerformerConfig(resolution=RES, d_model=32, heads=2, layers=2, ff=64, max_tokens=max_tokens,
-                                      stream_answers=stream), len(vocab))
+                                      stream_answers=stream, fresh_directions=fresh), len(vocab))
     task = NS(instruction='put the red apple in the fridge', object_nouns=['apple', 'fridge'])
     return PerformerAgent(model, vocab, incremental=True), PerformerAgent(model, vocab, incremental=False), task
 
@@ -145,6 +145,27 @@ def test_an_answer_stream_decides_the_same_incrementally_and_over_the_whole_epis
     from dialfred_performer.preprocess import NEVER
     superseded = {(s, u) for s, u in zip(lang.steps, lang.until) if u != NEVER}
     assert superseded == {(0, 4), (0, 6), (4, 6), (6, 9), (9, 9)}    # (asked at, superseded at); repeats left out
+
+
+def test_fresh_directions_are_heard_at_their_own_step_only_and_decide_the_same_incrementally():
+    """fresh_directions: a direction answer is seen at the step it is heard at only (a repeat at a later step is
+    heard again, one at the same step is not); the location's stream is as before; the incremental step still
+    equals reading the whole episode again."""
+    from dialfred_performer.preprocess import NEVER
+    incremental, full, task = _twin_agents(max_tokens=40, stream=True, fresh=True)
+    rng = np.random.default_rng(5)
+    frames = [rng.integers(0, 256, (RES, RES, 3), dtype=np.uint8) for _ in range(12)]
+    qas = _stream_qas()
+    qas[9].append(qas[9][-1])                                        # asked twice at one step: heard once
+    _play_twins(incremental, full, task, frames, qas)
+    lang = incremental.language_input()
+    direction = type_of_question()['direction']
+    spans = sorted({(s, u) for t, s, u in zip(lang.types, lang.steps, lang.until) if t == direction})
+    assert spans == [(0, 1), (3, 4), (4, 5), (6, 7), (7, 8), (9, 9), (9, 10)]   # 9: turn left, then around
+    location = {(s, u) for t, s, u in zip(lang.types, lang.steps, lang.until) if t == type_of_question()['location']}
+    assert location == {(0, 6), (6, 9), (9, NEVER)}
+    with pytest.raises(ValueError, match='stream_answers'):
+        PerformerConfig(fresh_directions=True)
 
 
 def test_an_answer_stream_is_read_at_each_step_as_training_reads_the_episode():

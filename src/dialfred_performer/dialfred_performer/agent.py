@@ -88,7 +88,8 @@ class PerformerAgent:
         """The language the model reads now (preprocess.encode_language over the dialogue so far; an answer
         stream for a model trained on answers at any step, kept whole: its positions never outgrow the table)."""
         if self.config.stream_answers:
-            return encode_language(self.vocab, self.instruction, self.dialogue, stream=True, table=self.config.max_tokens)
+            return encode_language(self.vocab, self.instruction, self.dialogue, stream=True, table=self.config.max_tokens,
+                                   fresh=self.config.fresh_types)
         return encode_language(self.vocab, self.instruction, self.dialogue, self.config.max_tokens)
 
     def _outputs(self, observation: Observation) -> StepOutputs:

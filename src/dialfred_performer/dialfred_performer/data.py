@@ -147,7 +147,8 @@ class DemonstrationDataset(Dataset):
                  combinations: Optional[Sequence[tuple[str, ...]]] = None, seed: int = 0,
                  only_successful: bool = True, grid_size: int = 0, recovery: float = 0.0,
                  streams: int = 0, stream: bool = False, reworded: float = 0.0, detours: Optional[Path] = None,
-                 guided: Optional[Path] = None, blocked: float = 0.0, stream_directions: bool = True):
+                 guided: Optional[Path] = None, blocked: float = 0.0, stream_directions: bool = True,
+                 fresh: Sequence[str] = ()):
         self.demo = load_demonstrations(demonstrations_dir)
         self.dialogues = load_dialogues(Path(demonstrations_dir) / DIALOGUES_FILE)
         # Builds of the same tasks with detours, or with guided walks: their episodes join these.
@@ -176,6 +177,9 @@ class DemonstrationDataset(Dataset):
                              'stream items need the answers of every step (make it again with prepare-performer)')
         self.streams = streams if self.dialogues else 0
         self.stream = stream                  # every item's language is encoded as an answer stream
+        if fresh and not stream:
+            raise ValueError('fresh answers are a kind of answer stream: they need stream=True')
+        self.fresh = tuple(fresh)             # types whose answers hold for their own step only
         # False: the stream items of plain and detour episodes ask no direction (the expert's shortest way often
         # walks on where the answer says to turn); a guided walk's items still hear it at every step.
         self.stream_directions = stream_directions
@@ -260,7 +264,7 @@ class DemonstrationDataset(Dataset):
         dialogue = self.dialogue(index)
         if self.reworded:
             dialogue = reword(dialogue, self.reworded, (self.seed, index))
-        lang = encode_language(self.vocab, task['instruction'], dialogue, self.max_tokens, self.stream)
+        lang = encode_language(self.vocab, task['instruction'], dialogue, self.max_tokens, self.stream, fresh=self.fresh)
         item = {'task_id': task['task_id'], 'actions': actions,
                 'frame_ids': torch.arange(task['first_frame'], task['first_frame'] + len(names)),
                 'previous_actions': torch.cat([torch.tensor([START]), actions[:-1]]),

@@ -71,16 +71,26 @@ class PerformerConfig:
                                'a repeat adds nothing, a newer answer of a (type, noun) supersedes the older from its '
                                "step on, each QA's positions restart after the instruction; trained on answers at any "
                                'step (--streams)')
+    fresh_directions: bool = arg(False, "with --stream-answers: a direction answer holds for the step it is heard at "
+                                 "only (it says where to go from where the agent stood), so one heard at every step "
+                                 "is heard afresh at each and one heard once does not steer the steps after it")
 
     def __post_init__(self):
         if self.visual not in ('cnn', 'perception'):
             raise ValueError(f"visual must be 'cnn' or 'perception', got {self.visual!r}")
         if self.frozen_arithmetic not in ('fp32', 'bf16'):
             raise ValueError(f"frozen_arithmetic must be 'fp32' or 'bf16', got {self.frozen_arithmetic!r}")
+        if self.fresh_directions and not self.stream_answers:
+            raise ValueError('fresh_directions is a way of reading an answer stream: it needs stream_answers')
         if self.failed_moves and not self.failure_input:
             raise ValueError('failed_moves is a kind of failure input: it needs failure_input')
         if self.visual == 'perception' and not self.perception_net:
             raise ValueError("visual='perception' needs perception_net (train with --perception PATH)")
+
+    @property
+    def fresh_types(self) -> tuple[str, ...]:
+        """The answer types that hold for the step they are heard at only (preprocess.encode_language's fresh)."""
+        return ('direction',) if self.fresh_directions else ()
 
     @property
     def grid_size(self) -> int:

@@ -22,7 +22,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Optional, Sequence
+from typing import Collection, Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -163,7 +163,8 @@ class LanguageInput:
 
 
 def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA] = (),
-                    max_tokens: int | None = None, stream: bool = False, table: int | None = None) -> LanguageInput:
+                    max_tokens: int | None = None, stream: bool = False, table: int | None = None,
+                    fresh: Collection[str] = ()) -> LanguageInput:
     """The instruction, then every QA of `dialogue` in order, as ids, types and steps. With
     `max_tokens`, the instruction is kept and the oldest QAs are dropped first until it fits.
 
@@ -174,9 +175,13 @@ def encode_language(vocab: Vocabulary, instruction: str, dialogue: Sequence[Aske
     its answers is placed there (positions restart at its slot), so that the stream may grow without
     outgrowing the position table (`table`, default `max_tokens` or 256: slots wrap where more would
     not fit) and the answers heard together never share a position; over `max_tokens` the oldest
-    superseded QAs give way first, then the oldest QAs."""
+    superseded QAs give way first, then the oldest QAs. An answer of a type in `fresh` (a stream's; a direction
+    answer says where to go from where the agent stands when it hears it) holds for the step it is heard at
+    only: it is gone from the next step on, and a repeat of it there is heard again."""
     if stream:
-        return _encode_stream(vocab, instruction, dialogue, max_tokens, table or max_tokens or STREAM_TABLE)
+        return _encode_stream(vocab, instruction, dialogue, max_tokens, table or max_tokens or STREAM_TABLE, fresh)
+    if fresh:
+        raise ValueError('fresh answers are a kind of answer stream: they need stream=True')
     ins = tokenize(instruction)
     ids, types, steps = vocab.ids(ins), [TYPE_INSTRUCTION] * len(ins), [0] * len(ins)
     parts, token_type = [], type_of_question()
@@ -200,9 +205,10 @@ def qa_key(asked: AskedQA) -> tuple[str, str]:
     return asked.qa.question.question_type, asked.qa.question.object_noun
 
 
-def stream_qas(dialogue: Sequence[AskedQA]) -> list[tuple[AskedQA, int]]:
-    """(QA, the step a newer answer of its (type, noun) supersedes it, or NEVER) for each QA of `dialogue`
-    that says something new: a QA repeating the answer its (type, noun) last got is left out."""
+def stream_qas(dialogue: Sequence[AskedQA], fresh: Collection[str] = ()) -> list[tuple[AskedQA, int]]:
+    """(QA, the step from which it is no longer heard, or NEVER) for each QA of `dialogue` that says something
+    new: a QA repeating the answer its (type, noun) last got while that answer still holds is left out; a
+    newer answer supersedes it from its step on; an answer of a type in `fresh` holds for its own step only."""
     kept: list[list] = []
     current: dict[tuple[str, str], int] = {}
     for asked in dialogue:
@@ -210,13 +216,13 @@ def stream_qas(dialogue: Sequence[AskedQA]) -> list[tuple[AskedQA, int]]:
             raise ValueError(f'a QA is asked at a step >= 0, got {asked.step}')
         q, key = asked.qa, qa_key(asked)
         last = current.get(key)
-        if last is not None:
+        if last is not None and kept[last][1] > asked.step:           # the last answer still holds
             old = kept[last][0].qa
             if (old.valid, old.answer) == (q.valid, q.answer):
                 continue
             kept[last][1] = asked.step
         current[key] = len(kept)
-        kept.append([asked, NEVER])
+        kept.append([asked, asked.step + 1 if q.question.question_type in fresh else NEVER])
     return [(a, until) for a, until in kept]
 
 
@@ -226,12 +232,12 @@ STREAM_SLOT, STREAM_TABLE = 24, 256
 
 
 def _encode_stream(vocab: Vocabulary, instruction: str, dialogue: Sequence[AskedQA],
-                   max_tokens: Optional[int], table: int) -> LanguageInput:
+                   max_tokens: Optional[int], table: int, fresh: Collection[str] = ()) -> LanguageInput:
     ins = tokenize(instruction)[:max_tokens]
     token_type = type_of_question()
     slot_of: dict[tuple[str, str], int] = {}
     parts = []
-    for a, until in stream_qas(dialogue):          # slots by first appearance, before any QA gives way
+    for a, until in stream_qas(dialogue, fresh):   # slots by first appearance, before any QA gives way
         parts.append((qa_tokens(a.qa), a, until, slot_of.setdefault(qa_key(a), len(slot_of))))
     slots = max(1, (table - len(ins)) // STREAM_SLOT)
     if max_tokens is not None:

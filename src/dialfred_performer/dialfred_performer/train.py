@@ -270,14 +270,15 @@ def load_data(cfg: TrainConfig, vocab: Vocabulary) -> Data:
                                  stream=m.stream_answers, reworded=cfg.reworded,
                                  detours=Path(cfg.detours) if cfg.detours else None,
                                  guided=Path(cfg.guided) if cfg.guided else None, blocked=cfg.blocked,
-                                 stream_directions=cfg.stream_directions)
+                                 stream_directions=cfg.stream_directions, fresh=m.fresh_types)
     if not cfg.dialogues:
         train.combinations, train.streams = ((),), 0
     combos = train.per_task
     every = list(range(len(train)))
     if cfg.validation:
         val = DemonstrationDataset(Path(cfg.validation), vocab, m.resolution, m.max_tokens, seed=cfg.seed,
-                                   grid_size=m.grid_size, streams=cfg.streams, stream=m.stream_answers)
+                                   grid_size=m.grid_size, streams=cfg.streams, stream=m.stream_answers,
+                                   fresh=m.fresh_types)
         if not cfg.dialogues:
             val.combinations, val.streams = ((),), 0
         return Data(train, every, val, list(range(len(val))))
