@@ -6,7 +6,7 @@ action and pointer not targets, and the later QAs moved one step with their fram
 go are the navigation steps right before an interaction; the dataset makes them for the chosen share
 of training items only (never for held-out tasks); the loss ignores the inserted click; the agent
 feeds the failed id when the observation says its interaction failed (or, with failed_moves, its MoveAhead
-was blocked), and only then; training with
+was blocked, and then never walks into it again at once), and only then; training with
 --recovery needs --failure-input; a run may start from a performer without it (--init).
 """
 
@@ -139,6 +139,27 @@ def test_the_agent_feeds_the_failed_id_only_after_a_failed_interaction_or_a_bloc
     assert after('MoveAhead', False, config=moves)[0] == [START, failed_id(A['MoveAhead'], len(ACTIONS))]
     assert after('MoveAhead', True, config=moves)[0] == [START, A['MoveAhead']]
     assert after('RotateLeft', False, config=moves)[0] == [START, A['RotateLeft']]
+
+
+def test_with_failed_moves_the_agent_does_not_walk_again_into_what_just_blocked_it(folder):
+    vocab = Vocabulary.load(folder / VOCABULARY_FILE)
+    frame = np.random.default_rng(1).integers(0, 255, (64, 64, 3), dtype=np.uint8)
+
+    def second(config, success: bool) -> str:
+        torch.manual_seed(0)
+        model = Performer(config, len(vocab))
+        with torch.no_grad():
+            model.action_head.linear.bias[A['MoveAhead']] += 50.0      # it always wants to walk on
+        agent = PerformerAgent(model, vocab)
+        agent.reset(SimpleNamespace(instruction='Walk to the sofa.'))
+        assert agent.act(Observation(rgb=frame))[0] == 'MoveAhead'
+        return agent.act(Observation(rgb=frame, last_action_success=success))[0]
+
+    moves = dataclasses.replace(TINY, failed_moves=True)
+    assert second(moves, True) == 'MoveAhead'
+    blocked = second(moves, False)
+    assert blocked != 'MoveAhead' and blocked in ACTIONS
+    assert second(TINY, False) == 'MoveAhead'            # without failed_moves it does not know it was blocked
 
 
 def test_recovery_needs_the_failure_input():

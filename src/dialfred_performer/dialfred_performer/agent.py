@@ -125,10 +125,16 @@ class PerformerAgent:
 
     def act(self, observation: Observation) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
-        in the observation's frame."""
+        in the observation's frame. With `failed_moves`, never a MoveAhead right after one the world blocked
+        (from the same pose it would fail again): the likeliest other action."""
         out = self._outputs(observation)
         grid = out.grid
-        action = int(out.action_logits.argmax())
+        logits = out.action_logits
+        if self.config.failed_moves and self.state.previous_actions[-1] == failed_id(MOVE_AHEAD, len(ACTIONS)):
+            # The world is deterministic: a MoveAhead it just blocked, from the same pose, would fail again.
+            logits = logits.clone()
+            logits[MOVE_AHEAD] = float('-inf')
+        action = int(logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
             grid, pointer_logits = self.model.step_pointer(out)
