@@ -30,6 +30,8 @@ from .nn.enc_action import failed_id
 from .nn.heads import cell_centre_pixel
 from .preprocess import AskedQA, Vocabulary, encode_language
 
+TURNS = (ACTIONS.index('RotateLeft'), ACTIONS.index('RotateRight'))
+
 
 class PerformerAgent:
     """A trained (or untrained) `Performer` playing one episode at a time; greedy decisions.
@@ -125,16 +127,17 @@ class PerformerAgent:
 
     def act(self, observation: Observation) -> Decision:
         """The next (action, x, y); for an interaction, (x, y) is the centre of the pointer's cell
-        in the observation's frame. With `failed_moves`, never a MoveAhead right after one the world blocked
-        (from the same pose it would fail again): the likeliest other action."""
+        in the observation's frame. With `failed_moves`, right after a MoveAhead the world blocked (from the same
+        pose it would fail again), the likelier of the two turns."""
         out = self._outputs(observation)
         grid = out.grid
         logits = out.action_logits
         if self.config.failed_moves and self.state.previous_actions[-1] == failed_id(MOVE_AHEAD, len(ACTIONS)):
-            # The world is deterministic: a MoveAhead it just blocked, from the same pose, would fail again.
-            logits = logits.clone()
-            logits[MOVE_AHEAD] = float('-inf')
-        action = int(logits.argmax())
+            # The world is deterministic: from the same pose the blocked MoveAhead would fail again; a turn
+            # starts the way round (the guided walks' sidesteps, which the model learnt, start so).
+            action = max(TURNS, key=lambda a: float(logits[a]))
+        else:
+            action = int(logits.argmax())
         x = y = -1
         if action in INTERACTION_IDS:
             grid, pointer_logits = self.model.step_pointer(out)
