@@ -122,7 +122,8 @@ class PerformerAgent:
             self.state.previous_actions[-1] = failed_id(previous, len(ACTIONS))
 
     def action_probabilities(self, observation: Observation) -> np.ndarray:
-        """Probabilities over ACTIONS of the next action given `observation`."""
+        """Probabilities over ACTIONS of the next action given `observation` (the model's: `act` takes the likeliest,
+        but for a `failed_moves` model's turn after a bump)."""
         return torch.softmax(self._outputs(observation).action_logits, -1).numpy()
 
     def act(self, observation: Observation) -> Decision:
